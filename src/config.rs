@@ -1,0 +1,354 @@
+//! Typed settings, loaded with the `config` crate from the defaults in
+//! `config/opennav.toml` (built in), an optional file, and `OPENNAV_*`
+//! environment variables (`OPENNAV_PERCEPTION__SCORE_THRESHOLD=0.3`).
+//! Unknown keys and out-of-range values are errors naming the key.
+
+use std::path::{Path, PathBuf};
+
+use config::{Config, Environment, File, FileFormat};
+use serde::Deserialize;
+use thiserror::Error;
+
+use crate::perception::calibration::TransformSpec;
+use crate::perception::detector::DetectorSettings;
+use crate::perception::pipeline::GeometrySettings;
+use crate::perception::runtime::{ExecutionProviderKind, SessionSettings};
+use crate::perception::segmenter::DepthSegmenterSettings;
+
+pub const DEFAULT_TOML: &str = include_str!("../config/opennav.toml");
+
+#[derive(Debug, Error)]
+pub enum ConfigError {
+    #[error("configuration: {0}")]
+    Load(String),
+    #[error("configuration key `{key}` = {value}: {reason}")]
+    Range {
+        key: String,
+        value: String,
+        reason: String,
+    },
+}
+
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Settings {
+    pub runtime: RuntimeSection,
+    pub models: ModelsSection,
+    pub perception: PerceptionSection,
+    pub camera: CameraSection,
+}
+
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct RuntimeSection {
+    pub onnxruntime_library: String,
+    pub execution_provider: ExecutionProviderKind,
+    pub intra_threads: usize,
+    pub inter_threads: usize,
+}
+
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ModelsSection {
+    pub dir: PathBuf,
+}
+
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum SegmenterChoice {
+    Auto,
+    Sam,
+    Depth,
+}
+
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct PerceptionSection {
+    pub detector: String,
+    pub segmenter: SegmenterChoice,
+    pub score_threshold: f32,
+    pub nms_iou: f32,
+    pub max_detections: usize,
+    pub erosion_iterations: usize,
+    pub zscore_tau: f64,
+    pub min_points: usize,
+    pub min_depth_m: f32,
+    pub max_depth_m: f32,
+    pub merge_iou: f64,
+    pub depth_segmenter: DepthSegmenterSection,
+}
+
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct DepthSegmenterSection {
+    pub bin_m: f32,
+    pub center_fraction: f32,
+    pub mode_tolerance_m: f32,
+    pub step_m: f32,
+    pub step_per_m: f32,
+}
+
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct CameraSection {
+    pub base_from_camera: TransformSpec,
+}
+
+fn range<T: PartialOrd + std::fmt::Display + Copy>(
+    key: &str,
+    v: T,
+    lo: T,
+    hi: T,
+) -> Result<(), ConfigError> {
+    if v >= lo && v <= hi {
+        Ok(())
+    } else {
+        Err(ConfigError::Range {
+            key: key.into(),
+            value: v.to_string(),
+            reason: format!("out of range [{lo}, {hi}]"),
+        })
+    }
+}
+
+fn finite_range(key: &str, v: f64, lo: f64, hi: f64) -> Result<(), ConfigError> {
+    if !v.is_finite() {
+        return Err(ConfigError::Range {
+            key: key.into(),
+            value: v.to_string(),
+            reason: "not a finite number".into(),
+        });
+    }
+    range(key, v, lo, hi)
+}
+
+impl Settings {
+    /// Defaults, then `file` (when given), then the environment.
+    pub fn load(file: Option<&Path>) -> Result<Settings, ConfigError> {
+        Self::load_with_env(file, std::env::vars())
+    }
+
+    /// As [`load`](Self::load) with the environment passed in (tests).
+    pub fn load_with_env(
+        file: Option<&Path>,
+        env: impl IntoIterator<Item = (String, String)>,
+    ) -> Result<Settings, ConfigError> {
+        let mut b = Config::builder().add_source(File::from_str(DEFAULT_TOML, FileFormat::Toml));
+        if let Some(f) = file {
+            if !f.is_file() {
+                return Err(ConfigError::Load(format!("{}: no such file", f.display())));
+            }
+            b = b.add_source(File::from(f).format(FileFormat::Toml).required(true));
+        }
+        let env_map: config::Map<String, String> = env
+            .into_iter()
+            .filter(|(k, _)| k.starts_with("OPENNAV_"))
+            .collect();
+        b = b.add_source(
+            Environment::with_prefix("OPENNAV")
+                .prefix_separator("_")
+                .separator("__")
+                .try_parsing(true)
+                .source(Some(env_map)),
+        );
+        let cfg = b.build().map_err(|e| ConfigError::Load(e.to_string()))?;
+        let s: Settings = cfg
+            .try_deserialize()
+            .map_err(|e| ConfigError::Load(e.to_string()))?;
+        s.validate()?;
+        Ok(s)
+    }
+
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        range("runtime.intra_threads", self.runtime.intra_threads, 0, 64)?;
+        range("runtime.inter_threads", self.runtime.inter_threads, 0, 64)?;
+        let p = &self.perception;
+        finite_range(
+            "perception.score_threshold",
+            p.score_threshold as f64,
+            0.0,
+            1.0,
+        )?;
+        finite_range("perception.nms_iou", p.nms_iou as f64, 0.0, 1.0)?;
+        range("perception.max_detections", p.max_detections, 1, 1000)?;
+        range("perception.erosion_iterations", p.erosion_iterations, 0, 10)?;
+        finite_range("perception.zscore_tau", p.zscore_tau, 0.5, 10.0)?;
+        range("perception.min_points", p.min_points, 1, 100_000)?;
+        finite_range("perception.min_depth_m", p.min_depth_m as f64, 0.0, 20.0)?;
+        finite_range("perception.max_depth_m", p.max_depth_m as f64, 0.0, 20.0)?;
+        if p.min_depth_m >= p.max_depth_m {
+            return Err(ConfigError::Range {
+                key: "perception.min_depth_m".into(),
+                value: p.min_depth_m.to_string(),
+                reason: format!("must be below perception.max_depth_m ({})", p.max_depth_m),
+            });
+        }
+        finite_range("perception.merge_iou", p.merge_iou, 0.0, 1.0)?;
+        let d = &p.depth_segmenter;
+        finite_range(
+            "perception.depth_segmenter.bin_m",
+            d.bin_m as f64,
+            0.005,
+            0.5,
+        )?;
+        finite_range(
+            "perception.depth_segmenter.center_fraction",
+            d.center_fraction as f64,
+            0.05,
+            1.0,
+        )?;
+        finite_range(
+            "perception.depth_segmenter.mode_tolerance_m",
+            d.mode_tolerance_m as f64,
+            0.005,
+            0.5,
+        )?;
+        finite_range(
+            "perception.depth_segmenter.step_m",
+            d.step_m as f64,
+            0.001,
+            0.5,
+        )?;
+        finite_range(
+            "perception.depth_segmenter.step_per_m",
+            d.step_per_m as f64,
+            0.0,
+            0.2,
+        )?;
+        self.camera
+            .base_from_camera
+            .to_isometry("camera.base_from_camera")
+            .map_err(|e| ConfigError::Range {
+                key: "camera.base_from_camera".into(),
+                value: format!("{:?}", self.camera.base_from_camera),
+                reason: e.to_string(),
+            })?;
+        Ok(())
+    }
+
+    pub fn session_settings(&self) -> SessionSettings {
+        SessionSettings {
+            provider: self.runtime.execution_provider,
+            intra_threads: self.runtime.intra_threads,
+            inter_threads: self.runtime.inter_threads,
+        }
+    }
+
+    pub fn detector_settings(&self) -> DetectorSettings {
+        DetectorSettings {
+            score_threshold: self.perception.score_threshold,
+            nms_iou: self.perception.nms_iou,
+            max_detections: self.perception.max_detections,
+            session: self.session_settings(),
+        }
+    }
+
+    pub fn geometry_settings(&self) -> GeometrySettings {
+        let p = &self.perception;
+        GeometrySettings {
+            erosion_iterations: p.erosion_iterations,
+            zscore_tau: p.zscore_tau,
+            min_points: p.min_points,
+            min_depth_m: p.min_depth_m,
+            max_depth_m: p.max_depth_m,
+        }
+    }
+
+    pub fn depth_segmenter_settings(&self) -> DepthSegmenterSettings {
+        let d = &self.perception.depth_segmenter;
+        DepthSegmenterSettings {
+            bin_m: d.bin_m,
+            center_fraction: d.center_fraction,
+            mode_tolerance_m: d.mode_tolerance_m,
+            step_m: d.step_m,
+            step_per_m: d.step_per_m,
+        }
+    }
+
+    /// The ONNX Runtime library path from config (None when empty).
+    pub fn onnxruntime_library(&self) -> Option<PathBuf> {
+        let s = self.runtime.onnxruntime_library.trim();
+        (!s.is_empty()).then(|| PathBuf::from(s))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn env(pairs: &[(&str, &str)]) -> Vec<(String, String)> {
+        pairs
+            .iter()
+            .map(|(k, v)| (k.to_string(), v.to_string()))
+            .collect()
+    }
+
+    #[test]
+    fn defaults_load_and_match_the_paper() {
+        let s = Settings::load_with_env(None, env(&[])).unwrap();
+        assert_eq!(s.perception.zscore_tau, 2.0);
+        assert_eq!(s.perception.erosion_iterations, 1);
+        assert_eq!(s.perception.merge_iou, 0.8);
+        assert_eq!(s.runtime.execution_provider, ExecutionProviderKind::Cpu);
+    }
+
+    #[test]
+    fn environment_overrides() {
+        let s = Settings::load_with_env(
+            None,
+            env(&[
+                ("OPENNAV_PERCEPTION__SCORE_THRESHOLD", "0.15"),
+                ("OPENNAV_RUNTIME__EXECUTION_PROVIDER", "cuda"),
+                ("OPENNAV_PERCEPTION__DEPTH_SEGMENTER__BIN_M", "0.1"),
+            ]),
+        )
+        .unwrap();
+        assert_eq!(s.perception.score_threshold, 0.15);
+        assert_eq!(s.runtime.execution_provider, ExecutionProviderKind::Cuda);
+        assert_eq!(s.perception.depth_segmenter.bin_m, 0.1);
+    }
+
+    #[test]
+    fn unknown_key_is_named() {
+        let dir = tempfile::tempdir().unwrap();
+        let f = dir.path().join("c.toml");
+        std::fs::write(&f, "[perception]\nscore_treshold = 0.3\n").unwrap();
+        let e = Settings::load_with_env(Some(&f), env(&[]))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("score_treshold"), "{e}");
+        let e = Settings::load_with_env(None, env(&[("OPENNAV_PERCEPTION__BOGUS", "1")]))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("bogus"), "{e}");
+    }
+
+    #[test]
+    fn out_of_range_is_named() {
+        let dir = tempfile::tempdir().unwrap();
+        let f = dir.path().join("c.toml");
+        std::fs::write(&f, "[perception]\nzscore_tau = 0.0\n").unwrap();
+        let e = Settings::load_with_env(Some(&f), env(&[]))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("perception.zscore_tau"), "{e}");
+        std::fs::write(&f, "[perception]\nmin_depth_m = 5.0\nmax_depth_m = 4.0\n").unwrap();
+        let e = Settings::load_with_env(Some(&f), env(&[]))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("perception.min_depth_m"), "{e}");
+        std::fs::write(
+            &f,
+            "[camera]\nbase_from_camera = { rotation = [[2.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], translation_m = [0.0, 0.0, 0.0] }\n",
+        )
+        .unwrap();
+        let e = Settings::load_with_env(Some(&f), env(&[]))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("base_from_camera"), "{e}");
+        let e = Settings::load_with_env(Some(&dir.path().join("none.toml")), env(&[]))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("none.toml"), "{e}");
+    }
+}

@@ -1,0 +1,10 @@
+//! opennav: onboard software of a smart powered wheelchair.
+//!
+//! A person says or selects a word; the chair finds that object in 3D with
+//! its RGB-D camera and drives there by itself. See `ARCHITECTURE.md` in the
+//! shared design notes and the README for the map of modules.
+
+pub mod config;
+pub mod output;
+pub mod perception;
+pub mod types;

@@ -1,0 +1,357 @@
+//! Step 6: 3D boxes of object clouds (axis-aligned as in the paper, and
+//! oriented about the gravity axis), 3D IoU, and the cross-view merge.
+
+use nalgebra::Point3;
+use serde::Serialize;
+
+use crate::types::Frame;
+
+/// Axis-aligned box, metres.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Aabb {
+    pub min_m: [f64; 3],
+    pub max_m: [f64; 3],
+}
+
+impl Aabb {
+    pub fn from_points(points: &[Point3<f32>]) -> Option<Aabb> {
+        let first = points.first()?;
+        let mut min = [first.x as f64, first.y as f64, first.z as f64];
+        let mut max = min;
+        for p in points {
+            for (i, c) in [p.x as f64, p.y as f64, p.z as f64].into_iter().enumerate() {
+                min[i] = min[i].min(c);
+                max[i] = max[i].max(c);
+            }
+        }
+        Some(Aabb {
+            min_m: min,
+            max_m: max,
+        })
+    }
+
+    pub fn center_m(&self) -> [f64; 3] {
+        std::array::from_fn(|i| 0.5 * (self.min_m[i] + self.max_m[i]))
+    }
+
+    pub fn size_m(&self) -> [f64; 3] {
+        std::array::from_fn(|i| self.max_m[i] - self.min_m[i])
+    }
+
+    pub fn volume_m3(&self) -> f64 {
+        self.size_m().iter().product()
+    }
+
+    /// Intersection over union of two boxes (0 when both are empty).
+    pub fn iou(&self, other: &Aabb) -> f64 {
+        let mut inter = 1.0;
+        for i in 0..3 {
+            let lo = self.min_m[i].max(other.min_m[i]);
+            let hi = self.max_m[i].min(other.max_m[i]);
+            if hi <= lo {
+                return 0.0;
+            }
+            inter *= hi - lo;
+        }
+        let union = self.volume_m3() + other.volume_m3() - inter;
+        if union <= 0.0 {
+            0.0
+        } else {
+            inter / union
+        }
+    }
+}
+
+/// A box oriented about the frame's z axis (gravity in `base_link`/`odom`):
+/// `size_m` = (length along `yaw_rad`, width across it, height).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct OrientedBox {
+    pub center_m: [f64; 3],
+    pub size_m: [f64; 3],
+    pub yaw_rad: f64,
+}
+
+impl OrientedBox {
+    /// The minimum-area rectangle of the points' ground projection (rotating
+    /// calipers over the convex hull), extruded from min z to max z. The yaw
+    /// is the direction of the longer side, in (−π/2, π/2].
+    pub fn from_points(points: &[Point3<f32>]) -> Option<OrientedBox> {
+        let first = points.first()?;
+        let (mut zmin, mut zmax) = (first.z as f64, first.z as f64);
+        for p in points {
+            zmin = zmin.min(p.z as f64);
+            zmax = zmax.max(p.z as f64);
+        }
+        let xy: Vec<[f64; 2]> = points.iter().map(|p| [p.x as f64, p.y as f64]).collect();
+        let hull = convex_hull(xy);
+        let (cx, cy, len, wid, yaw) = min_area_rect(&hull);
+        Some(OrientedBox {
+            center_m: [cx, cy, 0.5 * (zmin + zmax)],
+            size_m: [len, wid, zmax - zmin],
+            yaw_rad: yaw,
+        })
+    }
+}
+
+/// Andrew's monotone chain; returns the hull counter-clockwise without
+/// repeating the first point (1 or 2 points for degenerate input).
+fn convex_hull(mut pts: Vec<[f64; 2]>) -> Vec<[f64; 2]> {
+    pts.sort_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
+    pts.dedup();
+    if pts.len() < 3 {
+        return pts;
+    }
+    let cross = |o: [f64; 2], a: [f64; 2], b: [f64; 2]| {
+        (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+    };
+    let mut lower: Vec<[f64; 2]> = Vec::new();
+    for &p in &pts {
+        while lower.len() >= 2 && cross(lower[lower.len() - 2], lower[lower.len() - 1], p) <= 0.0 {
+            lower.pop();
+        }
+        lower.push(p);
+    }
+    let mut upper: Vec<[f64; 2]> = Vec::new();
+    for &p in pts.iter().rev() {
+        while upper.len() >= 2 && cross(upper[upper.len() - 2], upper[upper.len() - 1], p) <= 0.0 {
+            upper.pop();
+        }
+        upper.push(p);
+    }
+    lower.pop();
+    upper.pop();
+    lower.extend(upper);
+    lower
+}
+
+/// Minimum-area enclosing rectangle of a convex polygon: (cx, cy, length,
+/// width, yaw of the length side).
+fn min_area_rect(hull: &[[f64; 2]]) -> (f64, f64, f64, f64, f64) {
+    match hull.len() {
+        0 => return (0.0, 0.0, 0.0, 0.0, 0.0),
+        1 => return (hull[0][0], hull[0][1], 0.0, 0.0, 0.0),
+        _ => {}
+    }
+    let mut best: Option<(f64, f64, f64, f64, f64, f64)> = None; // area, cx, cy, a, b, angle
+    for i in 0..hull.len() {
+        let p = hull[i];
+        let q = hull[(i + 1) % hull.len()];
+        let (dx, dy) = (q[0] - p[0], q[1] - p[1]);
+        let n = (dx * dx + dy * dy).sqrt();
+        if n == 0.0 {
+            continue;
+        }
+        let (ux, uy) = (dx / n, dy / n);
+        let (mut amin, mut amax, mut bmin, mut bmax) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+        for h in hull {
+            let a = h[0] * ux + h[1] * uy;
+            let b = -h[0] * uy + h[1] * ux;
+            amin = amin.min(a);
+            amax = amax.max(a);
+            bmin = bmin.min(b);
+            bmax = bmax.max(b);
+        }
+        let area = (amax - amin) * (bmax - bmin);
+        if best.is_none_or(|b| area < b.0 - 1e-12) {
+            let (ac, bc) = (0.5 * (amin + amax), 0.5 * (bmin + bmax));
+            let cx = ac * ux - bc * uy;
+            let cy = ac * uy + bc * ux;
+            best = Some((area, cx, cy, amax - amin, bmax - bmin, uy.atan2(ux)));
+        }
+    }
+    let Some((_, cx, cy, a, b, ang)) = best else {
+        return (hull[0][0], hull[0][1], 0.0, 0.0, 0.0);
+    };
+    let (len, wid, mut yaw) = if a >= b {
+        (a, b, ang)
+    } else {
+        (b, a, ang + std::f64::consts::FRAC_PI_2)
+    };
+    // a box is symmetric under a half turn: fold the yaw into (−π/2, π/2]
+    while yaw > std::f64::consts::FRAC_PI_2 + 1e-12 {
+        yaw -= std::f64::consts::PI;
+    }
+    while yaw <= -std::f64::consts::FRAC_PI_2 + 1e-12 {
+        yaw += std::f64::consts::PI;
+    }
+    (cx, cy, len, wid, yaw)
+}
+
+/// A detected object in 3D.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Object3D {
+    pub label: String,
+    pub score: f32,
+    pub frame: Frame,
+    pub points: Vec<Point3<f32>>,
+    pub aabb: Aabb,
+    pub obb: OrientedBox,
+    /// The 2D box it came from (colour pixels), when from one view.
+    pub box_xyxy: Option<[f32; 4]>,
+}
+
+impl Object3D {
+    /// Builds an object from its points; None when there are none.
+    pub fn from_points(
+        label: String,
+        score: f32,
+        frame: Frame,
+        points: Vec<Point3<f32>>,
+        box_xyxy: Option<[f32; 4]>,
+    ) -> Option<Object3D> {
+        let aabb = Aabb::from_points(&points)?;
+        let obb = OrientedBox::from_points(&points)?;
+        Some(Object3D {
+            label,
+            score,
+            frame,
+            points,
+            aabb,
+            obb,
+            box_xyxy,
+        })
+    }
+}
+
+/// Cross-view merge: objects of the same label (and frame) whose boxes'
+/// 3D IoU exceeds `iou_threshold` become one (union of points, boxes
+/// recomputed, highest score kept). Repeats until no pair qualifies, so
+/// chains of overlapping fragments collapse; order of the survivors follows
+/// the first member of each group.
+pub fn merge_objects(objects: Vec<Object3D>, iou_threshold: f64) -> Vec<Object3D> {
+    let mut objs = objects;
+    loop {
+        let mut merged_any = false;
+        let mut out: Vec<Object3D> = Vec::with_capacity(objs.len());
+        for o in objs {
+            let hit = out.iter_mut().find(|m| {
+                m.label == o.label && m.frame == o.frame && m.aabb.iou(&o.aabb) > iou_threshold
+            });
+            match hit {
+                Some(m) => {
+                    m.points.extend_from_slice(&o.points);
+                    m.score = m.score.max(o.score);
+                    if let (Some(a), Some(b)) = (
+                        Aabb::from_points(&m.points),
+                        OrientedBox::from_points(&m.points),
+                    ) {
+                        m.aabb = a;
+                        m.obb = b;
+                    }
+                    m.box_xyxy = None;
+                    merged_any = true;
+                }
+                None => out.push(o),
+            }
+        }
+        objs = out;
+        if !merged_any {
+            return objs;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cube(min: [f32; 3], max: [f32; 3]) -> Vec<Point3<f32>> {
+        let mut v = Vec::new();
+        for &x in &[min[0], max[0]] {
+            for &y in &[min[1], max[1]] {
+                for &z in &[min[2], max[2]] {
+                    v.push(Point3::new(x, y, z));
+                }
+            }
+        }
+        v
+    }
+
+    #[test]
+    fn aabb_center_size_and_iou_are_exact() {
+        let a = Aabb::from_points(&cube([0.0, 0.0, 0.0], [2.0, 1.0, 1.0])).unwrap();
+        assert_eq!(a.center_m(), [1.0, 0.5, 0.5]);
+        assert_eq!(a.size_m(), [2.0, 1.0, 1.0]);
+        let b = Aabb::from_points(&cube([1.0, 0.0, 0.0], [3.0, 1.0, 1.0])).unwrap();
+        // inter 1, union 2 + 2 − 1 = 3
+        assert!((a.iou(&b) - 1.0 / 3.0).abs() < 1e-12);
+        assert_eq!(a.iou(&a), 1.0);
+        let c = Aabb::from_points(&cube([5.0, 5.0, 5.0], [6.0, 6.0, 6.0])).unwrap();
+        assert_eq!(a.iou(&c), 0.0);
+    }
+
+    #[test]
+    fn oriented_box_recovers_a_rotated_rectangle() {
+        // a 2 m × 0.5 m rectangle rotated by 30°, centred at (1, −1), z 0..0.8
+        let yaw = 30f64.to_radians();
+        let (c, s) = (yaw.cos(), yaw.sin());
+        let mut pts = Vec::new();
+        for i in 0..=20 {
+            for j in 0..=5 {
+                let a = -1.0 + 2.0 * i as f64 / 20.0;
+                let b = -0.25 + 0.5 * j as f64 / 5.0;
+                for z in [0.0, 0.8] {
+                    pts.push(Point3::new(
+                        (1.0 + a * c - b * s) as f32,
+                        (-1.0 + a * s + b * c) as f32,
+                        z,
+                    ));
+                }
+            }
+        }
+        let o = OrientedBox::from_points(&pts).unwrap();
+        assert!((o.yaw_rad - yaw).abs() < 1e-5, "{}", o.yaw_rad);
+        assert!((o.size_m[0] - 2.0).abs() < 1e-5 && (o.size_m[1] - 0.5).abs() < 1e-5);
+        assert!((o.size_m[2] - 0.8).abs() < 1e-6);
+        assert!((o.center_m[0] - 1.0).abs() < 1e-5 && (o.center_m[1] + 1.0).abs() < 1e-5);
+    }
+
+    #[test]
+    fn oriented_box_of_degenerate_input() {
+        let one = [Point3::new(1.0f32, 2.0, 3.0)];
+        let o = OrientedBox::from_points(&one).unwrap();
+        assert_eq!(o.center_m, [1.0, 2.0, 3.0]);
+        assert_eq!(o.size_m, [0.0, 0.0, 0.0]);
+        let line = [Point3::new(0.0f32, 0.0, 0.0), Point3::new(0.0, 2.0, 0.0)];
+        let o = OrientedBox::from_points(&line).unwrap();
+        assert!((o.size_m[0] - 2.0).abs() < 1e-12 && o.size_m[1] == 0.0);
+        assert!((o.yaw_rad - std::f64::consts::FRAC_PI_2).abs() < 1e-9);
+        assert!(OrientedBox::from_points(&[]).is_none());
+    }
+
+    fn obj(label: &str, min: [f32; 3], max: [f32; 3], score: f32) -> Object3D {
+        Object3D::from_points(label.into(), score, Frame::Odom, cube(min, max), None).unwrap()
+    }
+
+    #[test]
+    fn merge_joins_overlapping_same_label_only() {
+        let objs = vec![
+            obj("chair", [0.0, 0.0, 0.0], [1.0, 1.0, 1.0], 0.5),
+            obj("chair", [0.05, 0.0, 0.0], [1.05, 1.0, 1.0], 0.9), // IoU 0.905
+            obj("table", [0.0, 0.0, 0.0], [1.0, 1.0, 1.0], 0.7),   // other label
+            obj("chair", [3.0, 0.0, 0.0], [4.0, 1.0, 1.0], 0.6),   // other instance
+            obj("chair", [0.5, 0.0, 0.0], [1.5, 1.0, 1.0], 0.6),   // IoU 0.33: apart
+        ];
+        let m = merge_objects(objs, 0.8);
+        assert_eq!(m.len(), 4);
+        assert_eq!(m[0].label, "chair");
+        assert_eq!(m[0].points.len(), 16);
+        assert_eq!(m[0].score, 0.9);
+        assert_eq!(m[0].aabb.min_m, [0.0, 0.0, 0.0]);
+        assert!((m[0].aabb.max_m[0] - 1.05).abs() < 1e-6);
+        assert_eq!(m[1].label, "table");
+        assert_eq!(m[2].aabb.min_m[0], 3.0);
+        assert_eq!(m[3].aabb.min_m[0], 0.5);
+    }
+
+    #[test]
+    fn merge_is_strictly_greater_than_threshold() {
+        // IoU exactly 0.75: [0,1] vs [0,0.75] in x → 0.75 / 1.0
+        let objs = vec![
+            obj("a", [0.0, 0.0, 0.0], [1.0, 1.0, 1.0], 0.5),
+            obj("a", [0.0, 0.0, 0.0], [0.75, 1.0, 1.0], 0.5),
+        ];
+        assert_eq!(merge_objects(objs.clone(), 0.75).len(), 2);
+        assert_eq!(merge_objects(objs, 0.7499).len(), 1);
+    }
+}

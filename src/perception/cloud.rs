@@ -1,0 +1,189 @@
+//! Steps 4 and 5: depth isolation under a mask with the z-score filter, and
+//! back-projection to 3D.
+
+use nalgebra::{Isometry3, Point3};
+
+use super::calibration::Intrinsics;
+use super::image::DepthImage;
+use super::masks::Mask;
+
+/// A depth sample under a mask: pixel and depth in metres.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DepthSample {
+    pub u: u32,
+    pub v: u32,
+    pub z_m: f32,
+}
+
+/// The valid depths under `mask` (step 4, isolation). The mask and depth
+/// must share the colour image's size.
+pub fn isolate_depth(mask: &Mask, depth: &DepthImage) -> Vec<DepthSample> {
+    let (x0, y0, w, h) = mask.region();
+    let mut out = Vec::with_capacity(w * h / 2);
+    let dw = depth.width();
+    let data = depth.data();
+    for v in y0..(y0 + h).min(depth.height()) {
+        for u in x0..(x0 + w).min(dw) {
+            if !mask.get(u, v) {
+                continue;
+            }
+            let z = data[v * dw + u];
+            if z.is_finite() && z > 0.0 {
+                out.push(DepthSample {
+                    u: u as u32,
+                    v: v as u32,
+                    z_m: z,
+                });
+            }
+        }
+    }
+    out
+}
+
+/// Mean and population standard deviation (as `scipy.stats.zscore`, ddof 0)
+/// of the depths, computed in f64.
+pub fn depth_stats(samples: &[DepthSample]) -> Option<(f64, f64)> {
+    if samples.is_empty() {
+        return None;
+    }
+    let n = samples.len() as f64;
+    let mean = samples.iter().map(|s| s.z_m as f64).sum::<f64>() / n;
+    let var = samples
+        .iter()
+        .map(|s| {
+            let d = s.z_m as f64 - mean;
+            d * d
+        })
+        .sum::<f64>()
+        / n;
+    Some((mean, var.sqrt()))
+}
+
+/// Keeps the samples whose z-score satisfies |z| < `tau` (step 4). When all
+/// depths are equal (σ = 0) every sample has z = 0 and is kept: no division
+/// by zero.
+pub fn zscore_filter(samples: &[DepthSample], tau: f64) -> Vec<DepthSample> {
+    let Some((mean, std)) = depth_stats(samples) else {
+        return Vec::new();
+    };
+    if std <= f64::EPSILON * mean.abs().max(1.0) {
+        return samples.to_vec();
+    }
+    samples
+        .iter()
+        .filter(|s| ((s.z_m as f64 - mean) / std).abs() < tau)
+        .copied()
+        .collect()
+}
+
+/// Back-projects samples with the intrinsics of the image they index
+/// (`X = (u−cx)·Z/fx, Y = (v−cy)·Z/fy, Z`), then applies `target_from_camera`
+/// (step 5). Pixel centres are at integer coordinates, as in the paper and
+/// the RealSense SDK.
+pub fn back_project(
+    samples: &[DepthSample],
+    intrinsics: &Intrinsics,
+    target_from_camera: &Isometry3<f64>,
+) -> Vec<Point3<f32>> {
+    samples
+        .iter()
+        .map(|s| {
+            let p = intrinsics.back_project(s.u as f64, s.v as f64, s.z_m as f64);
+            let q = target_from_camera * p;
+            Point3::new(q.x as f32, q.y as f32, q.z as f32)
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn samples(z: &[f32]) -> Vec<DepthSample> {
+        z.iter()
+            .enumerate()
+            .map(|(i, &z_m)| DepthSample {
+                u: i as u32,
+                v: 0,
+                z_m,
+            })
+            .collect()
+    }
+
+    #[test]
+    fn zscore_drops_the_outlier() {
+        // nine at 2.0 m and one at 5.0 m: mean 2.3, σ = 0.9 → z(5.0) = 3.0
+        let mut z = vec![2.0f32; 9];
+        z.push(5.0);
+        let s = samples(&z);
+        let (mean, std) = depth_stats(&s).unwrap();
+        assert!((mean - 2.3).abs() < 1e-6);
+        assert!((std - 0.9).abs() < 1e-6);
+        let kept = zscore_filter(&s, 2.0);
+        assert_eq!(kept.len(), 9);
+        assert!(kept.iter().all(|s| s.z_m == 2.0));
+        // with τ = 3.5 nothing goes
+        assert_eq!(zscore_filter(&s, 3.5).len(), 10);
+    }
+
+    #[test]
+    fn zscore_is_strict_at_tau() {
+        // two values: each is exactly 1σ from the mean
+        let s = samples(&[1.0, 3.0]);
+        assert_eq!(zscore_filter(&s, 1.0).len(), 0);
+        assert_eq!(zscore_filter(&s, 1.0000001).len(), 2);
+    }
+
+    #[test]
+    fn zscore_of_constant_depth_keeps_all() {
+        let s = samples(&[1.5; 7]);
+        assert_eq!(zscore_filter(&s, 2.0), s);
+        assert!(zscore_filter(&[], 2.0).is_empty());
+    }
+
+    #[test]
+    fn isolation_skips_invalid_depth_and_unmasked_pixels() {
+        let depth = DepthImage::new(4, 1, vec![1.0, 0.0, f32::NAN, 2.0]).unwrap();
+        let m = Mask::from_full(4, 1, vec![true, true, true, false]).unwrap();
+        let s = isolate_depth(&m, &depth);
+        assert_eq!(
+            s,
+            vec![DepthSample {
+                u: 0,
+                v: 0,
+                z_m: 1.0
+            }]
+        );
+    }
+
+    #[test]
+    fn back_projection_with_extrinsics_is_exact() {
+        let k = Intrinsics {
+            width: 640,
+            height: 480,
+            fx: 500.0,
+            fy: 400.0,
+            cx: 320.0,
+            cy: 240.0,
+        };
+        // camera optical → base: z forward → x, x right → −y, y down → −z,
+        // camera 1 m up
+        let rot = nalgebra::Rotation3::from_matrix_unchecked(nalgebra::Matrix3::new(
+            0.0, 0.0, 1.0, -1.0, 0.0, 0.0, 0.0, -1.0, 0.0,
+        ));
+        let base_from_camera = Isometry3::from_parts(
+            nalgebra::Translation3::new(0.0, 0.0, 1.0),
+            nalgebra::UnitQuaternion::from_rotation_matrix(&rot),
+        );
+        let s = [DepthSample {
+            u: 420,
+            v: 140,
+            z_m: 2.0,
+        }];
+        let p = back_project(&s, &k, &base_from_camera);
+        // optical: x = 100·2/500 = 0.4, y = −100·2/400 = −0.5, z = 2
+        // base: x = 2, y = −0.4, z = 1 + 0.5
+        let want = Point3::new(2.0f32, -0.4, 1.5);
+        assert!((p[0] - want).norm() < 1e-6, "{:?}", p[0]);
+    }
+}

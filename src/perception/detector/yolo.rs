@@ -1,0 +1,160 @@
+//! Closed-vocabulary YOLO (Ultralytics v8/11 export): `images`
+//! `[1,3,S,S]` → `output0` `[1, 4+C, N]`, class names in the `names`
+//! metadata, no NMS inside.
+
+use ort::value::Tensor;
+
+use super::vocab::{parse_class_names, resolve_prompt};
+use super::{decode_yolo_head, Detection, Detector, DetectorError, DetectorSettings, PromptReport};
+use crate::perception::image::{letterbox_chw, RgbImage};
+use crate::perception::runtime::Model;
+
+/// Letterbox padding value (grey 114), as Ultralytics.
+pub const PAD_VALUE: u8 = 114;
+
+pub struct ClosedVocabularyYolo {
+    model: Model,
+    settings: DetectorSettings,
+    input_name: String,
+    input_size: usize,
+    names: Vec<String>,
+    /// (class index, prompt, class name) for the active prompts.
+    active: Vec<(usize, String, String)>,
+}
+
+/// Checks an image input `[1, 3, S, S]` (S fixed) and returns (name, S).
+pub(crate) fn image_input(
+    model: &Model,
+    name: Option<&str>,
+) -> Result<(String, usize), DetectorError> {
+    let spec = match name {
+        Some(n) => model.signature.input(n),
+        None => model.signature.inputs.first(),
+    }
+    .ok_or_else(|| model.signature_error("no image input"))?;
+    match spec.shape.as_slice() {
+        [b, 3, h, w] if (*b == 1 || *b == -1) && *h > 0 && h == w => {
+            Ok((spec.name.clone(), *h as usize))
+        }
+        _ => Err(model
+            .signature_error(format!(
+                "image input `{}` must be [1,3,S,S] with a fixed square size S",
+                spec.name
+            ))
+            .into()),
+    }
+}
+
+impl ClosedVocabularyYolo {
+    pub fn from_model(model: Model, settings: DetectorSettings) -> Result<Self, DetectorError> {
+        if model.signature.inputs.len() != 1 {
+            return Err(model
+                .signature_error("a closed-vocabulary YOLO has exactly one input")
+                .into());
+        }
+        let (input_name, input_size) = image_input(&model, None)?;
+        let names_text = model.metadata("names").ok_or_else(|| {
+            model.signature_error("no `names` metadata: cannot tell what the classes are")
+        })?;
+        let names = parse_class_names(&names_text).map_err(|e| model.signature_error(e))?;
+        let out = model
+            .signature
+            .outputs
+            .first()
+            .ok_or_else(|| model.signature_error("no output"))?;
+        match out.shape.as_slice() {
+            [_, c, _] if *c == -1 || *c as usize == 4 + names.len() => {}
+            _ => {
+                return Err(model
+                    .signature_error(format!(
+                        "output `{}` must be [1, 4+{}, N] for the {} classes in `names`",
+                        out.name,
+                        names.len(),
+                        names.len()
+                    ))
+                    .into())
+            }
+        }
+        Ok(ClosedVocabularyYolo {
+            model,
+            settings,
+            input_name,
+            input_size,
+            names,
+            active: Vec::new(),
+        })
+    }
+
+    pub fn class_names(&self) -> &[String] {
+        &self.names
+    }
+}
+
+impl Detector for ClosedVocabularyYolo {
+    fn backend(&self) -> &'static str {
+        "yolo-closed-vocabulary"
+    }
+
+    fn set_prompts(&mut self, prompts: &[String]) -> Result<PromptReport, DetectorError> {
+        if prompts.is_empty() {
+            return Err(DetectorError::Prompt("no prompt given".into()));
+        }
+        let mut report = PromptReport::default();
+        let mut active: Vec<(usize, String, String)> = Vec::new();
+        for p in prompts {
+            match resolve_prompt(p, &self.names) {
+                Some(i) => {
+                    report.matched.push((p.clone(), self.names[i].clone()));
+                    // two prompts for one class: the first one names it
+                    if !active.iter().any(|(c, _, _)| *c == i) {
+                        active.push((i, p.clone(), self.names[i].clone()));
+                    }
+                }
+                None => report.unmatched.push(p.clone()),
+            }
+        }
+        self.active = active;
+        Ok(report)
+    }
+
+    fn detect(&mut self, image: &RgbImage) -> Result<Vec<Detection>, DetectorError> {
+        if self.active.is_empty() {
+            return Ok(Vec::new());
+        }
+        let name = self.model.name();
+        let err = |e: ort::Error| crate::perception::runtime::RuntimeError::Inference {
+            model: name.clone(),
+            reason: e.to_string(),
+        };
+        let out_name = self.model.signature.outputs[0].name.clone();
+        let (chw, lb) = letterbox_chw(image, self.input_size, PAD_VALUE);
+        let s = self.input_size;
+        let tensor = Tensor::from_array((vec![1usize, 3, s, s], chw)).map_err(err)?;
+        let outputs = self
+            .model
+            .session
+            .run(ort::inputs![self.input_name.as_str() => tensor])
+            .map_err(err)?;
+        let (shape, data) = outputs[0].try_extract_tensor::<f32>().map_err(err)?;
+        let dims: Vec<i64> = shape.to_vec();
+        let (channels, anchors) = match dims.as_slice() {
+            [1, c, n] if *c as usize == 4 + self.names.len() => (*c as usize, *n as usize),
+            _ => {
+                return Err(DetectorError::Output {
+                    model: name.clone(),
+                    output: out_name,
+                    shape: dims,
+                    expected: format!("[1, {}, N]", 4 + self.names.len()),
+                })
+            }
+        };
+        Ok(decode_yolo_head(
+            data,
+            channels,
+            anchors,
+            &self.active,
+            &lb,
+            &self.settings,
+        ))
+    }
+}

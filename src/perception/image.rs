@@ -1,0 +1,352 @@
+//! Images as the pipeline sees them: RGB8 colour and depth in metres (f32,
+//! 0 = no return). Loading from files, and the detector's letterbox.
+
+use std::path::Path;
+
+use thiserror::Error;
+
+#[derive(Debug, Error)]
+pub enum ImageError {
+    #[error("{path}: cannot read image: {reason}")]
+    Read { path: String, reason: String },
+    #[error("{path}: depth image must be 16-bit single channel (got {got})")]
+    DepthFormat { path: String, got: String },
+    #[error("{what}: buffer of {len} values does not match {width}x{height}")]
+    Size {
+        what: &'static str,
+        len: usize,
+        width: usize,
+        height: usize,
+    },
+    #[error("{what}: image is empty ({width}x{height})")]
+    Empty {
+        what: &'static str,
+        width: usize,
+        height: usize,
+    },
+}
+
+/// An RGB8 image, row-major, 3 bytes a pixel.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RgbImage {
+    width: usize,
+    height: usize,
+    data: Vec<u8>,
+}
+
+impl RgbImage {
+    pub fn new(width: usize, height: usize, data: Vec<u8>) -> Result<Self, ImageError> {
+        if width == 0 || height == 0 {
+            return Err(ImageError::Empty {
+                what: "rgb image",
+                width,
+                height,
+            });
+        }
+        if data.len() != width * height * 3 {
+            return Err(ImageError::Size {
+                what: "rgb image",
+                len: data.len(),
+                width,
+                height,
+            });
+        }
+        Ok(RgbImage {
+            width,
+            height,
+            data,
+        })
+    }
+
+    /// A uniform image.
+    pub fn filled(width: usize, height: usize, rgb: [u8; 3]) -> Result<Self, ImageError> {
+        let data = rgb
+            .iter()
+            .copied()
+            .cycle()
+            .take(width * height * 3)
+            .collect();
+        Self::new(width, height, data)
+    }
+
+    pub fn load(path: &Path) -> Result<Self, ImageError> {
+        let img = image::ImageReader::open(path)
+            .and_then(|r| r.with_guessed_format())
+            .map_err(|e| ImageError::Read {
+                path: path.display().to_string(),
+                reason: e.to_string(),
+            })?
+            .decode()
+            .map_err(|e| ImageError::Read {
+                path: path.display().to_string(),
+                reason: e.to_string(),
+            })?
+            .to_rgb8();
+        let (w, h) = (img.width() as usize, img.height() as usize);
+        Self::new(w, h, img.into_raw())
+    }
+
+    pub fn width(&self) -> usize {
+        self.width
+    }
+    pub fn height(&self) -> usize {
+        self.height
+    }
+    pub fn data(&self) -> &[u8] {
+        &self.data
+    }
+    pub fn data_mut(&mut self) -> &mut [u8] {
+        &mut self.data
+    }
+
+    pub fn pixel(&self, u: usize, v: usize) -> [u8; 3] {
+        let i = (v * self.width + u) * 3;
+        [self.data[i], self.data[i + 1], self.data[i + 2]]
+    }
+
+    pub fn save_png(&self, path: &Path) -> Result<(), ImageError> {
+        image::save_buffer(
+            path,
+            &self.data,
+            self.width as u32,
+            self.height as u32,
+            image::ExtendedColorType::Rgb8,
+        )
+        .map_err(|e| ImageError::Read {
+            path: path.display().to_string(),
+            reason: e.to_string(),
+        })
+    }
+}
+
+/// Depth in metres, row-major; 0.0 (or any non-finite / non-positive value)
+/// means no return.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DepthImage {
+    width: usize,
+    height: usize,
+    depth_m: Vec<f32>,
+}
+
+impl DepthImage {
+    pub fn new(width: usize, height: usize, depth_m: Vec<f32>) -> Result<Self, ImageError> {
+        if width == 0 || height == 0 {
+            return Err(ImageError::Empty {
+                what: "depth image",
+                width,
+                height,
+            });
+        }
+        if depth_m.len() != width * height {
+            return Err(ImageError::Size {
+                what: "depth image",
+                len: depth_m.len(),
+                width,
+                height,
+            });
+        }
+        Ok(DepthImage {
+            width,
+            height,
+            depth_m,
+        })
+    }
+
+    /// Loads a 16-bit PNG and applies the sensor's depth scale once
+    /// (`depth_scale_m` metres per count; 0 stays "no return").
+    pub fn load_png(path: &Path, depth_scale_m: f32) -> Result<Self, ImageError> {
+        let img = image::ImageReader::open(path)
+            .and_then(|r| r.with_guessed_format())
+            .map_err(|e| ImageError::Read {
+                path: path.display().to_string(),
+                reason: e.to_string(),
+            })?
+            .decode()
+            .map_err(|e| ImageError::Read {
+                path: path.display().to_string(),
+                reason: e.to_string(),
+            })?;
+        let luma = match img {
+            image::DynamicImage::ImageLuma16(l) => l,
+            other => {
+                return Err(ImageError::DepthFormat {
+                    path: path.display().to_string(),
+                    got: format!("{:?}", other.color()),
+                })
+            }
+        };
+        let (w, h) = (luma.width() as usize, luma.height() as usize);
+        let depth_m = luma
+            .into_raw()
+            .into_iter()
+            .map(|c| c as f32 * depth_scale_m)
+            .collect();
+        Self::new(w, h, depth_m)
+    }
+
+    pub fn width(&self) -> usize {
+        self.width
+    }
+    pub fn height(&self) -> usize {
+        self.height
+    }
+    pub fn data(&self) -> &[f32] {
+        &self.depth_m
+    }
+
+    /// Depth at (u, v) in metres when valid.
+    #[inline]
+    pub fn at(&self, u: usize, v: usize) -> Option<f32> {
+        let d = self.depth_m[v * self.width + u];
+        is_valid_depth(d).then_some(d)
+    }
+}
+
+#[inline]
+pub fn is_valid_depth(d: f32) -> bool {
+    d.is_finite() && d > 0.0
+}
+
+/// How a letterboxed input maps back to the original image.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Letterbox {
+    /// Input pixels per original pixel.
+    pub scale: f32,
+    pub pad_left: f32,
+    pub pad_top: f32,
+    pub orig_width: usize,
+    pub orig_height: usize,
+}
+
+impl Letterbox {
+    /// Maps a box in letterboxed input pixels to original pixels, clipped to
+    /// the image.
+    pub fn to_original(&self, xyxy: [f32; 4]) -> [f32; 4] {
+        let w = self.orig_width as f32;
+        let h = self.orig_height as f32;
+        let x1 = ((xyxy[0] - self.pad_left) / self.scale).clamp(0.0, w);
+        let y1 = ((xyxy[1] - self.pad_top) / self.scale).clamp(0.0, h);
+        let x2 = ((xyxy[2] - self.pad_left) / self.scale).clamp(0.0, w);
+        let y2 = ((xyxy[3] - self.pad_top) / self.scale).clamp(0.0, h);
+        [x1, y1, x2, y2]
+    }
+}
+
+/// Letterboxes `img` into a `size`×`size` CHW float tensor (RGB, /255),
+/// padding with `pad_value` as Ultralytics' `LetterBox` does (centred,
+/// bilinear resize with half-pixel centres as OpenCV's INTER_LINEAR).
+pub fn letterbox_chw(img: &RgbImage, size: usize, pad_value: u8) -> (Vec<f32>, Letterbox) {
+    let (w, h) = (img.width(), img.height());
+    let r = (size as f32 / h as f32).min(size as f32 / w as f32);
+    let new_w = ((w as f32 * r).round() as usize).clamp(1, size);
+    let new_h = ((h as f32 * r).round() as usize).clamp(1, size);
+    let dw = (size - new_w) as f32 / 2.0;
+    let dh = (size - new_h) as f32 / 2.0;
+    let top = (dh - 0.1).round().max(0.0) as usize;
+    let left = (dw - 0.1).round().max(0.0) as usize;
+
+    let plane = size * size;
+    let mut out = vec![pad_value as f32 / 255.0; 3 * plane];
+    let resized = resize_bilinear(img, new_w, new_h);
+    for y in 0..new_h {
+        let row = &resized[y * new_w * 3..(y + 1) * new_w * 3];
+        let oy = y + top;
+        if oy >= size {
+            break;
+        }
+        for x in 0..new_w {
+            let ox = x + left;
+            if ox >= size {
+                break;
+            }
+            let o = oy * size + ox;
+            out[o] = row[x * 3] as f32 / 255.0;
+            out[plane + o] = row[x * 3 + 1] as f32 / 255.0;
+            out[2 * plane + o] = row[x * 3 + 2] as f32 / 255.0;
+        }
+    }
+    (
+        out,
+        Letterbox {
+            scale: r,
+            pad_left: left as f32,
+            pad_top: top as f32,
+            orig_width: w,
+            orig_height: h,
+        },
+    )
+}
+
+/// Bilinear resize with half-pixel centres (OpenCV INTER_LINEAR geometry),
+/// RGB8 in, RGB8 out.
+pub fn resize_bilinear(img: &RgbImage, new_w: usize, new_h: usize) -> Vec<u8> {
+    let (w, h) = (img.width(), img.height());
+    if new_w == w && new_h == h {
+        return img.data().to_vec();
+    }
+    let sx = w as f32 / new_w as f32;
+    let sy = h as f32 / new_h as f32;
+    let taps = |dst: usize, scale: f32, len: usize| -> (usize, usize, f32) {
+        let s = ((dst as f32 + 0.5) * scale - 0.5).max(0.0);
+        let i0 = (s.floor() as usize).min(len - 1);
+        let i1 = (i0 + 1).min(len - 1);
+        (i0, i1, s - i0 as f32)
+    };
+    let xs: Vec<(usize, usize, f32)> = (0..new_w).map(|x| taps(x, sx, w)).collect();
+    let data = img.data();
+    let mut out = vec![0u8; new_w * new_h * 3];
+    for y in 0..new_h {
+        let (y0, y1, fy) = taps(y, sy, h);
+        let r0 = &data[y0 * w * 3..(y0 + 1) * w * 3];
+        let r1 = &data[y1 * w * 3..(y1 + 1) * w * 3];
+        let orow = &mut out[y * new_w * 3..(y + 1) * new_w * 3];
+        for (x, &(x0, x1, fx)) in xs.iter().enumerate() {
+            for c in 0..3 {
+                let top = r0[x0 * 3 + c] as f32 * (1.0 - fx) + r0[x1 * 3 + c] as f32 * fx;
+                let bot = r1[x0 * 3 + c] as f32 * (1.0 - fx) + r1[x1 * 3 + c] as f32 * fx;
+                orow[x * 3 + c] = (top * (1.0 - fy) + bot * fy).round().clamp(0.0, 255.0) as u8;
+            }
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn letterbox_of_wide_image_pads_top_and_bottom() {
+        let img = RgbImage::filled(1280, 640, [255, 0, 0]).unwrap();
+        let (t, lb) = letterbox_chw(&img, 640, 114);
+        assert_eq!(lb.scale, 0.5);
+        assert_eq!(lb.pad_left, 0.0);
+        assert_eq!(lb.pad_top, 160.0);
+        // top-left is padding, centre is image
+        assert!((t[0] - 114.0 / 255.0).abs() < 1e-6);
+        let c = 320 * 640 + 320;
+        assert_eq!(t[c], 1.0);
+        assert_eq!(t[640 * 640 + c], 0.0);
+        // a box maps back
+        let b = lb.to_original([0.0, 160.0, 640.0, 480.0]);
+        assert_eq!(b, [0.0, 0.0, 1280.0, 640.0]);
+    }
+
+    #[test]
+    fn bilinear_resize_halves_a_gradient_exactly() {
+        // 4x1 gradient 0, 100, 200, 250 → 2x1: samples at 0.5 and 2.5
+        let data = [0u8, 100, 200, 250]
+            .iter()
+            .flat_map(|&v| [v, v, v])
+            .collect();
+        let img = RgbImage::new(4, 1, data).unwrap();
+        let out = resize_bilinear(&img, 2, 1);
+        assert_eq!(out, vec![50, 50, 50, 225, 225, 225]);
+    }
+
+    #[test]
+    fn bad_sizes_are_errors() {
+        assert!(RgbImage::new(2, 2, vec![0; 11]).is_err());
+        assert!(DepthImage::new(0, 2, vec![]).is_err());
+    }
+}

@@ -1,0 +1,240 @@
+//! Binary masks over a region of the colour image, and the paper's 3×3
+//! morphological erosion (step 3).
+
+/// A binary mask stored over its region of interest: pixel (u, v) of the
+/// image is `bits[(v - y0) * w + (u - x0)]` inside the region and unset
+/// outside it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Mask {
+    image_width: usize,
+    image_height: usize,
+    x0: usize,
+    y0: usize,
+    w: usize,
+    h: usize,
+    bits: Vec<bool>,
+}
+
+impl Mask {
+    /// An empty mask whose region is the box `[x0, x1) × [y0, y1)`, clipped to
+    /// the image.
+    pub fn empty_in(
+        image_width: usize,
+        image_height: usize,
+        x0: usize,
+        y0: usize,
+        x1: usize,
+        y1: usize,
+    ) -> Mask {
+        let x0 = x0.min(image_width);
+        let y0 = y0.min(image_height);
+        let x1 = x1.clamp(x0, image_width);
+        let y1 = y1.clamp(y0, image_height);
+        let (w, h) = (x1 - x0, y1 - y0);
+        Mask {
+            image_width,
+            image_height,
+            x0,
+            y0,
+            w,
+            h,
+            bits: vec![false; w * h],
+        }
+    }
+
+    /// Region covering the pixels of a box in image coordinates
+    /// (`[x1, y1, x2, y2]`, pixel edges), clipped.
+    pub fn for_box(image_width: usize, image_height: usize, xyxy: [f32; 4]) -> Mask {
+        let x0 = xyxy[0].floor().max(0.0) as usize;
+        let y0 = xyxy[1].floor().max(0.0) as usize;
+        let x1 = xyxy[2].ceil().max(0.0) as usize;
+        let y1 = xyxy[3].ceil().max(0.0) as usize;
+        Mask::empty_in(image_width, image_height, x0, y0, x1, y1)
+    }
+
+    /// A full-image mask from a row-major boolean buffer.
+    pub fn from_full(image_width: usize, image_height: usize, bits: Vec<bool>) -> Option<Mask> {
+        (bits.len() == image_width * image_height).then_some(Mask {
+            image_width,
+            image_height,
+            x0: 0,
+            y0: 0,
+            w: image_width,
+            h: image_height,
+            bits,
+        })
+    }
+
+    pub fn image_size(&self) -> (usize, usize) {
+        (self.image_width, self.image_height)
+    }
+
+    /// The region as `(x0, y0, width, height)`.
+    pub fn region(&self) -> (usize, usize, usize, usize) {
+        (self.x0, self.y0, self.w, self.h)
+    }
+
+    #[inline]
+    pub fn get(&self, u: usize, v: usize) -> bool {
+        if u < self.x0 || v < self.y0 || u >= self.x0 + self.w || v >= self.y0 + self.h {
+            return false;
+        }
+        self.bits[(v - self.y0) * self.w + (u - self.x0)]
+    }
+
+    /// Sets a pixel; pixels outside the region are ignored (returns false).
+    #[inline]
+    pub fn set(&mut self, u: usize, v: usize, on: bool) -> bool {
+        if u < self.x0 || v < self.y0 || u >= self.x0 + self.w || v >= self.y0 + self.h {
+            return false;
+        }
+        self.bits[(v - self.y0) * self.w + (u - self.x0)] = on;
+        true
+    }
+
+    pub fn count(&self) -> usize {
+        self.bits.iter().filter(|&&b| b).count()
+    }
+
+    /// Set pixels as (u, v) image coordinates, row-major.
+    pub fn pixels(&self) -> impl Iterator<Item = (usize, usize)> + '_ {
+        self.bits
+            .iter()
+            .enumerate()
+            .filter(|(_, &b)| b)
+            .map(move |(i, _)| (self.x0 + i % self.w.max(1), self.y0 + i / self.w.max(1)))
+    }
+
+    /// Morphological erosion with a 3×3 square structuring element, applied
+    /// `iterations` times: a pixel stays set only if its 8 neighbours and
+    /// itself are set. Beyond the image border counts as set (OpenCV's
+    /// `erode` default), so an object cut by the frame edge is not eaten
+    /// from that side; beyond the mask's region inside the image counts as
+    /// unset.
+    pub fn eroded(&self, iterations: usize) -> Mask {
+        let mut cur = self.clone();
+        for _ in 0..iterations {
+            cur = cur.erode_once();
+        }
+        cur
+    }
+
+    fn erode_once(&self) -> Mask {
+        let (w, h) = (self.w, self.h);
+        let mut out = vec![false; w * h];
+        // neighbour lookup in region coordinates, with the border rule
+        let at = |x: isize, y: isize| -> bool {
+            let u = self.x0 as isize + x;
+            let v = self.y0 as isize + y;
+            if u < 0 || v < 0 || u >= self.image_width as isize || v >= self.image_height as isize {
+                return true;
+            }
+            if x < 0 || y < 0 || x >= w as isize || y >= h as isize {
+                return false;
+            }
+            self.bits[y as usize * w + x as usize]
+        };
+        for y in 0..h {
+            let row = &self.bits[y * w..(y + 1) * w];
+            for x in 0..w {
+                if !row[x] {
+                    continue;
+                }
+                let (xi, yi) = (x as isize, y as isize);
+                let mut keep = true;
+                'n: for dy in -1..=1 {
+                    for dx in -1..=1 {
+                        if !at(xi + dx, yi + dy) {
+                            keep = false;
+                            break 'n;
+                        }
+                    }
+                }
+                out[y * w + x] = keep;
+            }
+        }
+        Mask {
+            bits: out,
+            ..self.clone_header()
+        }
+    }
+
+    fn clone_header(&self) -> Mask {
+        Mask {
+            image_width: self.image_width,
+            image_height: self.image_height,
+            x0: self.x0,
+            y0: self.y0,
+            w: self.w,
+            h: self.h,
+            bits: Vec::new(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn from_rows(rows: &[&str]) -> Mask {
+        let h = rows.len();
+        let w = rows[0].len();
+        let bits = rows
+            .iter()
+            .flat_map(|r| r.chars().map(|c| c == '#'))
+            .collect();
+        Mask::from_full(w, h, bits).unwrap()
+    }
+
+    fn to_rows(m: &Mask) -> Vec<String> {
+        let (w, h) = m.image_size();
+        (0..h)
+            .map(|v| {
+                (0..w)
+                    .map(|u| if m.get(u, v) { '#' } else { '.' })
+                    .collect()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn erosion_of_a_square_removes_its_rim() {
+        let m = from_rows(&[
+            ".......", ".#####.", ".#####.", ".#####.", ".#####.", ".#####.", ".......",
+        ]);
+        let e = m.eroded(1);
+        assert_eq!(
+            to_rows(&e),
+            vec![".......", ".......", "..###..", "..###..", "..###..", ".......", "......."]
+        );
+        assert_eq!(m.eroded(2).count(), 1);
+        assert_eq!(m.eroded(3).count(), 0);
+    }
+
+    #[test]
+    fn erosion_removes_thin_lines_and_isolated_pixels() {
+        let m = from_rows(&["......", ".#....", "......", "######", "......"]);
+        assert_eq!(m.eroded(1).count(), 0);
+    }
+
+    #[test]
+    fn image_border_does_not_erode() {
+        let m = from_rows(&["###.", "###.", "###."]);
+        // the left, top and bottom edges are the image border: only the
+        // column next to the unset column goes
+        assert_eq!(to_rows(&m.eroded(1)), vec!["##..", "##..", "##.."]);
+    }
+
+    #[test]
+    fn region_edge_inside_the_image_erodes() {
+        let mut m = Mask::empty_in(10, 10, 2, 2, 5, 5);
+        for v in 2..5 {
+            for u in 2..5 {
+                assert!(m.set(u, v, true));
+            }
+        }
+        assert!(!m.set(0, 0, true));
+        let e = m.eroded(1);
+        assert_eq!(e.pixels().collect::<Vec<_>>(), vec![(3, 3)]);
+    }
+}

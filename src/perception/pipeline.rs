@@ -1,0 +1,253 @@
+//! The paper's six steps for one RGB-D view: detect → segment → erode →
+//! isolate depth + z-score → back-project + extrinsics → 3D boxes.
+
+use std::time::Instant;
+
+use nalgebra::Isometry3;
+use serde::Serialize;
+use thiserror::Error;
+
+use super::boxes::Object3D;
+use super::calibration::{register_depth_to_color, Intrinsics, RgbdCalibration};
+use super::cloud::{back_project, isolate_depth, zscore_filter};
+use super::detector::{Detection, Detector, DetectorError, PromptReport};
+use super::image::{DepthImage, ImageError, RgbImage};
+use super::masks::Mask;
+use super::segmenter::{Segmenter, SegmenterError};
+use crate::types::Frame;
+
+#[derive(Debug, Error)]
+pub enum PipelineError {
+    #[error(transparent)]
+    Detector(#[from] DetectorError),
+    #[error(transparent)]
+    Segmenter(#[from] SegmenterError),
+    #[error(transparent)]
+    Image(#[from] ImageError),
+    #[error("{0}")]
+    Input(String),
+}
+
+/// Geometry settings (config `[perception]`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct GeometrySettings {
+    /// 3×3 erosion passes (paper: 1).
+    pub erosion_iterations: usize,
+    /// Z-score threshold τ: depths with |z| ≥ τ are dropped (paper: 2).
+    pub zscore_tau: f64,
+    /// Objects with fewer valid 3D points are dropped, with a reason.
+    pub min_points: usize,
+    /// Depths outside [min_depth_m, max_depth_m] are ignored.
+    pub min_depth_m: f32,
+    pub max_depth_m: f32,
+}
+
+impl Default for GeometrySettings {
+    fn default() -> Self {
+        GeometrySettings {
+            erosion_iterations: 1,
+            zscore_tau: 2.0,
+            min_points: 20,
+            min_depth_m: 0.1,
+            max_depth_m: 10.0,
+        }
+    }
+}
+
+/// A detection that produced no 3D object, and why.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Dropped {
+    pub label: String,
+    pub score: f32,
+    pub box_xyxy: [f32; 4],
+    pub reason: String,
+}
+
+/// Steps 3–6 for one view: each (detection, mask) pair → an object in the
+/// frame of `target_from_camera`, or a reason it was dropped. `depth` is
+/// registered to the colour image and `intrinsics` are the colour camera's.
+pub fn objects_from_masks(
+    detections: &[Detection],
+    masks: &[Mask],
+    depth: &DepthImage,
+    intrinsics: &Intrinsics,
+    target_from_camera: &Isometry3<f64>,
+    frame: Frame,
+    settings: &GeometrySettings,
+) -> (Vec<Object3D>, Vec<Dropped>) {
+    let mut objects = Vec::new();
+    let mut dropped = Vec::new();
+    for (det, mask) in detections.iter().zip(masks) {
+        let drop = |reason: String| Dropped {
+            label: det.label.clone(),
+            score: det.score,
+            box_xyxy: det.box_xyxy,
+            reason,
+        };
+        let mask_px = mask.count();
+        let eroded = mask.eroded(settings.erosion_iterations);
+        let mut samples = isolate_depth(&eroded, depth);
+        samples.retain(|s| s.z_m >= settings.min_depth_m && s.z_m <= settings.max_depth_m);
+        let n_depth = samples.len();
+        let kept = zscore_filter(&samples, settings.zscore_tau);
+        if kept.len() < settings.min_points.max(1) {
+            dropped.push(drop(format!(
+                "{} points after filtering (< {}): mask {mask_px} px, eroded {} px, valid depth {n_depth}",
+                kept.len(),
+                settings.min_points,
+                eroded.count()
+            )));
+            continue;
+        }
+        let points = back_project(&kept, intrinsics, target_from_camera);
+        match Object3D::from_points(
+            det.label.clone(),
+            det.score,
+            frame,
+            points,
+            Some(det.box_xyxy),
+        ) {
+            Some(o) => objects.push(o),
+            None => dropped.push(drop("no points".into())),
+        }
+    }
+    (objects, dropped)
+}
+
+/// Milliseconds spent per stage.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct Timing {
+    pub detector: f64,
+    pub segmenter: f64,
+    pub geometry: f64,
+    pub total: f64,
+}
+
+/// Everything one view produced.
+#[derive(Debug, Clone, Default)]
+pub struct ViewResult {
+    pub prompts: PromptReport,
+    pub detections: Vec<Detection>,
+    pub masks: Vec<Mask>,
+    pub objects: Vec<Object3D>,
+    pub dropped: Vec<Dropped>,
+    pub timing_ms: Timing,
+}
+
+/// Detector + segmenter + calibration: RGB-D frame and prompts → objects in
+/// `base_link`.
+pub struct Pipeline {
+    pub detector: Box<dyn Detector>,
+    pub segmenter: Box<dyn Segmenter>,
+    pub calibration: RgbdCalibration,
+    pub geometry: GeometrySettings,
+    prompts: PromptReport,
+}
+
+fn ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
+impl Pipeline {
+    pub fn new(
+        detector: Box<dyn Detector>,
+        segmenter: Box<dyn Segmenter>,
+        calibration: RgbdCalibration,
+        geometry: GeometrySettings,
+    ) -> Self {
+        Pipeline {
+            detector,
+            segmenter,
+            calibration,
+            geometry,
+            prompts: PromptReport::default(),
+        }
+    }
+
+    /// Sets the active prompts (the vocabulary may change between frames).
+    pub fn set_prompts(&mut self, prompts: &[String]) -> Result<PromptReport, PipelineError> {
+        self.prompts = self.detector.set_prompts(prompts)?;
+        Ok(self.prompts.clone())
+    }
+
+    /// Depth in the colour camera: registered when the rig has a separate
+    /// depth camera, checked for size otherwise.
+    pub fn depth_in_color(
+        &self,
+        color: &RgbImage,
+        depth: &DepthImage,
+    ) -> Result<DepthImage, PipelineError> {
+        let (dw, dh) = self.calibration.depth_size();
+        if (depth.width(), depth.height()) != (dw, dh) {
+            return Err(PipelineError::Input(format!(
+                "depth image is {}x{}, calibration expects {dw}x{dh}",
+                depth.width(),
+                depth.height()
+            )));
+        }
+        let c = &self.calibration.color;
+        if (color.width(), color.height()) != (c.width, c.height) {
+            return Err(PipelineError::Input(format!(
+                "colour image is {}x{}, calibration expects {}x{}",
+                color.width(),
+                color.height(),
+                c.width,
+                c.height
+            )));
+        }
+        Ok(match &self.calibration.depth {
+            Some((dk, color_from_depth)) => {
+                register_depth_to_color(depth, dk, color_from_depth, c)?
+            }
+            None => depth.clone(),
+        })
+    }
+
+    /// Runs one view. Without depth only the 2D detections are returned.
+    pub fn process(
+        &mut self,
+        color: &RgbImage,
+        depth: Option<&DepthImage>,
+    ) -> Result<ViewResult, PipelineError> {
+        let t0 = Instant::now();
+        let registered = depth.map(|d| self.depth_in_color(color, d)).transpose()?;
+        let t = Instant::now();
+        let detections = self.detector.detect(color)?;
+        let detector_ms = ms(t);
+        let mut result = ViewResult {
+            prompts: self.prompts.clone(),
+            detections,
+            ..Default::default()
+        };
+        result.timing_ms.detector = detector_ms;
+        if let Some(depth) = registered {
+            let boxes: Vec<[f32; 4]> = result.detections.iter().map(|d| d.box_xyxy).collect();
+            let t = Instant::now();
+            let masks = self.segmenter.segment(color, Some(&depth), &boxes)?;
+            result.timing_ms.segmenter = ms(t);
+            if masks.len() != boxes.len() {
+                return Err(PipelineError::Input(format!(
+                    "segmenter returned {} masks for {} boxes",
+                    masks.len(),
+                    boxes.len()
+                )));
+            }
+            let t = Instant::now();
+            let (objects, dropped) = objects_from_masks(
+                &result.detections,
+                &masks,
+                &depth,
+                &self.calibration.color,
+                &self.calibration.base_from_camera,
+                Frame::BaseLink,
+                &self.geometry,
+            );
+            result.timing_ms.geometry = ms(t);
+            result.masks = masks;
+            result.objects = objects;
+            result.dropped = dropped;
+        }
+        result.timing_ms.total = ms(t0);
+        Ok(result)
+    }
+}

@@ -1,0 +1,74 @@
+//! Shared message types: stamps, frames and the values that flow between tasks.
+
+use std::time::Duration;
+
+/// A monotonic time stamp: time since an arbitrary epoch of the host's
+/// monotonic clock (or of a recording). Stamps mark *acquisition*, not
+/// processing.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Default)]
+pub struct Stamp(pub Duration);
+
+impl Stamp {
+    pub const ZERO: Stamp = Stamp(Duration::ZERO);
+
+    pub fn from_secs_f64(secs: f64) -> Stamp {
+        Stamp(Duration::from_secs_f64(secs.max(0.0)))
+    }
+
+    pub fn as_secs_f64(self) -> f64 {
+        self.0.as_secs_f64()
+    }
+
+    /// Age of this stamp at `now` (zero when `now` is earlier).
+    pub fn age_at(self, now: Stamp) -> Duration {
+        now.0.saturating_sub(self.0)
+    }
+}
+
+/// A value with the monotonic stamp of its acquisition.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Stamped<T> {
+    pub stamp: Stamp,
+    pub value: T,
+}
+
+impl<T> Stamped<T> {
+    pub fn new(stamp: Stamp, value: T) -> Self {
+        Stamped { stamp, value }
+    }
+}
+
+/// Coordinate frames (REP-103/REP-105).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Frame {
+    /// The chair: x forward, y left, z up, metres.
+    BaseLink,
+    /// Fixed odometry frame.
+    Odom,
+    /// The colour camera's optical frame: z forward, x right, y down.
+    CameraOptical,
+}
+
+impl Frame {
+    pub fn name(self) -> &'static str {
+        match self {
+            Frame::BaseLink => "base_link",
+            Frame::Odom => "odom",
+            Frame::CameraOptical => "camera_optical",
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn age_saturates_at_zero() {
+        let a = Stamp::from_secs_f64(2.0);
+        let b = Stamp::from_secs_f64(2.5);
+        assert_eq!(a.age_at(b), Duration::from_millis(500));
+        assert_eq!(b.age_at(a), Duration::ZERO);
+    }
+}
