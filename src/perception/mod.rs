@@ -10,6 +10,7 @@ pub mod models;
 pub mod pipeline;
 pub mod runtime;
 pub mod segmenter;
+pub mod setup;
 pub mod tokenizer;
 
 pub use boxes::{merge_objects, Aabb, Object3D, OrientedBox};
