@@ -1,0 +1,59 @@
+//! Helpers shared by the integration tests: where the fixtures are, and
+//! loud failures when an asset that CI provides is absent.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+
+pub fn repo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// The shared assets folder (`../shared` beside the checkout, or
+/// `OPENNAV_SHARED`).
+pub fn shared() -> PathBuf {
+    std::env::var_os("OPENNAV_SHARED")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| repo().join("..").join("shared"))
+}
+
+/// A required asset: fails the test, loudly, naming how to get it.
+pub fn asset(path: PathBuf) -> PathBuf {
+    if !path.exists() {
+        panic!(
+            "\n\n*** MISSING TEST ASSET: {} ***\n\
+             Generated fixtures come from tests/run.sh (tests/fixtures/generate.py);\n\
+             models and data come from the shared folder (../shared or OPENNAV_SHARED).\n\n",
+            path.display()
+        );
+    }
+    path
+}
+
+pub fn generated(name: &str) -> PathBuf {
+    asset(repo().join("tests/fixtures/generated").join(name))
+}
+
+pub fn yolo11n() -> PathBuf {
+    asset(shared().join("models/yolo11n_coco.onnx"))
+}
+
+pub fn mrpt(name: &str) -> PathBuf {
+    asset(repo().join("tests/fixtures/mrpt_openni2").join(name))
+}
+
+/// Initialises ONNX Runtime from ORT_DYLIB_PATH (set by .cargo/config.toml
+/// to the library scripts/fetch-onnxruntime.sh fetched).
+pub fn init_ort() {
+    let lib = opennav::perception::runtime::resolve_library_path(None);
+    let lib = if lib.is_relative() {
+        repo().join(lib)
+    } else {
+        lib
+    };
+    asset(lib.clone());
+    opennav::perception::runtime::init_runtime(&lib).expect("ONNX Runtime loads");
+}
+
+pub fn read_json(p: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(p).expect("readable")).expect("json")
+}

@@ -1,0 +1,144 @@
+//! The real YOLO11n COCO model through `ort`, compared with onnxruntime's
+//! own output computed by tests/fixtures/generate.py (numpy/OpenCV letterbox,
+//! Ultralytics-style class-wise NMS).
+
+mod common;
+
+use opennav::perception::detector::{iou_xyxy, open_detector, Detection, DetectorSettings};
+use opennav::perception::image::RgbImage;
+
+fn detect(image: &str, prompts: &[String], threshold: f32) -> Vec<Detection> {
+    common::init_ort();
+    let settings = DetectorSettings {
+        score_threshold: threshold,
+        ..Default::default()
+    };
+    let mut det = open_detector(&common::yolo11n(), &settings, None).expect("model opens");
+    assert_eq!(det.backend(), "yolo-closed-vocabulary");
+    let report = det.set_prompts(prompts).expect("prompts");
+    assert!(report.unmatched.is_empty(), "{report:?}");
+    det.detect(&RgbImage::load(&common::asset(image.into())).expect("image"))
+        .expect("detect")
+}
+
+fn coco_names() -> Vec<String> {
+    // the model's own class list, read through opennav
+    common::init_ort();
+    let model = opennav::perception::runtime::Model::load(&common::yolo11n(), &Default::default())
+        .expect("model");
+    let names = model.metadata("names").expect("names metadata");
+    opennav::perception::detector::vocab::parse_class_names(&names).expect("parse names")
+}
+
+fn compare_with_reference(key: &str, image: &str) {
+    let reference = common::read_json(&common::generated("yolo11n_reference.json"));
+    let case = &reference[key];
+    let threshold = case["threshold"].as_f64().expect("threshold") as f32;
+    let ours = detect(image, &coco_names(), threshold);
+    let refs = case["detections"].as_array().expect("list");
+    assert_eq!(
+        ours.len(),
+        refs.len(),
+        "{key}: ours {ours:#?} vs reference {refs:#?}"
+    );
+    let mut used = vec![false; ours.len()];
+    for r in refs {
+        let class = r["class"].as_str().expect("class");
+        let score = r["score"].as_f64().expect("score") as f32;
+        let b: Vec<f32> = r["box_xyxy"]
+            .as_array()
+            .expect("box")
+            .iter()
+            .map(|v| v.as_f64().expect("f") as f32)
+            .collect();
+        let rb = [b[0], b[1], b[2], b[3]];
+        let hit = ours.iter().enumerate().find(|(i, d)| {
+            !used[*i]
+                && d.class == class
+                && iou_xyxy(&d.box_xyxy, &rb) >= 0.9
+                && (d.score - score).abs() <= 0.01
+        });
+        match hit {
+            Some((i, _)) => used[i] = true,
+            None => panic!("{key}: reference {class} {score:.3} {rb:?} has no match in {ours:#?}"),
+        }
+    }
+}
+
+#[test]
+fn bus_matches_onnxruntime_reference() {
+    compare_with_reference(
+        "bus.jpg",
+        &common::shared()
+            .join("data/images/bus.jpg")
+            .display()
+            .to_string(),
+    );
+}
+
+#[test]
+fn zidane_matches_onnxruntime_reference() {
+    compare_with_reference(
+        "zidane.jpg",
+        &common::shared()
+            .join("data/images/zidane.jpg")
+            .display()
+            .to_string(),
+    );
+}
+
+#[test]
+fn person_jpg_matches_onnxruntime_reference() {
+    compare_with_reference(
+        "person.jpg",
+        &common::shared()
+            .join("data/images/person.jpg")
+            .display()
+            .to_string(),
+    );
+}
+
+#[test]
+fn mrpt_books_match_onnxruntime_reference_at_low_threshold() {
+    compare_with_reference(
+        "mrpt_rgb.png",
+        &common::mrpt("rgb.png").display().to_string(),
+    );
+}
+
+#[test]
+fn bus_and_persons_with_prompt_words() {
+    let prompts = vec!["bus".to_string(), "people".to_string()];
+    let d = detect(
+        &common::shared()
+            .join("data/images/bus.jpg")
+            .display()
+            .to_string(),
+        &prompts,
+        0.5,
+    );
+    let bus: Vec<&Detection> = d.iter().filter(|d| d.label == "bus").collect();
+    let persons: Vec<&Detection> = d.iter().filter(|d| d.label == "people").collect();
+    assert_eq!(bus.len(), 1);
+    assert!((bus[0].score - 0.94).abs() < 0.01, "{:?}", bus[0]);
+    assert_eq!(persons.len(), 3, "{persons:#?}");
+    assert!(persons.iter().all(|p| p.class == "person"));
+    let mut s: Vec<f32> = persons.iter().map(|p| p.score).collect();
+    s.sort_by(|a, b| b.total_cmp(a));
+    for (got, want) in s.iter().zip([0.90, 0.85, 0.83]) {
+        assert!((got - want).abs() < 0.01, "{s:?}");
+    }
+}
+
+#[test]
+fn prompt_without_class_is_reported() {
+    common::init_ort();
+    let mut det =
+        open_detector(&common::yolo11n(), &DetectorSettings::default(), None).expect("model");
+    let r = det
+        .set_prompts(&["sofa".into(), "door handle".into()])
+        .expect("prompts");
+    assert_eq!(r.matched, vec![("sofa".to_string(), "couch".to_string())]);
+    assert_eq!(r.unmatched, vec!["door handle".to_string()]);
+    assert!(det.set_prompts(&[]).is_err());
+}
