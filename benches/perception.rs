@@ -1,1 +1,171 @@
-fn main() {}
+//! Perception benchmarks.
+//! - `geometry_10_masks`: paper steps 3–6 (erosion, depth isolation +
+//!   z-score, back-projection + extrinsics, boxes) on a 640×480 frame with
+//!   10 masks, one core. Target ≤ 2 ms.
+//! - `depth_segmenter_10_boxes`: step 2 without a model.
+//! - `letterbox_640`: the detector's pre-processing of a 640×480 frame.
+//! - `whole_view_yolo11n_depth`: one whole view on the real MRPT RGB-D frame
+//!   with YOLO11n (CPU) + the depth segmenter. Target ≤ 130 ms (the paper's
+//!   GPU figure). Needs ../shared/models/yolo11n_coco.onnx and the ONNX
+//!   Runtime library (scripts/fetch-onnxruntime.sh).
+//!
+//! Run: `cargo bench --bench perception`
+
+use std::path::PathBuf;
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use nalgebra::Isometry3;
+use opennav::perception::calibration::{Intrinsics, RgbdCalibration};
+use opennav::perception::detector::{open_detector, Detection, DetectorSettings};
+use opennav::perception::image::{letterbox_chw, DepthImage, RgbImage};
+use opennav::perception::pipeline::{objects_from_masks, GeometrySettings, Pipeline};
+use opennav::perception::segmenter::DepthBoxSegmenter;
+use opennav::types::Frame;
+
+/// A 640×480 scene: a wall at 3.5 m and 10 box-shaped objects in front.
+fn scene() -> (DepthImage, Vec<Detection>) {
+    let (w, h) = (640usize, 480usize);
+    let mut d = vec![3.5f32; w * h];
+    let mut dets = Vec::new();
+    for i in 0..10 {
+        let x0 = 20 + (i % 5) * 120;
+        let y0 = 40 + (i / 5) * 220;
+        let (bw, bh) = (90, 160);
+        let z = 1.0 + 0.2 * i as f32;
+        for v in y0..y0 + bh {
+            for u in x0..x0 + bw {
+                // a little slope and noise-like ripple
+                d[v * w + u] = z + 0.002 * ((u * 7 + v * 13) % 11) as f32;
+            }
+        }
+        dets.push(Detection {
+            label: format!("object{i}"),
+            class: "object".into(),
+            score: 0.9,
+            box_xyxy: [
+                x0 as f32 - 10.0,
+                y0 as f32 - 10.0,
+                (x0 + bw) as f32 + 10.0,
+                (y0 + bh) as f32 + 10.0,
+            ],
+        });
+    }
+    (DepthImage::new(w, h, d).expect("depth"), dets)
+}
+
+fn intrinsics() -> Intrinsics {
+    Intrinsics {
+        width: 640,
+        height: 480,
+        fx: 385.0,
+        fy: 385.0,
+        cx: 320.0,
+        cy: 240.0,
+    }
+}
+
+fn bench_geometry(c: &mut Criterion) {
+    let (depth, dets) = scene();
+    let seg = DepthBoxSegmenter::default();
+    let masks: Vec<_> = dets
+        .iter()
+        .map(|d| seg.segment_box(&depth, d.box_xyxy))
+        .collect();
+    let k = intrinsics();
+    let base_from_camera = Isometry3::translation(0.3, 0.0, 0.9);
+    let settings = GeometrySettings::default();
+    let (objs, _) = objects_from_masks(
+        &dets,
+        &masks,
+        &depth,
+        &k,
+        &base_from_camera,
+        Frame::BaseLink,
+        &settings,
+    );
+    assert_eq!(objs.len(), 10);
+    c.bench_function("geometry_10_masks", |b| {
+        b.iter(|| {
+            objects_from_masks(
+                &dets,
+                &masks,
+                &depth,
+                &k,
+                &base_from_camera,
+                Frame::BaseLink,
+                &settings,
+            )
+        })
+    });
+    c.bench_function("depth_segmenter_10_boxes", |b| {
+        b.iter(|| {
+            dets.iter()
+                .map(|d| seg.segment_box(&depth, d.box_xyxy))
+                .collect::<Vec<_>>()
+        })
+    });
+    let img = RgbImage::filled(640, 480, [100, 150, 200]).expect("image");
+    c.bench_function("letterbox_640", |b| {
+        b.iter(|| letterbox_chw(&img, 640, 114))
+    });
+}
+
+fn shared() -> PathBuf {
+    std::env::var_os("OPENNAV_SHARED")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared"))
+}
+
+fn bench_whole_view(c: &mut Criterion) {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let model = shared().join("models/yolo11n_coco.onnx");
+    if !model.is_file() {
+        eprintln!(
+            "\n*** whole_view_yolo11n_depth NOT RUN: {} is missing ***\n",
+            model.display()
+        );
+        return;
+    }
+    let lib = opennav::perception::runtime::resolve_library_path(None);
+    let lib = if lib.is_relative() {
+        root.join(lib)
+    } else {
+        lib
+    };
+    if let Err(e) = opennav::perception::runtime::init_runtime(&lib) {
+        eprintln!("\n*** whole_view_yolo11n_depth NOT RUN: {e} ***\n");
+        return;
+    }
+    let fx = root.join("tests/fixtures/mrpt_openni2");
+    let cal = RgbdCalibration::load(&fx.join("calibration.json")).expect("calibration");
+    let color = RgbImage::load(&fx.join("rgb.png")).expect("rgb");
+    let depth =
+        DepthImage::load_png(&fx.join("depth_mm.png"), cal.depth_scale_m as f32).expect("depth");
+    let threads: usize = std::env::var("OPENNAV_BENCH_THREADS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(0);
+    let mut settings = DetectorSettings {
+        score_threshold: 0.15,
+        ..Default::default()
+    };
+    settings.session.intra_threads = threads;
+    let det = open_detector(&model, &settings, None).expect("model");
+    let mut p = Pipeline::new(
+        det,
+        Box::new(DepthBoxSegmenter::default()),
+        cal,
+        GeometrySettings::default(),
+    );
+    p.set_prompts(&["book".into(), "chair".into(), "person".into()])
+        .expect("prompts");
+    let mut group = c.benchmark_group("whole_view");
+    group.sample_size(30);
+    group.bench_function("whole_view_yolo11n_depth", |b| {
+        b.iter(|| p.process(&color, Some(&depth)).expect("view"))
+    });
+    group.finish();
+}
+
+criterion_group!(benches, bench_geometry, bench_whole_view);
+criterion_main!(benches);

@@ -16,17 +16,20 @@ pub struct Aabb {
 impl Aabb {
     pub fn from_points(points: &[Point3<f32>]) -> Option<Aabb> {
         let first = points.first()?;
-        let mut min = [first.x as f64, first.y as f64, first.z as f64];
+        let mut min = [first.x, first.y, first.z];
         let mut max = min;
+        // plain comparisons (not f32::min, whose NaN rules are slow); the
+        // points come from finite depths
         for p in points {
-            for (i, c) in [p.x as f64, p.y as f64, p.z as f64].into_iter().enumerate() {
-                min[i] = min[i].min(c);
-                max[i] = max[i].max(c);
+            let c = [p.x, p.y, p.z];
+            for k in 0..3 {
+                min[k] = if c[k] < min[k] { c[k] } else { min[k] };
+                max[k] = if c[k] > max[k] { c[k] } else { max[k] };
             }
         }
         Some(Aabb {
-            min_m: min,
-            max_m: max,
+            min_m: min.map(f64::from),
+            max_m: max.map(f64::from),
         })
     }
 
@@ -76,27 +79,95 @@ impl OrientedBox {
     /// calipers over the convex hull), extruded from min z to max z. The yaw
     /// is the direction of the longer side, in (−π/2, π/2].
     pub fn from_points(points: &[Point3<f32>]) -> Option<OrientedBox> {
-        let first = points.first()?;
-        let (mut zmin, mut zmax) = (first.z as f64, first.z as f64);
-        for p in points {
-            zmin = zmin.min(p.z as f64);
-            zmax = zmax.max(p.z as f64);
-        }
-        let xy: Vec<[f64; 2]> = points.iter().map(|p| [p.x as f64, p.y as f64]).collect();
-        let hull = convex_hull(xy);
+        let aabb = Aabb::from_points(points)?;
+        Some(Self::from_points_and_aabb(points, &aabb))
+    }
+
+    /// As [`from_points`](Self::from_points) when the points' axis-aligned
+    /// box is known (its z range is the box's height).
+    pub fn from_points_and_aabb(points: &[Point3<f32>], aabb: &Aabb) -> OrientedBox {
+        let (zmin, zmax) = (aabb.min_m[2], aabb.max_m[2]);
+        let hull = convex_hull(hull_candidates(points));
         let (cx, cy, len, wid, yaw) = min_area_rect(&hull);
-        Some(OrientedBox {
+        OrientedBox {
             center_m: [cx, cy, 0.5 * (zmin + zmax)],
             size_m: [len, wid, zmax - zmin],
             yaw_rad: yaw,
-        })
+        }
     }
+}
+
+/// Akl–Toussaint: the ground projections of the points that can be hull
+/// vertices. Points strictly inside the octagon of the extreme points (along
+/// x, y, x+y, x−y), or on its edges between vertices, cannot be; they are
+/// dropped in two passes, leaving few points for the hull's sort. Exact.
+fn hull_candidates(points: &[Point3<f32>]) -> Vec<[f64; 2]> {
+    let all = || points.iter().map(|p| [p.x as f64, p.y as f64]).collect();
+    if points.len() < 64 {
+        return all();
+    }
+    // extreme point per direction, counter-clockwise from +x:
+    // +x, +(x+y), +y, +(y−x), −x, −(x+y), −y, +(x−y)
+    let mut idx = [0usize; 8];
+    let mut best = [f32::MIN; 8];
+    for (i, p) in points.iter().enumerate() {
+        let (x, y) = (p.x, p.y);
+        let s = [x, x + y, y, y - x, -x, -x - y, -y, x - y];
+        for k in 0..8 {
+            if s[k] > best[k] {
+                best[k] = s[k];
+                idx[k] = i;
+            }
+        }
+    }
+    let mut poly: Vec<[f64; 2]> = Vec::with_capacity(8);
+    for &i in &idx {
+        let e = [points[i].x as f64, points[i].y as f64];
+        if poly.last() != Some(&e) && poly.first() != Some(&e) {
+            poly.push(e);
+        }
+    }
+    if poly.len() < 3 {
+        return all();
+    }
+    // inside: n·p ≥ c for every counter-clockwise edge (n its left normal).
+    // Tested in f32 with a margin, so a point is dropped only when it is
+    // inside beyond rounding: the hull stays exact.
+    let mut nx = [0.0f32; 8];
+    let mut ny = [0.0f32; 8];
+    let mut c = [f32::MIN; 8];
+    let scale = poly
+        .iter()
+        .fold(1.0f64, |m, p| m.max(p[0].abs()).max(p[1].abs()));
+    for i in 0..poly.len() {
+        let a = poly[i];
+        let b = poly[(i + 1) % poly.len()];
+        let (ex, ey) = (-(b[1] - a[1]), b[0] - a[0]);
+        let len = (ex * ex + ey * ey).sqrt();
+        if len == 0.0 {
+            continue;
+        }
+        nx[i] = (ex / len) as f32;
+        ny[i] = (ey / len) as f32;
+        c[i] = ((ex * a[0] + ey * a[1]) / len + 1e-5 * scale) as f32;
+    }
+    let mut out = poly.clone();
+    for p in points {
+        let mut outside = false;
+        for k in 0..8 {
+            outside |= nx[k] * p.x + ny[k] * p.y < c[k];
+        }
+        if outside {
+            out.push([p.x as f64, p.y as f64]);
+        }
+    }
+    out
 }
 
 /// Andrew's monotone chain; returns the hull counter-clockwise without
 /// repeating the first point (1 or 2 points for degenerate input).
 fn convex_hull(mut pts: Vec<[f64; 2]>) -> Vec<[f64; 2]> {
-    pts.sort_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
+    pts.sort_unstable_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
     pts.dedup();
     if pts.len() < 3 {
         return pts;
@@ -200,7 +271,7 @@ impl Object3D {
         box_xyxy: Option<[f32; 4]>,
     ) -> Option<Object3D> {
         let aabb = Aabb::from_points(&points)?;
-        let obb = OrientedBox::from_points(&points)?;
+        let obb = OrientedBox::from_points_and_aabb(&points, &aabb);
         Some(Object3D {
             label,
             score,
@@ -231,12 +302,9 @@ pub fn merge_objects(objects: Vec<Object3D>, iou_threshold: f64) -> Vec<Object3D
                 Some(m) => {
                     m.points.extend_from_slice(&o.points);
                     m.score = m.score.max(o.score);
-                    if let (Some(a), Some(b)) = (
-                        Aabb::from_points(&m.points),
-                        OrientedBox::from_points(&m.points),
-                    ) {
+                    if let Some(a) = Aabb::from_points(&m.points) {
+                        m.obb = OrientedBox::from_points_and_aabb(&m.points, &a);
                         m.aabb = a;
-                        m.obb = b;
                     }
                     m.box_xyxy = None;
                     merged_any = true;

@@ -19,18 +19,18 @@ pub struct DepthSample {
 /// must share the colour image's size.
 pub fn isolate_depth(mask: &Mask, depth: &DepthImage) -> Vec<DepthSample> {
     let (x0, y0, w, h) = mask.region();
-    let mut out = Vec::with_capacity(w * h / 2);
     let dw = depth.width();
     let data = depth.data();
-    for v in y0..(y0 + h).min(depth.height()) {
-        for u in x0..(x0 + w).min(dw) {
-            if !mask.get(u, v) {
-                continue;
-            }
-            let z = data[v * dw + u];
-            if z.is_finite() && z > 0.0 {
+    let cols = w.min(dw.saturating_sub(x0));
+    let mut out = Vec::with_capacity(w * h);
+    for y in 0..h.min(depth.height().saturating_sub(y0)) {
+        let v = y0 + y;
+        let bits = &mask.region_row(y)[..cols];
+        let zs = &data[v * dw + x0..v * dw + x0 + cols];
+        for (x, (&on, &z)) in bits.iter().zip(zs).enumerate() {
+            if on && z.is_finite() && z > 0.0 {
                 out.push(DepthSample {
-                    u: u as u32,
+                    u: (x0 + x) as u32,
                     v: v as u32,
                     z_m: z,
                 });
@@ -46,34 +46,34 @@ pub fn depth_stats(samples: &[DepthSample]) -> Option<(f64, f64)> {
     if samples.is_empty() {
         return None;
     }
+    // shifted sums in f64: one pass, no cancellation for depths near each other
     let n = samples.len() as f64;
-    let mean = samples.iter().map(|s| s.z_m as f64).sum::<f64>() / n;
-    let var = samples
-        .iter()
-        .map(|s| {
-            let d = s.z_m as f64 - mean;
-            d * d
-        })
-        .sum::<f64>()
-        / n;
-    Some((mean, var.sqrt()))
+    let shift = samples[0].z_m as f64;
+    let (mut s1, mut s2) = (0.0f64, 0.0f64);
+    for s in samples {
+        let d = s.z_m as f64 - shift;
+        s1 += d;
+        s2 += d * d;
+    }
+    let mean_d = s1 / n;
+    let var = (s2 / n - mean_d * mean_d).max(0.0);
+    Some((shift + mean_d, var.sqrt()))
 }
 
 /// Keeps the samples whose z-score satisfies |z| < `tau` (step 4). When all
 /// depths are equal (σ = 0) every sample has z = 0 and is kept: no division
 /// by zero.
-pub fn zscore_filter(samples: &[DepthSample], tau: f64) -> Vec<DepthSample> {
-    let Some((mean, std)) = depth_stats(samples) else {
-        return Vec::new();
+pub fn zscore_filter(mut samples: Vec<DepthSample>, tau: f64) -> Vec<DepthSample> {
+    let Some((mean, std)) = depth_stats(&samples) else {
+        return samples;
     };
-    if std <= f64::EPSILON * mean.abs().max(1.0) {
-        return samples.to_vec();
+    if std <= 1e-9 * mean.abs().max(1.0) {
+        return samples;
     }
+    // |z − μ| / σ < τ  ⇔  |z − μ| < τσ
+    let limit = tau * std;
+    samples.retain(|s| (s.z_m as f64 - mean).abs() < limit);
     samples
-        .iter()
-        .filter(|s| ((s.z_m as f64 - mean) / std).abs() < tau)
-        .copied()
-        .collect()
 }
 
 /// Back-projects samples with the intrinsics of the image they index
@@ -85,12 +85,26 @@ pub fn back_project(
     intrinsics: &Intrinsics,
     target_from_camera: &Isometry3<f64>,
 ) -> Vec<Point3<f32>> {
+    // p = R·(z·ray(u, v)) + t with ray(u, v) = ((u−cx)/fx, (v−cy)/fy, 1),
+    // linear in u and v: p = z·(a + u·b + v·c) + t
+    let r = target_from_camera.rotation.to_rotation_matrix();
+    let m = r.matrix();
+    let col = |j: usize| nalgebra::Vector3::new(m[(0, j)], m[(1, j)], m[(2, j)]);
+    let b = col(0) / intrinsics.fx;
+    let c = col(1) / intrinsics.fy;
+    let a = col(2) - b * intrinsics.cx - c * intrinsics.cy;
+    let t = target_from_camera.translation.vector;
+    let (a, b, c, t) = (
+        a.cast::<f32>(),
+        b.cast::<f32>(),
+        c.cast::<f32>(),
+        t.cast::<f32>(),
+    );
     samples
         .iter()
         .map(|s| {
-            let p = intrinsics.back_project(s.u as f64, s.v as f64, s.z_m as f64);
-            let q = target_from_camera * p;
-            Point3::new(q.x as f32, q.y as f32, q.z as f32)
+            let ray = a + b * s.u as f32 + c * s.v as f32;
+            Point3::from(ray * s.z_m + t)
         })
         .collect()
 }
@@ -119,26 +133,26 @@ mod tests {
         let (mean, std) = depth_stats(&s).unwrap();
         assert!((mean - 2.3).abs() < 1e-6);
         assert!((std - 0.9).abs() < 1e-6);
-        let kept = zscore_filter(&s, 2.0);
+        let kept = zscore_filter(s.clone(), 2.0);
         assert_eq!(kept.len(), 9);
         assert!(kept.iter().all(|s| s.z_m == 2.0));
         // with τ = 3.5 nothing goes
-        assert_eq!(zscore_filter(&s, 3.5).len(), 10);
+        assert_eq!(zscore_filter(s, 3.5).len(), 10);
     }
 
     #[test]
     fn zscore_is_strict_at_tau() {
         // two values: each is exactly 1σ from the mean
         let s = samples(&[1.0, 3.0]);
-        assert_eq!(zscore_filter(&s, 1.0).len(), 0);
-        assert_eq!(zscore_filter(&s, 1.0000001).len(), 2);
+        assert_eq!(zscore_filter(s.clone(), 1.0).len(), 0);
+        assert_eq!(zscore_filter(s, 1.0000001).len(), 2);
     }
 
     #[test]
     fn zscore_of_constant_depth_keeps_all() {
         let s = samples(&[1.5; 7]);
-        assert_eq!(zscore_filter(&s, 2.0), s);
-        assert!(zscore_filter(&[], 2.0).is_empty());
+        assert_eq!(zscore_filter(s.clone(), 2.0), s);
+        assert!(zscore_filter(Vec::new(), 2.0).is_empty());
     }
 
     #[test]

@@ -92,6 +92,12 @@ impl Mask {
         true
     }
 
+    /// Row `y` of the region (region coordinates) as booleans.
+    #[inline]
+    pub fn region_row(&self, y: usize) -> &[bool] {
+        &self.bits[y * self.w..(y + 1) * self.w]
+    }
+
     pub fn count(&self) -> usize {
         self.bits.iter().filter(|&&b| b).count()
     }
@@ -119,42 +125,53 @@ impl Mask {
         cur
     }
 
+    /// One 3×3 erosion as a horizontal then a vertical 3-wide minimum
+    /// (the square element is separable). Neighbours beyond the image count
+    /// as set; beyond the region but inside the image, as unset.
     fn erode_once(&self) -> Mask {
         let (w, h) = (self.w, self.h);
-        let mut out = vec![false; w * h];
-        // neighbour lookup in region coordinates, with the border rule
-        let at = |x: isize, y: isize| -> bool {
-            let u = self.x0 as isize + x;
-            let v = self.y0 as isize + y;
-            if u < 0 || v < 0 || u >= self.image_width as isize || v >= self.image_height as isize {
-                return true;
-            }
-            if x < 0 || y < 0 || x >= w as isize || y >= h as isize {
-                return false;
-            }
-            self.bits[y as usize * w + x as usize]
-        };
+        if w == 0 || h == 0 {
+            return self.clone();
+        }
+        // what lies just outside each side of the region
+        let left_out = self.x0 == 0;
+        let right_out = self.x0 + w >= self.image_width;
+        let top_out = self.y0 == 0;
+        let bottom_out = self.y0 + h >= self.image_height;
+        let mut horiz = vec![false; w * h];
         for y in 0..h {
             let row = &self.bits[y * w..(y + 1) * w];
+            let out = &mut horiz[y * w..(y + 1) * w];
             for x in 0..w {
-                if !row[x] {
+                let l = if x == 0 { left_out } else { row[x - 1] };
+                let r = if x + 1 == w { right_out } else { row[x + 1] };
+                out[x] = l & row[x] & r;
+            }
+        }
+        let mut bits = vec![false; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                let c = horiz[y * w + x];
+                if !c {
                     continue;
                 }
-                let (xi, yi) = (x as isize, y as isize);
-                let mut keep = true;
-                'n: for dy in -1..=1 {
-                    for dx in -1..=1 {
-                        if !at(xi + dx, yi + dy) {
-                            keep = false;
-                            break 'n;
-                        }
-                    }
-                }
-                out[y * w + x] = keep;
+                // beyond the image the neighbour row counts as set; a row
+                // beyond the region inside the image is unset
+                let up = if y == 0 {
+                    top_out
+                } else {
+                    horiz[(y - 1) * w + x]
+                };
+                let down = if y + 1 == h {
+                    bottom_out
+                } else {
+                    horiz[(y + 1) * w + x]
+                };
+                bits[y * w + x] = up & down;
             }
         }
         Mask {
-            bits: out,
+            bits,
             ..self.clone_header()
         }
     }

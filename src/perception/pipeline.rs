@@ -84,17 +84,17 @@ pub fn objects_from_masks(
             box_xyxy: det.box_xyxy,
             reason,
         };
-        let mask_px = mask.count();
         let eroded = mask.eroded(settings.erosion_iterations);
         let mut samples = isolate_depth(&eroded, depth);
         samples.retain(|s| s.z_m >= settings.min_depth_m && s.z_m <= settings.max_depth_m);
         let n_depth = samples.len();
-        let kept = zscore_filter(&samples, settings.zscore_tau);
+        let kept = zscore_filter(samples, settings.zscore_tau);
         if kept.len() < settings.min_points.max(1) {
             dropped.push(drop(format!(
-                "{} points after filtering (< {}): mask {mask_px} px, eroded {} px, valid depth {n_depth}",
+                "{} points after filtering (< {}): mask {} px, eroded {} px, valid depth {n_depth}",
                 kept.len(),
                 settings.min_points,
+                mask.count(),
                 eroded.count()
             )));
             continue;

@@ -42,7 +42,7 @@ pub struct EmbeddingsFile {
 enum Source {
     Encoder {
         model: Box<Model>,
-        tokenizer: ClipTokenizer,
+        tokenizer: Box<ClipTokenizer>,
         ids_name: String,
         ids_int32: bool,
         mask_name: Option<String>,
@@ -126,7 +126,7 @@ impl TextEmbedder {
         Ok(TextEmbedder {
             source: Source::Encoder {
                 model: Box::new(model),
-                tokenizer,
+                tokenizer: Box::new(tokenizer),
                 ids_name,
                 ids_int32,
                 mask_name,

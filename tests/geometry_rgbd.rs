@@ -1,0 +1,157 @@
+//! Back-projection against MRPT's own cloud of the real RGB-D frame, and the
+//! whole pipeline on that frame with the real YOLO11n model.
+
+mod common;
+
+use nalgebra::Isometry3;
+use opennav::perception::calibration::RgbdCalibration;
+use opennav::perception::cloud::{back_project, DepthSample};
+use opennav::perception::detector::{open_detector, DetectorSettings};
+use opennav::perception::image::{DepthImage, RgbImage};
+use opennav::perception::pipeline::{GeometrySettings, Pipeline};
+use opennav::perception::segmenter::DepthBoxSegmenter;
+use opennav::types::Frame;
+
+struct RefCloud {
+    u: Vec<u16>,
+    v: Vec<u16>,
+    x: Vec<f32>,
+    y: Vec<f32>,
+    z: Vec<f32>,
+}
+
+fn reference_cloud() -> RefCloud {
+    let bytes = std::fs::read(common::generated("mrpt_reference_cloud.bin")).expect("read");
+    let n = u32::from_le_bytes(bytes[0..4].try_into().expect("4")) as usize;
+    let mut off = 4;
+    let u16s = |off: &mut usize| -> Vec<u16> {
+        let v = bytes[*off..*off + 2 * n]
+            .chunks_exact(2)
+            .map(|c| u16::from_le_bytes([c[0], c[1]]))
+            .collect();
+        *off += 2 * n;
+        v
+    };
+    let u = u16s(&mut off);
+    let v = u16s(&mut off);
+    let f32s = |off: &mut usize| -> Vec<f32> {
+        let v = bytes[*off..*off + 4 * n]
+            .chunks_exact(4)
+            .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+            .collect();
+        *off += 4 * n;
+        v
+    };
+    let x = f32s(&mut off);
+    let y = f32s(&mut off);
+    let z = f32s(&mut off);
+    RefCloud { u, v, x, y, z }
+}
+
+#[test]
+fn back_projection_reproduces_mrpt_cloud() {
+    let cal = RgbdCalibration::load(&common::mrpt("calibration.json")).expect("calibration");
+    let (depth_k, _) = cal.depth.expect("separate depth camera");
+    let depth = DepthImage::load_png(&common::mrpt("depth_mm.png"), cal.depth_scale_m as f32)
+        .expect("depth");
+    let r = reference_cloud();
+    assert!(r.u.len() > 200_000, "{} points", r.u.len());
+    let samples: Vec<DepthSample> =
+        r.u.iter()
+            .zip(&r.v)
+            .map(|(&u, &v)| DepthSample {
+                u: u as u32,
+                v: v as u32,
+                z_m: depth
+                    .at(u as usize, v as usize)
+                    .expect("reference point has depth"),
+            })
+            .collect();
+    // in the depth optical frame, then MRPT's axes: x = Z, y = −X, z = −Y
+    let pts = back_project(&samples, &depth_k, &Isometry3::identity());
+    let mut worst = 0.0f32;
+    for (i, p) in pts.iter().enumerate() {
+        let d = [
+            (p.z - r.x[i]).abs(),
+            (-p.x - r.y[i]).abs(),
+            (-p.y - r.z[i]).abs(),
+        ];
+        worst = worst.max(d[0].max(d[1]).max(d[2]));
+    }
+    assert!(worst < 1e-5, "max deviation {worst} m");
+    // and every valid depth pixel is in the reference: same count
+    let valid = depth.data().iter().filter(|&&z| z > 0.0).count();
+    assert_eq!(valid, r.u.len());
+}
+
+#[test]
+fn books_on_the_shelf_in_3d() {
+    common::init_ort();
+    let cal = RgbdCalibration::load(&common::mrpt("calibration.json")).expect("calibration");
+    let color = RgbImage::load(&common::mrpt("rgb.png")).expect("rgb");
+    let depth = DepthImage::load_png(&common::mrpt("depth_mm.png"), cal.depth_scale_m as f32)
+        .expect("depth");
+    let settings = DetectorSettings {
+        score_threshold: 0.15,
+        ..Default::default()
+    };
+    let det = open_detector(&common::yolo11n(), &settings, None).expect("model");
+    let mut p = Pipeline::new(
+        det,
+        Box::new(DepthBoxSegmenter::default()),
+        cal.clone(),
+        GeometrySettings::default(),
+    );
+    p.set_prompts(&["book".into()]).expect("prompt");
+    let view = p.process(&color, Some(&depth)).expect("view");
+    assert!(view.detections.len() >= 3, "{:#?}", view.detections);
+    assert!(!view.objects.is_empty());
+    assert_eq!(
+        view.objects.len() + view.dropped.len(),
+        view.detections.len()
+    );
+    for o in &view.objects {
+        assert_eq!(o.frame, Frame::BaseLink);
+        assert_eq!(o.label, "book");
+        assert!(o.points.len() >= 20);
+        // base frame is MRPT's: x forward = depth; the frame's depths are 1.62–2.56 m
+        assert!(
+            o.aabb.min_m[0] >= 1.6 && o.aabb.max_m[0] <= 2.6,
+            "{:?}",
+            o.aabb
+        );
+        // books are small: no box larger than the shelf
+        assert!(o.aabb.size_m().iter().all(|s| *s < 1.0), "{:?}", o.aabb);
+        for q in &o.points {
+            assert!(q.x.is_finite() && q.y.is_finite() && q.z.is_finite());
+        }
+    }
+}
+
+#[test]
+fn registration_changes_little_for_this_rig() {
+    // the MRPT rig's colour and depth cameras are ~1.6 mm apart; registered
+    // depth keeps nearly every return
+    let cal = RgbdCalibration::load(&common::mrpt("calibration.json")).expect("calibration");
+    let (dk, color_from_depth) = cal.depth.expect("depth");
+    let depth = DepthImage::load_png(&common::mrpt("depth_mm.png"), cal.depth_scale_m as f32)
+        .expect("depth");
+    let reg = opennav::perception::calibration::register_depth_to_color(
+        &depth,
+        &dk,
+        &color_from_depth,
+        &cal.color,
+    )
+    .expect("register");
+    let before = depth.data().iter().filter(|&&z| z > 0.0).count();
+    let after = reg.data().iter().filter(|&&z| z > 0.0).count();
+    // the colour camera's focal length is shorter (521 vs 573 px): the depth
+    // image lands on a smaller area of the colour image, so some pixels
+    // collide; far more than half remain
+    assert!(after > before / 2 && after <= before, "{before} → {after}");
+    let zs: Vec<f32> = reg.data().iter().copied().filter(|&z| z > 0.0).collect();
+    let (lo, hi) = zs
+        .iter()
+        .fold((f32::MAX, f32::MIN), |(a, b), &z| (a.min(z), b.max(z)));
+    assert!(lo > 1.6 && hi < 2.6, "{lo}..{hi}");
+}

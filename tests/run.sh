@@ -1,0 +1,53 @@
+#!/usr/bin/env bash
+# The test command: installs what the full suite needs, then runs it.
+#   tests/run.sh            everything (format, lint, unit + integration tests)
+# Needs: a Rust toolchain and network access to the package registries.
+set -euo pipefail
+repo=$(cd "$(dirname "$0")/.." && pwd)
+cd "$repo"
+export OPENNAV_SHARED=${OPENNAV_SHARED:-$repo/../shared}
+
+step() { printf '\n== %s ==\n' "$*"; }
+
+as_root() {
+  if [ "$(id -u)" -eq 0 ]; then "$@"; elif command -v sudo >/dev/null; then sudo "$@"; else
+    echo "tests/run.sh: need root (or sudo) to run: $*" >&2; return 1; fi
+}
+
+step "system packages"
+apt_pkgs=(python3 python3-venv python3-pip)
+missing=()
+for p in "${apt_pkgs[@]}"; do dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p"); done
+# a python3 with venv already on PATH (pyenv, say) is enough
+if [ ${#missing[@]} -gt 0 ] && ! python3 -c 'import venv, ensurepip' 2>/dev/null; then
+  as_root apt-get update -qq
+  as_root env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${missing[@]}"
+fi
+echo "ok"
+
+step "ONNX Runtime library"
+lib=$(scripts/fetch-onnxruntime.sh)
+export ORT_DYLIB_PATH=$lib
+echo "$ORT_DYLIB_PATH"
+
+step "Python packages for fixtures"
+if [ ! -x .venv/bin/python ]; then python3 -m venv .venv; fi
+.venv/bin/python -m pip install --quiet --disable-pip-version-check -r tests/fixtures/requirements.txt
+
+step "test assets"
+for f in "$OPENNAV_SHARED/models/yolo11n_coco.onnx" "$OPENNAV_SHARED/data/images/bus.jpg"; do
+  if [ ! -f "$f" ]; then
+    echo "tests/run.sh: MISSING TEST ASSET $f (the shared folder belongs beside the checkout, or set OPENNAV_SHARED)" >&2
+    exit 1
+  fi
+done
+.venv/bin/python tests/fixtures/generate.py "$OPENNAV_SHARED" tests/fixtures/generated
+
+step "format"
+cargo fmt --all -- --check
+
+step "lint"
+cargo clippy --all-targets --all-features -- -D warnings
+
+step "tests"
+cargo test --all-features --no-fail-fast 2>&1 | tee target/test-output.txt
