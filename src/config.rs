@@ -1,6 +1,8 @@
 //! Typed settings, loaded with the `config` crate from the defaults in
-//! `config/opennav.toml` (built in), an optional file, and `OPENNAV_*`
-//! environment variables (`OPENNAV_PERCEPTION__SCORE_THRESHOLD=0.3`).
+//! `config/opennav.toml` (built in), an optional file, and
+//! `OPENNAV_<SECTION>__<KEY>` environment variables
+//! (`OPENNAV_PERCEPTION__SCORE_THRESHOLD=0.3`; a variable without `__` is
+//! not configuration).
 //! Unknown keys and out-of-range values are errors naming the key.
 
 use std::path::{Path, PathBuf};
@@ -140,9 +142,12 @@ impl Settings {
             }
             b = b.add_source(File::from(f).format(FileFormat::Toml).required(true));
         }
+        // config keys always have a section (`OPENNAV_<SECTION>__<KEY>`);
+        // other OPENNAV_ variables (OPENNAV_SHARED for the tests, say) are
+        // not configuration
         let env_map: config::Map<String, String> = env
             .into_iter()
-            .filter(|(k, _)| k.starts_with("OPENNAV_"))
+            .filter(|(k, _)| k.starts_with("OPENNAV_") && k.contains("__"))
             .collect();
         b = b.add_source(
             Environment::with_prefix("OPENNAV")
@@ -321,6 +326,12 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("bogus"), "{e}");
+        let e = Settings::load_with_env(None, env(&[("OPENNAV_NAVIGATON__SPEED", "1")]))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("navigaton"), "{e}");
+        // not a config key: no section separator
+        assert!(Settings::load_with_env(None, env(&[("OPENNAV_SHARED", "/x")])).is_ok());
     }
 
     #[test]

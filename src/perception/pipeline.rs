@@ -243,6 +243,9 @@ impl Pipeline {
                 &self.geometry,
             );
             result.timing_ms.geometry = ms(t);
+            for d in &dropped {
+                tracing::debug!(label = %d.label, score = d.score, reason = %d.reason, "detection dropped");
+            }
             result.masks = masks;
             result.objects = objects;
             result.dropped = dropped;

@@ -1,0 +1,70 @@
+//! Property tests: the parsers of outside data (model metadata, calibration
+//! and embeddings files, prompt text) return errors or values, never panic.
+
+use opennav::perception::calibration::{CalibrationFile, RgbdCalibration};
+use opennav::perception::detector::parse_prompts;
+use opennav::perception::detector::vocab::{parse_class_names, resolve_prompt};
+use opennav::perception::tokenizer::{ClipTokenizer, CONTEXT_LENGTH, END_OF_TEXT, START_OF_TEXT};
+use proptest::prelude::*;
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(300))]
+
+    #[test]
+    fn class_names_never_panic(s in ".{0,200}") {
+        let _ = parse_class_names(&s);
+    }
+
+    #[test]
+    fn class_names_round_trip(names in proptest::collection::vec("[a-z ]{1,12}", 1..20)) {
+        let dict = names.iter().enumerate().map(|(i, n)| format!("{i}: '{n}'")).collect::<Vec<_>>().join(", ");
+        let parsed = parse_class_names(&format!("{{{dict}}}")).expect("valid dict");
+        prop_assert_eq!(parsed, names);
+    }
+
+    #[test]
+    fn prompts_and_resolution_never_panic(s in ".{0,100}") {
+        let names = vec!["person".to_string(), "dining table".to_string()];
+        for p in parse_prompts(&s) {
+            prop_assert!(!p.trim().is_empty());
+            let _ = resolve_prompt(&p, &names);
+        }
+    }
+
+    #[test]
+    fn calibration_json_never_panics(s in ".{0,300}") {
+        if let Ok(f) = serde_json::from_str::<CalibrationFile>(&s) {
+            let _ = RgbdCalibration::from_file(&f);
+        }
+    }
+
+    #[test]
+    fn calibration_values_are_validated(fx in -1e6f64..1e6, cx in -1e4f64..1e4, scale in -1.0f64..2.0, r00 in -2.0f64..2.0) {
+        let text = format!(
+            r#"{{"format":"opennav-calibration/1","color":{{"width":640,"height":480,"fx":{fx},"fy":500,"cx":{cx},"cy":240}},
+               "depth_scale_m":{scale},"base_from_camera":{{"rotation":[[{r00},0,0],[0,1,0],[0,0,1]],"translation_m":[0,0,0]}}}}"#
+        );
+        let f: CalibrationFile = serde_json::from_str(&text).expect("json");
+        let ok = RgbdCalibration::from_file(&f).is_ok();
+        let valid = fx > 1.0 && fx < 1e5 && (0.0..=640.0).contains(&cx) && scale > 0.0 && scale < 1.0 && (r00 - 1.0).abs() <= 1e-4;
+        prop_assert_eq!(ok, valid);
+    }
+}
+
+#[test]
+fn tokenizer_never_panics_and_always_frames() {
+    let t = ClipTokenizer::standard().expect("tokenizer");
+    let mut runner = proptest::test_runner::TestRunner::new(ProptestConfig::with_cases(300));
+    runner
+        .run(&".{0,120}", |s| {
+            let row = t.tokenize_padded(&s);
+            prop_assert_eq!(row[0], START_OF_TEXT);
+            let end = row.iter().position(|&x| x == END_OF_TEXT);
+            prop_assert!(end.is_some());
+            prop_assert!(row.len() == CONTEXT_LENGTH);
+            // every id is in the vocabulary
+            prop_assert!(row.iter().all(|&x| (0..49408).contains(&x)));
+            Ok(())
+        })
+        .expect("property holds");
+}
