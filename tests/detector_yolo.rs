@@ -142,3 +142,18 @@ fn prompt_without_class_is_reported() {
     assert_eq!(r.unmatched, vec!["door handle".to_string()]);
     assert!(det.set_prompts(&[]).is_err());
 }
+
+#[test]
+fn cuda_request_on_the_cpu_library_falls_back_and_still_detects() {
+    common::init_ort();
+    let mut settings = DetectorSettings::default();
+    settings.session.provider = opennav::perception::runtime::ExecutionProviderKind::Cuda;
+    settings.session.intra_threads = 1;
+    let mut det = open_detector(&common::yolo11n(), &settings, None).expect("falls back to CPU");
+    det.set_prompts(&["bus".into()]).expect("prompts");
+    let img = RgbImage::load(&common::asset(common::shared().join("data/images/bus.jpg")))
+        .expect("image");
+    let d = det.detect(&img).expect("detect");
+    assert_eq!(d.len(), 1);
+    assert!((d[0].score - 0.94).abs() < 0.01);
+}
