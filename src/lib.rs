@@ -5,6 +5,7 @@
 //! shared design notes and the README for the map of modules.
 
 pub mod config;
+pub mod eval;
 pub mod output;
 pub mod perception;
 pub mod types;

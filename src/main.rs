@@ -38,7 +38,28 @@ enum Format {
 }
 
 #[derive(Subcommand, Debug)]
+enum EvalCommand {
+    /// Open3DIS's 3D instance AP on one case file (scenes + RLE predictions), JSON out.
+    Instances {
+        /// Case JSON: {"scenes":[{"id","sem","inst"}],"predictions":[{"scene","label_id","score","mask_rle"}]}.
+        case: PathBuf,
+        /// `detector`: the predictions' scores; `one`: 1.0 for all (Open3DIS's Replica runs).
+        #[arg(long, value_enum, default_value = "detector")]
+        score_mode: ScoreModeArg,
+    },
+}
+
+#[derive(Debug, Clone, Copy, ValueEnum)]
+enum ScoreModeArg {
+    Detector,
+    One,
+}
+
+#[derive(Subcommand, Debug)]
 enum Command {
+    /// Evaluation: the paper's Replica metric.
+    #[command(subcommand)]
+    Eval(EvalCommand),
     /// Detect prompted objects in one RGB(-D) image: 2D boxes, and 3D objects with depth.
     Detect {
         /// Colour image (PNG or JPEG).
@@ -112,9 +133,42 @@ fn main() -> ExitCode {
     }
 }
 
+fn eval_instances(case: &std::path::Path, mode: ScoreModeArg) -> Result<(), Failure> {
+    use opennav::eval::instances::{evaluate, EvalCase, ScoreMode};
+    let text = std::fs::read_to_string(case)
+        .with_context(|| case.display().to_string())
+        .map_err(bad_input)?;
+    let case_data: EvalCase = serde_json::from_str(&text)
+        .with_context(|| format!("{}: not a valid case", case.display()))
+        .map_err(bad_input)?;
+    let mode = match mode {
+        ScoreModeArg::Detector => ScoreMode::Detector,
+        ScoreModeArg::One => ScoreMode::One,
+    };
+    let r = evaluate(&case_data, mode)
+        .with_context(|| case.display().to_string())
+        .map_err(bad_input)?;
+    let classes: serde_json::Map<String, serde_json::Value> = r
+        .classes
+        .iter()
+        .map(|(n, c)| Ok((n.clone(), serde_json::to_value(c)?)))
+        .collect::<Result<_, serde_json::Error>>()
+        .map_err(failed)?;
+    let out = serde_json::json!({
+        "mAP": r.map, "mAP50": r.map50, "mAP25": r.map25,
+        "score_mode": r.score_mode,
+        "classes": classes,
+    });
+    println!("{}", serde_json::to_string_pretty(&out).map_err(failed)?);
+    Ok(())
+}
+
 fn run(cli: Cli) -> Result<(), Failure> {
     let mut settings = Settings::load(cli.config.as_deref()).map_err(bad_input)?;
     match cli.command {
+        Command::Eval(EvalCommand::Instances { case, score_mode }) => {
+            eval_instances(&case, score_mode)
+        }
         Command::Detect {
             rgb,
             depth,

@@ -1,0 +1,4 @@
+//! Evaluation: the Replica 3D instance metric of the paper (Open3DIS's
+//! criterion).
+
+pub mod instances;
