@@ -8,4 +8,5 @@ pub mod config;
 pub mod eval;
 pub mod output;
 pub mod perception;
+pub mod sensors;
 pub mod types;

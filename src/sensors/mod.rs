@@ -1,0 +1,4 @@
+//! Sensors: pure codecs for the devices' byte protocols, and (later) the
+//! async drivers around them.
+
+pub mod scip;

@@ -1,0 +1,143 @@
+//! The SCIP 2.0 codec on the real SENA indoor scans (resampled to the
+//! URG-04LX's 682 steps over 240°, clipped to 5.6 m), and fuzzing of the
+//! reply parser with arbitrary and mutated bytes.
+
+mod common;
+
+use opennav::sensors::scip::{
+    build_reply, classify, decode_ranges, encode_value, parse_reply, NoReturn, Reading,
+    ReplyFramer, SensorParams,
+};
+use proptest::prelude::*;
+
+/// SENA scans: (timestamp, ranges in metres, NaN = invalid), 361 rays over 180°.
+fn sena() -> Vec<Vec<f64>> {
+    let text = std::fs::read_to_string(common::asset(
+        common::shared().join("data/laser/sena_2006_laser_scans.csv"),
+    ))
+    .expect("readable");
+    text.lines()
+        .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
+        .map(|l| {
+            l.split(',')
+                .skip(1)
+                .map(|v| {
+                    if v == "nan" {
+                        f64::NAN
+                    } else {
+                        v.parse().expect("number")
+                    }
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// URG steps 44..=725 in millimetres: the nearest SENA ray within half a
+/// ray's spacing; no ray (outside ±90°) or an invalid one → 0 (no object);
+/// beyond 5.6 m → clipped to 5600.
+fn resample(scan: &[f64]) -> Vec<u32> {
+    let p = SensorParams::URG_04LX;
+    let n = scan.len();
+    let spacing = std::f64::consts::PI / (n - 1) as f64;
+    (p.amin..=p.amax)
+        .map(|step| {
+            let a = p.step_angle_rad(step);
+            let k = ((a + std::f64::consts::FRAC_PI_2) / spacing).round();
+            if k < 0.0 || k as usize >= n {
+                return 0;
+            }
+            let r = scan[k as usize];
+            if !r.is_finite() || r <= 0.0 {
+                return 0;
+            }
+            ((r * 1000.0).round() as u32).clamp(20, 5600)
+        })
+        .collect()
+}
+
+#[test]
+fn real_scans_come_back_to_the_millimetre() {
+    let scans = sena();
+    assert_eq!(scans.len(), 225);
+    let mut framer = ReplyFramer::default();
+    let mut stream = Vec::new();
+    let mut expected = Vec::new();
+    for (i, s) in scans.iter().enumerate() {
+        assert_eq!(s.len(), 361);
+        let mm = resample(s);
+        assert_eq!(mm.len(), 682);
+        let data: Vec<u8> = mm.iter().flat_map(|&v| encode_value(v, 3)).collect();
+        // the sensor's 24-bit clock wraps during the run
+        let ts = (0xFF_FF00 + 100 * i as u32) & 0xFF_FFFF;
+        stream.extend(build_reply(b"MD0044072501000", b"99", Some(ts), &data));
+        expected.push((ts, mm));
+    }
+    // delivered in uneven chunks, as a USB CDC port does
+    let mut got = Vec::new();
+    let mut off = 0;
+    let mut k = 0;
+    while off < stream.len() {
+        let len = [1usize, 17, 63, 64, 65, 511, 4096][k % 7].min(stream.len() - off);
+        for block in framer.push(&stream[off..off + len]).expect("in step") {
+            let r = parse_reply(&block).expect("valid reply");
+            got.push((
+                r.timestamp.expect("scan timestamp"),
+                decode_ranges(&r.data, 3).expect("ranges"),
+            ));
+        }
+        off += len;
+        k += 1;
+    }
+    assert_eq!(got, expected);
+    let valid = expected
+        .iter()
+        .flat_map(|(_, r)| r)
+        .filter(|&&v| matches!(classify(v), Reading::RangeMm(_)))
+        .count();
+    let none = expected
+        .iter()
+        .flat_map(|(_, r)| r)
+        .filter(|&&v| classify(v) == Reading::NoReturn(NoReturn::NoObject))
+        .count();
+    assert!(valid > 225 * 300, "{valid} valid ranges");
+    assert!(none > 0);
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(500))]
+
+    #[test]
+    fn arbitrary_bytes_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..600)) {
+        let mut f = ReplyFramer::new(512);
+        if let Ok(blocks) = f.push(&bytes) {
+            for b in blocks {
+                if let Ok(r) = parse_reply(&b) {
+                    let _ = decode_ranges(&r.data, 3);
+                    let _ = opennav::sensors::scip::parse_pp(&r);
+                }
+            }
+        }
+        let _ = parse_reply(&bytes);
+    }
+
+    #[test]
+    fn any_single_corruption_of_a_scan_is_caught(values in proptest::collection::vec(0u32..4096, 1..100), pos in any::<proptest::sample::Index>(), flip in 1u8..=255) {
+        let data: Vec<u8> = values.iter().flat_map(|&v| encode_value(v, 3)).collect();
+        let good = build_reply(b"MD0044072501000", b"99", Some(7), &data);
+        let mut bad = good.clone();
+        let i = pos.index(bad.len());
+        bad[i] ^= flip;
+        match parse_reply(&bad) {
+            // a corruption that still parses must not change the values silently
+            // (a changed echo is the driver's to reject: it compares echoes)
+            Ok(r) if r.echo == b"MD0044072501000".to_vec() => {
+                let decoded = decode_ranges(&r.data, 3);
+                prop_assert!(decoded.is_err() || (decoded.as_deref() == Ok(&values[..]) && r.timestamp == Some(7)),
+                    "corruption at {} gave other values without an error", i);
+            }
+            Ok(_) => {}
+            Err(_) => {}
+        }
+    }
+}
