@@ -9,4 +9,5 @@ pub mod eval;
 pub mod output;
 pub mod perception;
 pub mod sensors;
+pub mod sim;
 pub mod types;

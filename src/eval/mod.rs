@@ -2,3 +2,4 @@
 //! criterion).
 
 pub mod instances;
+pub mod replica;

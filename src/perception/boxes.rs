@@ -45,8 +45,8 @@ impl Aabb {
         self.size_m().iter().product()
     }
 
-    /// Intersection over union of two boxes (0 when both are empty).
-    pub fn iou(&self, other: &Aabb) -> f64 {
+    /// Volume of the intersection with `other`, m³.
+    pub fn intersection_m3(&self, other: &Aabb) -> f64 {
         let mut inter = 1.0;
         for i in 0..3 {
             let lo = self.min_m[i].max(other.min_m[i]);
@@ -56,11 +56,29 @@ impl Aabb {
             }
             inter *= hi - lo;
         }
+        inter
+    }
+
+    /// Intersection over union of two boxes (0 when both are empty).
+    pub fn iou(&self, other: &Aabb) -> f64 {
+        let inter = self.intersection_m3(other);
         let union = self.volume_m3() + other.volume_m3() - inter;
-        if union <= 0.0 {
+        if inter <= 0.0 || union <= 0.0 {
             0.0
         } else {
             inter / union
+        }
+    }
+
+    /// Intersection over the smaller box's volume: 1 when one box lies
+    /// inside the other.
+    pub fn containment(&self, other: &Aabb) -> f64 {
+        let inter = self.intersection_m3(other);
+        let small = self.volume_m3().min(other.volume_m3());
+        if inter <= 0.0 || small <= 0.0 {
+            0.0
+        } else {
+            inter / small
         }
     }
 }
@@ -284,20 +302,50 @@ impl Object3D {
     }
 }
 
+/// When two same-label objects are one.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MergeRule {
+    /// Merge when the boxes' 3D IoU exceeds this (the paper: 0.8).
+    pub iou: f64,
+    /// Also merge when the intersection exceeds this fraction of the
+    /// smaller box (a fragment seen from a truncated view lies inside the
+    /// whole); None: the paper's rule alone.
+    pub containment: Option<f64>,
+}
+
+impl MergeRule {
+    /// The paper's cross-view merge: same label, 3D IoU > `iou`.
+    pub fn paper(iou: f64) -> Self {
+        MergeRule {
+            iou,
+            containment: None,
+        }
+    }
+
+    pub fn joins(&self, a: &Aabb, b: &Aabb) -> bool {
+        a.iou(b) > self.iou || self.containment.is_some_and(|c| a.containment(b) > c)
+    }
+}
+
 /// Cross-view merge: objects of the same label (and frame) whose boxes'
 /// 3D IoU exceeds `iou_threshold` become one (union of points, boxes
 /// recomputed, highest score kept). Repeats until no pair qualifies, so
 /// chains of overlapping fragments collapse; order of the survivors follows
 /// the first member of each group.
 pub fn merge_objects(objects: Vec<Object3D>, iou_threshold: f64) -> Vec<Object3D> {
+    merge_objects_by(objects, &MergeRule::paper(iou_threshold))
+}
+
+/// [`merge_objects`] with any [`MergeRule`].
+pub fn merge_objects_by(objects: Vec<Object3D>, rule: &MergeRule) -> Vec<Object3D> {
     let mut objs = objects;
     loop {
         let mut merged_any = false;
         let mut out: Vec<Object3D> = Vec::with_capacity(objs.len());
         for o in objs {
-            let hit = out.iter_mut().find(|m| {
-                m.label == o.label && m.frame == o.frame && m.aabb.iou(&o.aabb) > iou_threshold
-            });
+            let hit = out
+                .iter_mut()
+                .find(|m| m.label == o.label && m.frame == o.frame && rule.joins(&m.aabb, &o.aabb));
             match hit {
                 Some(m) => {
                     m.points.extend_from_slice(&o.points);
@@ -410,6 +458,23 @@ mod tests {
         assert_eq!(m[1].label, "table");
         assert_eq!(m[2].aabb.min_m[0], 3.0);
         assert_eq!(m[3].aabb.min_m[0], 0.5);
+    }
+
+    #[test]
+    fn containment_rule_joins_a_fragment_inside_the_whole() {
+        let objs = vec![
+            obj("sofa", [0.0, 0.0, 0.0], [2.0, 1.0, 1.0], 0.5),
+            obj("sofa", [0.1, 0.1, 0.1], [0.6, 0.9, 0.9], 0.7), // inside, IoU 0.16
+        ];
+        assert_eq!(merge_objects(objs.clone(), 0.8).len(), 2);
+        let rule = MergeRule {
+            iou: 0.8,
+            containment: Some(0.8),
+        };
+        let m = merge_objects_by(objs, &rule);
+        assert_eq!(m.len(), 1);
+        assert_eq!(m[0].score, 0.7);
+        assert_eq!(m[0].aabb.max_m, [2.0, 1.0, 1.0]);
     }
 
     #[test]

@@ -214,43 +214,80 @@ impl Pipeline {
         let t = Instant::now();
         let detections = self.detector.detect(color)?;
         let detector_ms = ms(t);
-        let mut result = ViewResult {
-            prompts: self.prompts.clone(),
-            detections,
-            ..Default::default()
-        };
-        result.timing_ms.detector = detector_ms;
-        if let Some(depth) = registered {
-            let boxes: Vec<[f32; 4]> = result.detections.iter().map(|d| d.box_xyxy).collect();
-            let t = Instant::now();
-            let masks = self.segmenter.segment(color, Some(&depth), &boxes)?;
-            result.timing_ms.segmenter = ms(t);
-            if masks.len() != boxes.len() {
-                return Err(PipelineError::Input(format!(
-                    "segmenter returned {} masks for {} boxes",
-                    masks.len(),
-                    boxes.len()
-                )));
-            }
-            let t = Instant::now();
-            let (objects, dropped) = objects_from_masks(
-                &result.detections,
-                &masks,
+        let mut result = match registered {
+            Some(depth) => lift_detections(
+                self.segmenter.as_mut(),
+                color,
                 &depth,
+                detections,
                 &self.calibration.color,
                 &self.calibration.base_from_camera,
                 Frame::BaseLink,
                 &self.geometry,
-            );
-            result.timing_ms.geometry = ms(t);
-            for d in &dropped {
-                tracing::debug!(label = %d.label, score = d.score, reason = %d.reason, "detection dropped");
-            }
-            result.masks = masks;
-            result.objects = objects;
-            result.dropped = dropped;
-        }
+            )?,
+            None => ViewResult {
+                detections,
+                ..Default::default()
+            },
+        };
+        result.prompts = self.prompts.clone();
+        result.timing_ms.detector = detector_ms;
         result.timing_ms.total = ms(t0);
         Ok(result)
     }
+}
+
+/// Steps 2–6 for detections already made: a mask per box, then objects in
+/// the frame of `target_from_camera`. `depth` is registered to `color`, and
+/// `intrinsics` are the colour camera's. Timing covers segmenter and
+/// geometry (`total` is their sum).
+#[allow(clippy::too_many_arguments)]
+pub fn lift_detections(
+    segmenter: &mut dyn Segmenter,
+    color: &RgbImage,
+    depth: &DepthImage,
+    detections: Vec<Detection>,
+    intrinsics: &Intrinsics,
+    target_from_camera: &Isometry3<f64>,
+    frame: Frame,
+    geometry: &GeometrySettings,
+) -> Result<ViewResult, PipelineError> {
+    let boxes: Vec<[f32; 4]> = detections.iter().map(|d| d.box_xyxy).collect();
+    let t = Instant::now();
+    let masks = segmenter.segment(color, Some(depth), &boxes)?;
+    let segmenter_ms = ms(t);
+    if masks.len() != boxes.len() {
+        return Err(PipelineError::Input(format!(
+            "segmenter returned {} masks for {} boxes",
+            masks.len(),
+            boxes.len()
+        )));
+    }
+    let t = Instant::now();
+    let (objects, dropped) = objects_from_masks(
+        &detections,
+        &masks,
+        depth,
+        intrinsics,
+        target_from_camera,
+        frame,
+        geometry,
+    );
+    let geometry_ms = ms(t);
+    for d in &dropped {
+        tracing::debug!(label = %d.label, score = d.score, reason = %d.reason, "detection dropped");
+    }
+    Ok(ViewResult {
+        prompts: PromptReport::default(),
+        detections,
+        masks,
+        objects,
+        dropped,
+        timing_ms: Timing {
+            detector: 0.0,
+            segmenter: segmenter_ms,
+            geometry: geometry_ms,
+            total: segmenter_ms + geometry_ms,
+        },
+    })
 }

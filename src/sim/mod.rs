@@ -1,0 +1,5 @@
+//! The simulator: worlds, sensor models and device emulators standing in
+//! for hardware behind the same traits as the real drivers.
+
+pub mod replica;
+pub mod room;
