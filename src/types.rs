@@ -25,6 +25,38 @@ impl Stamp {
     }
 }
 
+/// Where drivers read the time: the host's monotonic clock in production,
+/// a controlled one in tests.
+pub trait Clock: Send + Sync {
+    fn now(&self) -> Stamp;
+}
+
+/// The host's monotonic clock, counted from when this value was made.
+#[derive(Debug, Clone, Copy)]
+pub struct MonotonicClock {
+    origin: std::time::Instant,
+}
+
+impl MonotonicClock {
+    pub fn new() -> Self {
+        MonotonicClock {
+            origin: std::time::Instant::now(),
+        }
+    }
+}
+
+impl Default for MonotonicClock {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Clock for MonotonicClock {
+    fn now(&self) -> Stamp {
+        Stamp(self.origin.elapsed())
+    }
+}
+
 /// A value with the monotonic stamp of its acquisition.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Stamped<T> {

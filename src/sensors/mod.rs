@@ -1,4 +1,5 @@
 //! Sensors: pure codecs for the devices' byte protocols, and (later) the
 //! async drivers around them.
 
+pub mod hokuyo;
 pub mod scip;

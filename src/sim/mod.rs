@@ -1,5 +1,6 @@
 //! The simulator: worlds, sensor models and device emulators standing in
 //! for hardware behind the same traits as the real drivers.
 
+pub mod hokuyo;
 pub mod replica;
 pub mod room;

@@ -1,0 +1,551 @@
+//! Hokuyo URG-04LX-UG01 driver over SCIP 2.0 (codec in [`super::scip`]).
+//!
+//! The driver is blocking I/O on a serial port (USB CDC-ACM) and runs on its
+//! own thread: connect (QT, SCIP 1.1 → `SCIP2.0`, timestamp mode → `TM2`,
+//! mid-stream → QT and flush), `PP` for the angle table, `MD` continuous
+//! streaming; every checksum error, garbage block, error status and
+//! silence is counted, reported and recovered from (re-arming the laser),
+//! and an unplugged device is reopened with backoff. The sensor's 24-bit
+//! millisecond clock is unwrapped and mapped to the host's monotonic clock
+//! with drift estimation ([`TimestampMapper`], pure).
+
+use std::io::{Read, Write};
+use std::sync::Arc;
+use std::time::Duration;
+
+use serde::Serialize;
+use thiserror::Error;
+
+use super::scip::{
+    classify, decode_ranges, parse_pp, parse_reply, Command, Reading, Reply, ReplyFramer,
+    ScanRequest, ScipError, SensorParams,
+};
+use crate::types::{Clock, Stamp, Stamped};
+
+/// One scan in the sensor's frame: step angles counter-clockwise, 0 ahead.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LaserScan {
+    /// Sensor clock of the scan (24-bit ms, as sent).
+    pub sensor_ms: u32,
+    pub angle_min_rad: f64,
+    pub angle_increment_rad: f64,
+    /// Per step: metres, or None with the reason in `no_return`.
+    pub ranges_m: Vec<Option<f32>>,
+    pub readings: Vec<Reading>,
+}
+
+impl LaserScan {
+    pub fn from_values(
+        params: &SensorParams,
+        first_step: u32,
+        values: &[u32],
+        sensor_ms: u32,
+    ) -> Self {
+        let readings: Vec<Reading> = values.iter().map(|&v| classify(v)).collect();
+        let ranges_m = readings
+            .iter()
+            .map(|r| match r {
+                Reading::RangeMm(mm) if *mm <= params.dmax_mm => Some(*mm as f32 / 1000.0),
+                _ => None,
+            })
+            .collect();
+        LaserScan {
+            sensor_ms,
+            angle_min_rad: params.step_angle_rad(first_step),
+            angle_increment_rad: std::f64::consts::TAU / params.ares as f64,
+            ranges_m,
+            readings,
+        }
+    }
+}
+
+/// JSON line of `opennav check hokuyo`.
+#[derive(Debug, Serialize)]
+pub struct ScanJson<'a> {
+    pub stamp_s: f64,
+    pub angle_min_rad: f64,
+    pub angle_increment_rad: f64,
+    pub ranges_m: &'a [Option<f32>],
+}
+
+/// Maps the sensor's wrapping 24-bit ms counter to host time.
+///
+/// The counter is unwrapped; host − sensor offsets are kept over a window,
+/// and the mapping uses the smallest recent offset (the sample with the
+/// least transport delay) corrected by the drift rate fitted over the
+/// window, so a slow sensor clock does not walk the stamps away.
+#[derive(Debug, Clone)]
+pub struct TimestampMapper {
+    last_raw: Option<u32>,
+    wraps: u64,
+    /// (unwrapped sensor seconds, host seconds)
+    samples: std::collections::VecDeque<(f64, f64)>,
+    window: usize,
+}
+
+pub const SENSOR_CLOCK_WRAP: u64 = 1 << 24;
+
+impl Default for TimestampMapper {
+    fn default() -> Self {
+        TimestampMapper::new(200)
+    }
+}
+
+impl TimestampMapper {
+    pub fn new(window: usize) -> Self {
+        TimestampMapper {
+            last_raw: None,
+            wraps: 0,
+            samples: Default::default(),
+            window: window.max(2),
+        }
+    }
+
+    /// Unwraps a raw 24-bit value (a backwards step of more than half the
+    /// range is a wrap).
+    pub fn unwrap(&mut self, raw: u32) -> u64 {
+        let raw = raw & 0xFF_FFFF;
+        if let Some(last) = self.last_raw {
+            if raw < last && last - raw > (SENSOR_CLOCK_WRAP / 2) as u32 {
+                self.wraps += 1;
+            }
+        }
+        self.last_raw = Some(raw);
+        self.wraps * SENSOR_CLOCK_WRAP + raw as u64
+    }
+
+    /// Host stamp of a reading with sensor clock `raw`, received at `host`.
+    pub fn map(&mut self, raw: u32, host: Stamp) -> Stamp {
+        let sensor_s = self.unwrap(raw) as f64 / 1000.0;
+        let host_s = host.as_secs_f64();
+        self.samples.push_back((sensor_s, host_s));
+        while self.samples.len() > self.window {
+            self.samples.pop_front();
+        }
+        // drift: least-squares slope of host over sensor time
+        let n = self.samples.len() as f64;
+        let (ms, mh) = self
+            .samples
+            .iter()
+            .fold((0.0, 0.0), |a, s| (a.0 + s.0 / n, a.1 + s.1 / n));
+        let (mut sxy, mut sxx) = (0.0, 0.0);
+        for (x, y) in &self.samples {
+            sxy += (x - ms) * (y - mh);
+            sxx += (x - ms) * (x - ms);
+        }
+        let rate = if sxx > 1e-6 && self.samples.len() >= 10 {
+            (sxy / sxx).clamp(0.99, 1.01)
+        } else {
+            1.0
+        };
+        // the least-delayed sample fixes the offset
+        let offset = self
+            .samples
+            .iter()
+            .map(|(x, y)| y - rate * x)
+            .fold(f64::INFINITY, f64::min);
+        let mapped = offset + rate * sensor_s;
+        // never later than reception
+        Stamp::from_secs_f64(mapped.min(host_s))
+    }
+}
+
+#[derive(Debug, Error)]
+pub enum HokuyoError {
+    #[error("{port}: cannot open: {reason}")]
+    Open { port: String, reason: String },
+    #[error("{port}: device gone: {reason}")]
+    Disconnected { port: String, reason: String },
+    #[error("{port}: no answer to {command} within {timeout_ms} ms")]
+    Silent {
+        port: String,
+        command: String,
+        timeout_ms: u64,
+    },
+    #[error("{port}: {command} answered status {status}: {meaning}")]
+    Status {
+        port: String,
+        command: String,
+        status: String,
+        meaning: String,
+    },
+    #[error("{port}: bad reply: {0}", port = .1)]
+    Protocol(ScipError, String),
+}
+
+/// Counters of everything that went wrong, for status and logs.
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize)]
+pub struct HokuyoStats {
+    pub scans: u64,
+    pub checksum_errors: u64,
+    pub malformed_replies: u64,
+    pub error_statuses: u64,
+    pub silences: u64,
+    pub rearms: u64,
+    pub reconnects: u64,
+}
+
+/// Driver settings.
+#[derive(Debug, Clone)]
+pub struct HokuyoSettings {
+    pub port: String,
+    pub baud: u32,
+    /// No scan for this long: silence, the laser is re-armed.
+    pub silence_timeout: Duration,
+    /// Replies to commands must come within this.
+    pub reply_timeout: Duration,
+    /// Reopen attempts back off from `backoff_min` doubling to `backoff_max`.
+    pub backoff_min: Duration,
+    pub backoff_max: Duration,
+}
+
+impl HokuyoSettings {
+    pub fn new(port: impl Into<String>) -> Self {
+        HokuyoSettings {
+            port: port.into(),
+            baud: 115_200,
+            silence_timeout: Duration::from_millis(500),
+            reply_timeout: Duration::from_millis(500),
+            backoff_min: Duration::from_millis(50),
+            backoff_max: Duration::from_secs(2),
+        }
+    }
+}
+
+pub struct HokuyoDriver {
+    settings: HokuyoSettings,
+    clock: Arc<dyn Clock>,
+    port: Option<Box<dyn serialport::SerialPort>>,
+    framer: ReplyFramer,
+    pending: std::collections::VecDeque<Vec<u8>>,
+    params: Option<SensorParams>,
+    request: ScanRequest,
+    mapper: TimestampMapper,
+    pub stats: HokuyoStats,
+    streaming: bool,
+}
+
+impl HokuyoDriver {
+    pub fn new(settings: HokuyoSettings, clock: Arc<dyn Clock>) -> Self {
+        HokuyoDriver {
+            settings,
+            clock,
+            port: None,
+            framer: ReplyFramer::default(),
+            pending: Default::default(),
+            params: None,
+            request: ScanRequest {
+                start: 44,
+                end: 725,
+                cluster: 1,
+                interval: 0,
+                scans: 0,
+            },
+            mapper: TimestampMapper::default(),
+            stats: HokuyoStats::default(),
+            streaming: false,
+        }
+    }
+
+    pub fn params(&self) -> Option<SensorParams> {
+        self.params
+    }
+
+    fn port_name(&self) -> String {
+        self.settings.port.clone()
+    }
+
+    fn gone(&mut self, e: impl std::fmt::Display) -> HokuyoError {
+        self.port = None;
+        self.streaming = false;
+        HokuyoError::Disconnected {
+            port: self.port_name(),
+            reason: e.to_string(),
+        }
+    }
+
+    fn open(&mut self) -> Result<(), HokuyoError> {
+        let p = serialport::new(&self.settings.port, self.settings.baud)
+            .timeout(Duration::from_millis(20))
+            .open()
+            .map_err(|e| HokuyoError::Open {
+                port: self.port_name(),
+                reason: e.to_string(),
+            })?;
+        self.port = Some(p);
+        self.framer.clear();
+        self.pending.clear();
+        Ok(())
+    }
+
+    fn send(&mut self, cmd: &Command) -> Result<(), HokuyoError> {
+        let bytes = cmd.encode(None);
+        let r = match self.port.as_mut() {
+            Some(p) => p.write_all(&bytes).and_then(|_| p.flush()),
+            None => return Err(self.gone("not open")),
+        };
+        r.map_err(|e| self.gone(e))
+    }
+
+    /// Reads until one reply block arrives or `timeout` passes (None).
+    fn read_block(&mut self, timeout: Duration) -> Result<Option<Vec<u8>>, HokuyoError> {
+        if let Some(b) = self.pending.pop_front() {
+            return Ok(Some(b));
+        }
+        let start = self.clock.now();
+        let mut buf = [0u8; 4096];
+        loop {
+            let n = match self.port.as_mut() {
+                Some(p) => match p.read(&mut buf) {
+                    Ok(0) => return Err(self.gone("end of file")),
+                    Ok(n) => n,
+                    Err(e)
+                        if matches!(
+                            e.kind(),
+                            std::io::ErrorKind::TimedOut | std::io::ErrorKind::WouldBlock
+                        ) =>
+                    {
+                        0
+                    }
+                    Err(e) => return Err(self.gone(e)),
+                },
+                None => return Err(self.gone("not open")),
+            };
+            if n > 0 {
+                match self.framer.push(&buf[..n]) {
+                    Ok(blocks) => self.pending.extend(blocks),
+                    Err(_) => self.stats.malformed_replies += 1,
+                }
+                if let Some(b) = self.pending.pop_front() {
+                    return Ok(Some(b));
+                }
+            }
+            if start.age_at(self.clock.now()) >= timeout {
+                return Ok(None);
+            }
+        }
+    }
+
+    /// Sends `cmd` and waits for its reply (other blocks, e.g. leftover
+    /// scans, are skipped).
+    fn command(&mut self, cmd: &Command) -> Result<Reply, HokuyoError> {
+        let echo = cmd.encode(None);
+        let echo = &echo[..echo.len() - 1];
+        self.send(cmd)?;
+        let deadline = self.settings.reply_timeout;
+        let start = self.clock.now();
+        loop {
+            let left = deadline.saturating_sub(start.age_at(self.clock.now()));
+            let Some(block) = self.read_block(left)? else {
+                return Err(HokuyoError::Silent {
+                    port: self.port_name(),
+                    command: String::from_utf8_lossy(echo).into_owned(),
+                    timeout_ms: deadline.as_millis() as u64,
+                });
+            };
+            match parse_reply(&block) {
+                Ok(r) if r.echo == echo => return Ok(r),
+                Ok(_) => continue,
+                Err(ScipError::Checksum { .. }) => {
+                    self.stats.checksum_errors += 1;
+                    continue;
+                }
+                Err(_) => {
+                    self.stats.malformed_replies += 1;
+                    continue;
+                }
+            }
+        }
+    }
+
+    fn expect_ok(&mut self, cmd: &Command, reply: &Reply) -> Result<(), HokuyoError> {
+        if reply.status.is_ok() {
+            return Ok(());
+        }
+        self.stats.error_statuses += 1;
+        Err(HokuyoError::Status {
+            port: self.port_name(),
+            command: String::from_utf8_lossy(&reply.echo).into_owned(),
+            status: reply.status.code(),
+            meaning: reply.status.meaning(&cmd.encode(None)),
+        })
+    }
+
+    /// Opens the port (if needed), brings the sensor into SCIP 2.0 with the
+    /// stream stopped, reads PP, and starts MD streaming.
+    pub fn connect(&mut self) -> Result<SensorParams, HokuyoError> {
+        if self.port.is_none() {
+            self.open()?;
+        }
+        self.streaming = false;
+        // stop whatever runs and drop what is in flight
+        self.send(&Command::Qt)?;
+        let _ = self.read_until_quiet(Duration::from_millis(60))?;
+        let qt = self.command(&Command::Qt);
+        match qt {
+            Ok(r) if r.status.is_ok() => {}
+            Ok(r) if &r.status.0 == b"0E" => {
+                // the sensor speaks SCIP 1.1
+                let r = self.command(&Command::Scip20)?;
+                self.expect_ok(&Command::Scip20, &r)?;
+            }
+            Ok(r) => self.expect_ok(&Command::Qt, &r)?,
+            Err(HokuyoError::Silent { .. }) => {
+                // a sensor left in time-stamp mode answers nothing else: leave it
+                let _ = self.command(&Command::Tm(2));
+                let r = self.command(&Command::Qt)?;
+                self.expect_ok(&Command::Qt, &r)?;
+            }
+            Err(e) => return Err(e),
+        }
+        let pp = self.command(&Command::Pp)?;
+        self.expect_ok(&Command::Pp, &pp)?;
+        let params = parse_pp(&pp).map_err(|e| HokuyoError::Protocol(e, self.port_name()))?;
+        self.request.start = params.amin as u16;
+        self.request.end = params.amax as u16;
+        self.params = Some(params);
+        self.start_stream()?;
+        Ok(params)
+    }
+
+    fn start_stream(&mut self) -> Result<(), HokuyoError> {
+        let md = Command::Md(self.request);
+        let r = self.command(&md)?;
+        self.expect_ok(&md, &r)?;
+        self.streaming = true;
+        Ok(())
+    }
+
+    fn read_until_quiet(&mut self, quiet: Duration) -> Result<usize, HokuyoError> {
+        let mut n = 0;
+        while self.read_block(quiet)?.is_some() {
+            n += 1;
+        }
+        self.framer.clear();
+        self.pending.clear();
+        Ok(n)
+    }
+
+    /// Stops the stream and re-arms it (after errors or silence).
+    pub fn rearm(&mut self) -> Result<(), HokuyoError> {
+        self.stats.rearms += 1;
+        self.streaming = false;
+        self.send(&Command::Qt)?;
+        let _ = self.read_until_quiet(Duration::from_millis(60))?;
+        self.start_stream()
+    }
+
+    /// The next scan. Bad lines, garbage and error statuses are counted and
+    /// recovered from here; a vanished device returns `Disconnected`.
+    pub fn next_scan(&mut self) -> Result<Stamped<LaserScan>, HokuyoError> {
+        loop {
+            if self.port.is_none() || !self.streaming || self.params.is_none() {
+                self.connect()?;
+            }
+            let Some(params) = self.params else { continue };
+            let Some(block) = self.read_block(self.settings.silence_timeout)? else {
+                self.stats.silences += 1;
+                tracing::warn!(port = %self.settings.port, "laser silent: re-arming");
+                self.rearm()?;
+                continue;
+            };
+            let received = self.clock.now();
+            let reply = match parse_reply(&block) {
+                Ok(r) => r,
+                Err(ScipError::Checksum { .. }) => {
+                    self.stats.checksum_errors += 1;
+                    tracing::warn!(port = %self.settings.port, "scan with a checksum error rejected");
+                    continue;
+                }
+                Err(e) => {
+                    self.stats.malformed_replies += 1;
+                    tracing::warn!(port = %self.settings.port, error = %e, "malformed reply: resynchronising");
+                    self.rearm()?;
+                    continue;
+                }
+            };
+            if !reply.echo.starts_with(b"MD") {
+                self.stats.malformed_replies += 1;
+                self.rearm()?;
+                continue;
+            }
+            if !reply.status.is_ok() {
+                self.stats.error_statuses += 1;
+                tracing::warn!(port = %self.settings.port, status = %reply.status.code(), meaning = %reply.status.meaning(b"MD"), "scan error status: re-arming");
+                self.rearm()?;
+                continue;
+            }
+            let Some(ts) = reply.timestamp else {
+                // the first MD reply (status 00) carries no scan
+                continue;
+            };
+            let values = match decode_ranges(&reply.data, 3) {
+                Ok(v) if v.len() == (self.request.end - self.request.start + 1) as usize => v,
+                _ => {
+                    self.stats.malformed_replies += 1;
+                    continue;
+                }
+            };
+            self.stats.scans += 1;
+            let stamp = self.mapper.map(ts, received);
+            return Ok(Stamped::new(
+                stamp,
+                LaserScan::from_values(&params, self.request.start as u32, &values, ts),
+            ));
+        }
+    }
+
+    /// Reads scans, reconnecting with backoff after the device vanishes,
+    /// until `keep_going` says stop. Each scan goes to `sink`.
+    pub fn run(&mut self, mut sink: impl FnMut(Stamped<LaserScan>) -> bool) {
+        let mut backoff = self.settings.backoff_min;
+        loop {
+            match self.next_scan() {
+                Ok(scan) => {
+                    backoff = self.settings.backoff_min;
+                    if !sink(scan) {
+                        let _ = self.send(&Command::Qt);
+                        return;
+                    }
+                }
+                Err(e) => {
+                    tracing::warn!(error = %e, "laser: reconnecting in {:?}", backoff);
+                    self.stats.reconnects += 1;
+                    self.port = None;
+                    std::thread::sleep(backoff);
+                    backoff = (backoff * 2).min(self.settings.backoff_max);
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn unwraps_the_24_bit_clock() {
+        let mut m = TimestampMapper::new(10);
+        assert_eq!(m.unwrap(0xFF_FFF0), 0xFF_FFF0);
+        assert_eq!(m.unwrap(0x00_0010), SENSOR_CLOCK_WRAP + 0x10);
+        assert_eq!(m.unwrap(0x00_0020), SENSOR_CLOCK_WRAP + 0x20);
+    }
+
+    #[test]
+    fn maps_to_host_time_through_jitter_and_drift() {
+        // sensor clock runs 0.1 % slow; reception delay 2..7 ms
+        let mut m = TimestampMapper::new(100);
+        let mut worst: f64 = 0.0;
+        for k in 0..300u32 {
+            let true_host = 100.0 + k as f64 * 0.1; // acquisition time
+            let sensor_ms = ((k as f64 * 100.0 * 0.999) as u32 + 0xFF_F000) & 0xFF_FFFF;
+            let delay = 0.002 + 0.005 * ((k * 7919 % 13) as f64 / 13.0);
+            let s = m.map(sensor_ms, Stamp::from_secs_f64(true_host + delay));
+            if k > 50 {
+                worst = worst.max((s.as_secs_f64() - true_host).abs());
+            }
+        }
+        assert!(worst < 0.003, "worst error {worst} s");
+    }
+}

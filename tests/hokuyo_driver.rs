@@ -1,0 +1,151 @@
+//! The real Hokuyo driver against the emulated URG-04LX on a pty: real SENA
+//! scans come back to the millimetre through the sensor clock's wrap, and
+//! the stream recovers after every injected fault.
+
+mod common;
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use opennav::sensors::hokuyo::{HokuyoDriver, HokuyoError, HokuyoSettings, LaserScan};
+use opennav::sensors::scip::{Reading, SensorParams};
+use opennav::sim::hokuyo::{load_sena_csv, resample_to_urg, Fault, HokuyoEmulator};
+use opennav::types::{MonotonicClock, Stamped};
+
+const PERIOD_MS: u32 = 5;
+const CLOCK_START: u32 = 0xFF_FF00;
+
+fn scans() -> Vec<Vec<u32>> {
+    let p = SensorParams::URG_04LX;
+    load_sena_csv(&common::asset(
+        common::shared().join("data/laser/sena_2006_laser_scans.csv"),
+    ))
+    .expect("csv")
+    .iter()
+    .map(|s| resample_to_urg(s, &p))
+    .collect()
+}
+
+/// The scan the emulator sent at sensor time `ms`.
+fn expected(all: &[Vec<u32>], ms: u32) -> &[u32] {
+    let k = ((ms.wrapping_sub(CLOCK_START)) & 0xFF_FFFF) / PERIOD_MS;
+    &all[k as usize % all.len()]
+}
+
+fn check(all: &[Vec<u32>], s: &Stamped<LaserScan>) {
+    let want = expected(all, s.value.sensor_ms);
+    assert_eq!(s.value.readings.len(), 682);
+    for (r, &w) in s.value.readings.iter().zip(want) {
+        match r {
+            Reading::RangeMm(mm) => assert_eq!(*mm, w),
+            Reading::NoReturn(_) => assert!(w < 20, "{w} mm decoded as no return"),
+        }
+    }
+}
+
+fn next_ok(d: &mut HokuyoDriver) -> Stamped<LaserScan> {
+    // reconnects after an unplug, as `run` does, bounded
+    for _ in 0..100 {
+        match d.next_scan() {
+            Ok(s) => return s,
+            Err(HokuyoError::Disconnected { .. }) | Err(HokuyoError::Open { .. }) => {
+                d.stats.reconnects += 1;
+                std::thread::sleep(Duration::from_millis(50));
+            }
+            Err(e) => panic!("driver error: {e}"),
+        }
+    }
+    panic!("no scan after 100 attempts");
+}
+
+#[test]
+fn scans_round_trip_and_every_fault_recovers() {
+    let all = scans();
+    assert_eq!(all.len(), 225);
+    let dir = tempfile::tempdir().expect("tmp");
+    let link = dir.path().join("hokuyo_left");
+    let emu = HokuyoEmulator::spawn(
+        &link,
+        all.clone(),
+        Duration::from_millis(PERIOD_MS as u64),
+        CLOCK_START,
+    )
+    .expect("emulator");
+    let mut settings = HokuyoSettings::new(link.display().to_string());
+    settings.silence_timeout = Duration::from_millis(300);
+    let mut d = HokuyoDriver::new(settings, Arc::new(MonotonicClock::new()));
+    let params = d.connect().expect("connects");
+    assert_eq!(params, SensorParams::URG_04LX);
+
+    // 250 scans: through the 24-bit clock wrap and around the recording
+    let mut last_stamp = None;
+    for _ in 0..250 {
+        let s = next_ok(&mut d);
+        check(&all, &s);
+        if let Some(prev) = last_stamp {
+            assert!(s.stamp >= prev, "stamps go forward");
+        }
+        last_stamp = Some(s.stamp);
+    }
+    assert_eq!(d.stats.checksum_errors, 0);
+
+    let faults = [
+        Fault::BadChecksum,
+        Fault::Garbage,
+        Fault::Truncated,
+        Fault::ErrorStatus(50),
+        Fault::Silence(Duration::from_millis(700)),
+        Fault::Unplug(Duration::from_millis(200)),
+    ];
+    for f in faults {
+        let before = d.stats.clone();
+        emu.inject(f);
+        // the stream recovers: 20 good, exact scans after the fault
+        let mut noticed = false;
+        for _ in 0..60 {
+            let s = next_ok(&mut d);
+            check(&all, &s);
+            let st = &d.stats;
+            noticed = match f {
+                Fault::BadChecksum => st.checksum_errors > before.checksum_errors,
+                Fault::Garbage | Fault::Truncated => {
+                    st.malformed_replies + st.checksum_errors
+                        > before.malformed_replies + before.checksum_errors
+                }
+                Fault::ErrorStatus(_) => {
+                    st.error_statuses > before.error_statuses && st.rearms > before.rearms
+                }
+                Fault::Silence(_) => st.silences > before.silences,
+                Fault::Unplug(_) => st.reconnects > before.reconnects,
+            };
+            if noticed {
+                for _ in 0..20 {
+                    check(&all, &next_ok(&mut d));
+                }
+                break;
+            }
+        }
+        assert!(noticed, "{f:?} not noticed: {:?}", d.stats);
+    }
+    assert!(emu.scans_sent() > 300);
+}
+
+#[test]
+fn a_device_that_does_not_answer_is_a_clear_error() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let (_master, slave) = serialport::TTYPort::pair().expect("pty");
+    let name = serialport::SerialPort::name(&slave).expect("name");
+    let link = dir.path().join("mute");
+    std::os::unix::fs::symlink(&name, &link).expect("link");
+    let mut settings = HokuyoSettings::new(link.display().to_string());
+    settings.reply_timeout = Duration::from_millis(100);
+    let mut d = HokuyoDriver::new(settings, Arc::new(MonotonicClock::new()));
+    let e = d.connect().expect_err("nothing answers").to_string();
+    assert!(e.contains("no answer"), "{e}");
+    let mut d = HokuyoDriver::new(
+        HokuyoSettings::new(dir.path().join("absent").display().to_string()),
+        Arc::new(MonotonicClock::new()),
+    );
+    let e = d.connect().expect_err("no device").to_string();
+    assert!(e.contains("cannot open"), "{e}");
+}
