@@ -97,6 +97,19 @@ enum MergeArg {
 }
 
 #[derive(Subcommand, Debug)]
+enum CheckCommand {
+    /// Reads a Hokuyo URG over SCIP 2.0 and prints each scan as a JSON line.
+    Hokuyo {
+        /// Serial port (e.g. /dev/ttyACM0 or the udev link /dev/hokuyo_left).
+        #[arg(long)]
+        port: String,
+        /// Scans to print before exiting.
+        #[arg(long, default_value_t = 10)]
+        count: u64,
+    },
+}
+
+#[derive(Subcommand, Debug)]
 enum SimCommand {
     /// Writes a synthetic scene in Replica's layout (rendered RGB-D views, traj.txt, ground-truth cloud).
     ReplicaScene {
@@ -129,6 +142,9 @@ enum Command {
     /// The simulator: synthetic data.
     #[command(subcommand)]
     Sim(SimCommand),
+    /// Technician checks of the chair's devices: decoded readings as JSON lines.
+    #[command(subcommand)]
+    Check(CheckCommand),
     /// Detect prompted objects in one RGB(-D) image: 2D boxes, and 3D objects with depth.
     Detect {
         /// Colour image (PNG or JPEG).
@@ -360,6 +376,34 @@ fn eval_replica(settings: &Settings, a: EvalReplicaArgs) -> Result<(), Failure> 
     Ok(())
 }
 
+fn check_hokuyo(port: &str, count: u64) -> Result<(), Failure> {
+    use opennav::sensors::hokuyo::{HokuyoDriver, HokuyoSettings, ScanJson};
+    use std::io::Write;
+    let clock = std::sync::Arc::new(opennav::types::MonotonicClock::new());
+    let mut driver = HokuyoDriver::new(HokuyoSettings::new(port), clock);
+    let params = driver.connect().map_err(failed)?;
+    tracing::info!(?params, "connected");
+    let stdout = std::io::stdout();
+    let mut out = stdout.lock();
+    for _ in 0..count {
+        let scan = driver.next_scan().map_err(failed)?;
+        let line = serde_json::to_string(&ScanJson {
+            stamp_s: scan.stamp.as_secs_f64(),
+            angle_min_rad: scan.value.angle_min_rad,
+            angle_increment_rad: scan.value.angle_increment_rad,
+            ranges_m: &scan.value.ranges_m,
+        })
+        .map_err(failed)?;
+        writeln!(out, "{line}").map_err(failed)?;
+    }
+    let s = &driver.stats;
+    eprintln!(
+        "{port}: {} scans, {} checksum errors, {} malformed, {} error statuses, {} silences",
+        s.scans, s.checksum_errors, s.malformed_replies, s.error_statuses, s.silences
+    );
+    Ok(())
+}
+
 fn run(cli: Cli) -> Result<(), Failure> {
     let mut settings = Settings::load(cli.config.as_deref()).map_err(bad_input)?;
     match cli.command {
@@ -405,6 +449,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
                 },
             )
         }
+        Command::Check(CheckCommand::Hokuyo { port, count }) => check_hokuyo(&port, count),
         Command::Sim(SimCommand::ReplicaScene {
             out,
             scenes,

@@ -149,3 +149,57 @@ fn a_device_that_does_not_answer_is_a_clear_error() {
     let e = d.connect().expect_err("no device").to_string();
     assert!(e.contains("cannot open"), "{e}");
 }
+
+#[test]
+fn check_hokuyo_prints_json_lines_and_fails_clearly() {
+    let all = scans();
+    let dir = tempfile::tempdir().expect("tmp");
+    let link = dir.path().join("hokuyo_right");
+    let _emu =
+        HokuyoEmulator::spawn(&link, all.clone(), Duration::from_millis(20), 0).expect("emulator");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_opennav"))
+        .args([
+            "check",
+            "hokuyo",
+            "--port",
+            &link.display().to_string(),
+            "--count",
+            "3",
+        ])
+        .output()
+        .expect("runs");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    let lines: Vec<serde_json::Value> = text
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("json line"))
+        .collect();
+    assert_eq!(lines.len(), 3);
+    for l in &lines {
+        let r = l["ranges_m"].as_array().expect("ranges");
+        assert_eq!(r.len(), 682);
+        assert!((l["angle_min_rad"].as_f64().expect("min").to_degrees() + 119.53125).abs() < 1e-9);
+        assert!(
+            (l["angle_increment_rad"].as_f64().expect("inc") - std::f64::consts::TAU / 1024.0)
+                .abs()
+                < 1e-12
+        );
+        assert!(r.iter().any(|v| v.is_null()));
+        assert!(r
+            .iter()
+            .filter_map(|v| v.as_f64())
+            .all(|m| (0.02..=5.6).contains(&m)));
+        assert!(l["stamp_s"].is_number());
+    }
+    // nothing there: exit 1, one line naming the port
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_opennav"))
+        .args(["check", "hokuyo", "--port", "/dev/opennav-no-such-port"])
+        .output()
+        .expect("runs");
+    assert_eq!(o.status.code(), Some(1));
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        e.contains("/dev/opennav-no-such-port") && e.lines().count() == 1,
+        "{e}"
+    );
+}

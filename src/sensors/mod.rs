@@ -2,4 +2,5 @@
 //! async drivers around them.
 
 pub mod hokuyo;
+pub mod laser;
 pub mod scip;
