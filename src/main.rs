@@ -98,6 +98,15 @@ enum MergeArg {
 
 #[derive(Subcommand, Debug)]
 enum CheckCommand {
+    /// Reads the wheel-encoder board and prints each frame as a JSON line.
+    Encoders {
+        /// Serial port (e.g. /dev/ttyACM1 or the udev link /dev/opennav_encoders).
+        #[arg(long)]
+        port: String,
+        /// Frames to print before exiting.
+        #[arg(long, default_value_t = 100)]
+        count: u64,
+    },
     /// Reads a Hokuyo URG over SCIP 2.0 and prints each scan as a JSON line.
     Hokuyo {
         /// Serial port (e.g. /dev/ttyACM0 or the udev link /dev/hokuyo_left).
@@ -376,6 +385,40 @@ fn eval_replica(settings: &Settings, a: EvalReplicaArgs) -> Result<(), Failure> 
     Ok(())
 }
 
+fn check_encoders(port: &str, count: u64) -> Result<(), Failure> {
+    use opennav::sensors::encoders::EncoderDriver;
+    use std::io::Write;
+    let clock = std::sync::Arc::new(opennav::types::MonotonicClock::new());
+    let mut driver =
+        EncoderDriver::new(port, clock).with_timeout(std::time::Duration::from_secs(1));
+    let stdout = std::io::stdout();
+    let mut out = stdout.lock();
+    for _ in 0..count {
+        let t = driver.next_ticks().map_err(failed)?;
+        let line = serde_json::json!({
+            "stamp_s": t.stamp.as_secs_f64(),
+            "seq": t.value.seq,
+            "mcu_time_us": t.value.mcu_time_us,
+            "left": t.value.left,
+            "right": t.value.right,
+            "left_illegal": t.value.left_illegal,
+            "right_illegal": t.value.right_illegal,
+            "gap": t.value.gap,
+        });
+        writeln!(out, "{line}").map_err(failed)?;
+    }
+    let s = &driver.decoder.stats;
+    eprintln!(
+        "{port}: {} frames, {} CRC errors, {} framing errors, {} frames lost, firmware {:?}",
+        s.frames,
+        s.crc_errors,
+        s.framing_errors,
+        s.frames_lost,
+        driver.decoder.hello.map(|h| h.firmware)
+    );
+    Ok(())
+}
+
 fn check_hokuyo(port: &str, count: u64) -> Result<(), Failure> {
     use opennav::sensors::hokuyo::{HokuyoDriver, HokuyoSettings, ScanJson};
     use std::io::Write;
@@ -450,6 +493,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
             )
         }
         Command::Check(CheckCommand::Hokuyo { port, count }) => check_hokuyo(&port, count),
+        Command::Check(CheckCommand::Encoders { port, count }) => check_encoders(&port, count),
         Command::Sim(SimCommand::ReplicaScene {
             out,
             scenes,

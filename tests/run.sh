@@ -15,11 +15,14 @@ as_root() {
 }
 
 step "system packages"
-apt_pkgs=(python3 python3-venv python3-pip)
+# firmware: avr-gcc + avr-libc; firmware in the loop: simavr + libsimavr + libelf
+apt_pkgs=(make gcc gcc-avr avr-libc simavr libsimavr-dev libelf-dev)
+# a python3 with venv already on PATH (pyenv, say) is enough; else Debian's
+python3 -c 'import venv, ensurepip' 2>/dev/null || apt_pkgs+=(python3 python3-venv python3-pip)
 missing=()
 for p in "${apt_pkgs[@]}"; do dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p"); done
-# a python3 with venv already on PATH (pyenv, say) is enough
-if [ ${#missing[@]} -gt 0 ] && ! python3 -c 'import venv, ensurepip' 2>/dev/null; then
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "installing: ${missing[*]}"
   as_root apt-get update -qq
   as_root env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${missing[@]}"
 fi

@@ -16,11 +16,12 @@ use std::time::Duration;
 use serde::Serialize;
 use thiserror::Error;
 
+use super::clock::DeviceClock;
 use super::scip::{
     classify, decode_ranges, parse_pp, parse_reply, Command, Reading, Reply, ReplyFramer,
     ScanRequest, ScipError, SensorParams,
 };
-use crate::types::{Clock, Stamp, Stamped};
+use crate::types::{Clock, Stamped};
 
 /// One scan in the sensor's frame: step angles counter-clockwise, 0 ahead.
 #[derive(Debug, Clone, PartialEq)]
@@ -68,86 +69,9 @@ pub struct ScanJson<'a> {
     pub ranges_m: &'a [Option<f32>],
 }
 
-/// Maps the sensor's wrapping 24-bit ms counter to host time.
-///
-/// The counter is unwrapped; host − sensor offsets are kept over a window,
-/// and the mapping uses the smallest recent offset (the sample with the
-/// least transport delay) corrected by the drift rate fitted over the
-/// window, so a slow sensor clock does not walk the stamps away.
-#[derive(Debug, Clone)]
-pub struct TimestampMapper {
-    last_raw: Option<u32>,
-    wraps: u64,
-    /// (unwrapped sensor seconds, host seconds)
-    samples: std::collections::VecDeque<(f64, f64)>,
-    window: usize,
-}
-
-pub const SENSOR_CLOCK_WRAP: u64 = 1 << 24;
-
-impl Default for TimestampMapper {
-    fn default() -> Self {
-        TimestampMapper::new(200)
-    }
-}
-
-impl TimestampMapper {
-    pub fn new(window: usize) -> Self {
-        TimestampMapper {
-            last_raw: None,
-            wraps: 0,
-            samples: Default::default(),
-            window: window.max(2),
-        }
-    }
-
-    /// Unwraps a raw 24-bit value (a backwards step of more than half the
-    /// range is a wrap).
-    pub fn unwrap(&mut self, raw: u32) -> u64 {
-        let raw = raw & 0xFF_FFFF;
-        if let Some(last) = self.last_raw {
-            if raw < last && last - raw > (SENSOR_CLOCK_WRAP / 2) as u32 {
-                self.wraps += 1;
-            }
-        }
-        self.last_raw = Some(raw);
-        self.wraps * SENSOR_CLOCK_WRAP + raw as u64
-    }
-
-    /// Host stamp of a reading with sensor clock `raw`, received at `host`.
-    pub fn map(&mut self, raw: u32, host: Stamp) -> Stamp {
-        let sensor_s = self.unwrap(raw) as f64 / 1000.0;
-        let host_s = host.as_secs_f64();
-        self.samples.push_back((sensor_s, host_s));
-        while self.samples.len() > self.window {
-            self.samples.pop_front();
-        }
-        // drift: least-squares slope of host over sensor time
-        let n = self.samples.len() as f64;
-        let (ms, mh) = self
-            .samples
-            .iter()
-            .fold((0.0, 0.0), |a, s| (a.0 + s.0 / n, a.1 + s.1 / n));
-        let (mut sxy, mut sxx) = (0.0, 0.0);
-        for (x, y) in &self.samples {
-            sxy += (x - ms) * (y - mh);
-            sxx += (x - ms) * (x - ms);
-        }
-        let rate = if sxx > 1e-6 && self.samples.len() >= 10 {
-            (sxy / sxx).clamp(0.99, 1.01)
-        } else {
-            1.0
-        };
-        // the least-delayed sample fixes the offset
-        let offset = self
-            .samples
-            .iter()
-            .map(|(x, y)| y - rate * x)
-            .fold(f64::INFINITY, f64::min);
-        let mapped = offset + rate * sensor_s;
-        // never later than reception
-        Stamp::from_secs_f64(mapped.min(host_s))
-    }
+/// The URG's clock: 24-bit milliseconds.
+pub fn sensor_clock() -> DeviceClock {
+    DeviceClock::new(24, 1e-3, 200)
 }
 
 #[derive(Debug, Error)]
@@ -220,7 +144,7 @@ pub struct HokuyoDriver {
     pending: std::collections::VecDeque<Vec<u8>>,
     params: Option<SensorParams>,
     request: ScanRequest,
-    mapper: TimestampMapper,
+    mapper: DeviceClock,
     pub stats: HokuyoStats,
     streaming: bool,
 }
@@ -241,7 +165,7 @@ impl HokuyoDriver {
                 interval: 0,
                 scans: 0,
             },
-            mapper: TimestampMapper::default(),
+            mapper: sensor_clock(),
             stats: HokuyoStats::default(),
             streaming: false,
         }
@@ -487,7 +411,7 @@ impl HokuyoDriver {
                 }
             };
             self.stats.scans += 1;
-            let stamp = self.mapper.map(ts, received);
+            let stamp = self.mapper.map(ts as u64, received);
             return Ok(Stamped::new(
                 stamp,
                 LaserScan::from_values(&params, self.request.start as u32, &values, ts),
@@ -517,35 +441,5 @@ impl HokuyoDriver {
                 }
             }
         }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn unwraps_the_24_bit_clock() {
-        let mut m = TimestampMapper::new(10);
-        assert_eq!(m.unwrap(0xFF_FFF0), 0xFF_FFF0);
-        assert_eq!(m.unwrap(0x00_0010), SENSOR_CLOCK_WRAP + 0x10);
-        assert_eq!(m.unwrap(0x00_0020), SENSOR_CLOCK_WRAP + 0x20);
-    }
-
-    #[test]
-    fn maps_to_host_time_through_jitter_and_drift() {
-        // sensor clock runs 0.1 % slow; reception delay 2..7 ms
-        let mut m = TimestampMapper::new(100);
-        let mut worst: f64 = 0.0;
-        for k in 0..300u32 {
-            let true_host = 100.0 + k as f64 * 0.1; // acquisition time
-            let sensor_ms = ((k as f64 * 100.0 * 0.999) as u32 + 0xFF_F000) & 0xFF_FFFF;
-            let delay = 0.002 + 0.005 * ((k * 7919 % 13) as f64 / 13.0);
-            let s = m.map(sensor_ms, Stamp::from_secs_f64(true_host + delay));
-            if k > 50 {
-                worst = worst.max((s.as_secs_f64() - true_host).abs());
-            }
-        }
-        assert!(worst < 0.003, "worst error {worst} s");
     }
 }

@@ -1,6 +1,8 @@
 //! Sensors: pure codecs for the devices' byte protocols, and (later) the
 //! async drivers around them.
 
+pub mod clock;
+pub mod encoders;
 pub mod hokuyo;
 pub mod laser;
 pub mod scip;
