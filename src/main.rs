@@ -98,6 +98,15 @@ enum MergeArg {
 
 #[derive(Subcommand, Debug)]
 enum CheckCommand {
+    /// Reads RGB-D frames (a RealSense, or a recording with --replay) and prints one JSON line per frame.
+    Camera {
+        /// A recording in the TUM RGB-D layout (rgb.txt, depth.txt, calibration.json).
+        #[arg(long)]
+        replay: Option<PathBuf>,
+        /// Frames to print before exiting.
+        #[arg(long, default_value_t = 10)]
+        count: u64,
+    },
     /// Reads the wheel-encoder board and prints each frame as a JSON line.
     Encoders {
         /// Serial port (e.g. /dev/ttyACM1 or the udev link /dev/opennav_encoders).
@@ -385,6 +394,47 @@ fn eval_replica(settings: &Settings, a: EvalReplicaArgs) -> Result<(), Failure> 
     Ok(())
 }
 
+fn check_camera(replay: Option<&std::path::Path>, count: u64) -> Result<(), Failure> {
+    use opennav::sensors::camera::{CameraSource, ReplaySource};
+    use std::io::Write;
+    let Some(dir) = replay else {
+        return Err(failed(anyhow::anyhow!(
+            "no camera: this build has no RealSense support (see the README); read a recording with --replay DIR"
+        )));
+    };
+    let mut src = ReplaySource::open(dir).map_err(bad_input)?;
+    let stdout = std::io::stdout();
+    let mut out = stdout.lock();
+    for _ in 0..count {
+        let Some(f) = src.next_frame().map_err(failed)? else {
+            break;
+        };
+        let d = f.value.depth.data();
+        let valid: Vec<f32> = d.iter().copied().filter(|z| *z > 0.0).collect();
+        let line = serde_json::json!({
+            "stamp_s": f.stamp.as_secs_f64(),
+            "color_stamp_s": f.value.color_stamp.as_secs_f64(),
+            "depth_stamp_s": f.value.depth_stamp.as_secs_f64(),
+            "width": f.value.color.width(),
+            "height": f.value.color.height(),
+            "depth_width": f.value.depth.width(),
+            "depth_height": f.value.depth.height(),
+            "valid_depth_fraction": valid.len() as f64 / d.len().max(1) as f64,
+            "depth_min_m": valid.iter().copied().fold(f32::INFINITY, f32::min),
+            "depth_max_m": valid.iter().copied().fold(0.0f32, f32::max),
+        });
+        writeln!(out, "{line}").map_err(failed)?;
+    }
+    eprintln!(
+        "{}: {} paired frames, {} colour and {} depth frames without a partner",
+        dir.display(),
+        src.len(),
+        src.unpaired_color,
+        src.unpaired_depth
+    );
+    Ok(())
+}
+
 fn check_encoders(port: &str, count: u64) -> Result<(), Failure> {
     use opennav::sensors::encoders::EncoderDriver;
     use std::io::Write;
@@ -494,6 +544,9 @@ fn run(cli: Cli) -> Result<(), Failure> {
         }
         Command::Check(CheckCommand::Hokuyo { port, count }) => check_hokuyo(&port, count),
         Command::Check(CheckCommand::Encoders { port, count }) => check_encoders(&port, count),
+        Command::Check(CheckCommand::Camera { replay, count }) => {
+            check_camera(replay.as_deref(), count)
+        }
         Command::Sim(SimCommand::ReplicaScene {
             out,
             scenes,
