@@ -4,6 +4,7 @@
 //! its RGB-D camera and drives there by itself. See `ARCHITECTURE.md` in the
 //! shared design notes and the README for the map of modules.
 
+pub mod actuation;
 pub mod config;
 pub mod eval;
 pub mod output;

@@ -68,3 +68,21 @@ fn tokenizer_never_panics_and_always_frames() {
         })
         .expect("property holds");
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(500))]
+
+    #[test]
+    fn rnet_decoder_never_panics(id in any::<u32>(), ext in any::<bool>(), len in 0u8..=15, data in any::<[u8; 8]>()) {
+        let f = opennav::actuation::rnet::CanFrame { id, extended: ext, len, data };
+        let _ = opennav::actuation::rnet::decode(&f);
+        let _ = f.to_string();
+    }
+
+    #[test]
+    fn rnet_mapping_is_bounded(v in proptest::num::f64::ANY, w in proptest::num::f64::ANY) {
+        let m = opennav::actuation::rnet::JoystickMapping { forward_full_mps: 0.3, reverse_full_mps: 0.15, turn_full_radps: 0.8, deadband: 2 };
+        let (x, y) = m.to_joystick(v, w);
+        prop_assert!((-100..=100).contains(&x) && (-100..=100).contains(&y));
+    }
+}
