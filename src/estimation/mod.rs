@@ -1,0 +1,3 @@
+//! Estimation: wheel odometry (and, later, the EKF and the object tracker).
+
+pub mod odometry;
