@@ -10,6 +10,7 @@ pub mod estimation;
 pub mod eval;
 pub mod output;
 pub mod perception;
+pub mod safety;
 pub mod sensors;
 pub mod sim;
 pub mod types;

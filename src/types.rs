@@ -8,6 +8,13 @@ use std::time::Duration;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Default)]
 pub struct Stamp(pub Duration);
 
+impl serde::Serialize for Stamp {
+    /// Seconds, as a float.
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_f64(self.as_secs_f64())
+    }
+}
+
 impl Stamp {
     pub const ZERO: Stamp = Stamp(Duration::ZERO);
 

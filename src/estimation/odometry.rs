@@ -46,7 +46,10 @@ impl DiffDriveParams {
     /// Metres of travel per count, per side.
     pub fn metres_per_count(&self) -> (f64, f64) {
         let k = std::f64::consts::TAU * self.wheel_radius_m / self.counts_per_rev;
-        (k * self.left_ratio * self.left_sign, k * self.right_ratio * self.right_sign)
+        (
+            k * self.left_ratio * self.left_sign,
+            k * self.right_ratio * self.right_sign,
+        )
     }
 }
 
@@ -68,7 +71,10 @@ impl Pose2 {
             (x + ds * mid.cos(), y + ds * mid.sin())
         } else {
             let r = ds / dtheta;
-            (x + r * ((th + dtheta).sin() - th.sin()), y - r * ((th + dtheta).cos() - th.cos()))
+            (
+                x + r * ((th + dtheta).sin() - th.sin()),
+                y - r * ((th + dtheta).cos() - th.cos()),
+            )
         };
         Pose2 {
             x_m: nx,
@@ -153,7 +159,12 @@ impl Odometry {
         let glitch = dt <= 0.0 || dl.abs() > limit || dr.abs() > limit;
         if glitch {
             self.glitches += 1;
-            tracing::warn!(dl, dr, dt, "odometry: wheel jump beyond physical speed, not integrated");
+            tracing::warn!(
+                dl,
+                dr,
+                dt,
+                "odometry: wheel jump beyond physical speed, not integrated"
+            );
         } else {
             let ds = 0.5 * (dl + dr);
             let dtheta = (dr - dl) / self.params.track_m;
@@ -162,7 +173,12 @@ impl Odometry {
             self.path.1 += dr;
         }
         self.window.push_back((now_s, self.path.0, self.path.1));
-        while self.window.len() > 2 && self.window.front().is_some_and(|w| now_s - w.0 > self.window_s) {
+        while self.window.len() > 2
+            && self
+                .window
+                .front()
+                .is_some_and(|w| now_s - w.0 > self.window_s)
+        {
             self.window.pop_front();
         }
         let (v, w) = match (self.window.front(), self.window.back()) {
@@ -236,7 +252,10 @@ mod tests {
         let u = o.update(&ticks(1000, (sl * 1000.0) as i32, (sr * 1000.0) as i32));
         let p = u.pose;
         // rounding to whole counts: within 1 mm
-        assert!((p.x_m - 1.0).abs() < 2e-3 && (p.y_m - 1.0).abs() < 2e-3, "{p:?}");
+        assert!(
+            (p.x_m - 1.0).abs() < 2e-3 && (p.y_m - 1.0).abs() < 2e-3,
+            "{p:?}"
+        );
         assert!((p.theta_rad - quarter).abs() < 3e-3);
     }
 

@@ -1,0 +1,474 @@
+//! The safety supervisor: the only path from the planner to the actuator.
+//! Pure: inputs and the time in, a capped command and the state out.
+//!
+//! It outputs zero when laser data is older than 250 ms, odometry older
+//! than 100 ms, the planner's command older than 200 ms (all from config),
+//! when anything is inside the stop corridor in the direction of travel,
+//! after a stop from any input, when the user deflects the real joystick,
+//! and on CAN bus faults. Otherwise it caps speeds and accelerations.
+
+use std::time::Duration;
+
+use serde::Serialize;
+
+use crate::sensors::laser::Obstacles;
+use crate::types::{Stamp, Stamped};
+
+/// A velocity command in `base_link`: m/s forward, rad/s counter-clockwise.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+pub struct VelocityCmd {
+    pub v_mps: f64,
+    pub omega_radps: f64,
+}
+
+/// Why the chair is stopped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub enum StopReason {
+    LaserStale,
+    OdometryStale,
+    CommandStale,
+    /// Something inside the stop corridor.
+    Obstacle,
+    /// A stop from any input (socket, switch, voice).
+    UserStop,
+    /// The user deflected the real joystick.
+    UserTakeover,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub enum FaultReason {
+    /// Bus-off, error-passive or controller problems on CAN.
+    CanBus,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub enum SupervisorState {
+    /// No goal: nothing to do.
+    Idle,
+    Navigating,
+    /// A goal is held (e.g. lost from view): standing still.
+    Holding,
+    Stopped(StopReason),
+    /// Latched until cleared by a person.
+    Fault(FaultReason),
+}
+
+/// Limits (config `[safety]`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SafetyLimits {
+    pub v_forward_max_mps: f64,
+    pub v_reverse_max_mps: f64,
+    pub omega_max_radps: f64,
+    pub a_linear_max_mps2: f64,
+    pub a_angular_max_radps2: f64,
+    pub laser_max_age: Duration,
+    pub odometry_max_age: Duration,
+    pub command_max_age: Duration,
+    pub chair_width_m: f64,
+    pub corridor_margin_m: f64,
+    pub stop_distance_m: f64,
+    /// From `base_link` to the chair's front edge / rear edge, metres.
+    pub front_offset_m: f64,
+    pub rear_offset_m: f64,
+}
+
+impl Default for SafetyLimits {
+    fn default() -> Self {
+        SafetyLimits {
+            v_forward_max_mps: 0.30,
+            v_reverse_max_mps: 0.15,
+            omega_max_radps: 0.8,
+            a_linear_max_mps2: 0.5,
+            a_angular_max_radps2: 1.5,
+            laser_max_age: Duration::from_millis(250),
+            odometry_max_age: Duration::from_millis(100),
+            command_max_age: Duration::from_millis(200),
+            chair_width_m: 0.70,
+            corridor_margin_m: 0.10,
+            stop_distance_m: 0.30,
+            front_offset_m: 0.55,
+            rear_offset_m: 0.45,
+        }
+    }
+}
+
+/// What the supervisor hands the actuator.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct SafeCmd {
+    pub cmd: VelocityCmd,
+    pub state: SupervisorState,
+    pub stamp: Stamp,
+}
+
+/// The latest inputs, each with its acquisition stamp.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct SupervisorInputs<'a> {
+    pub obstacles: Option<&'a Stamped<Obstacles>>,
+    pub odometry_stamp: Option<Stamp>,
+    pub command: Option<&'a Stamped<VelocityCmd>>,
+}
+
+#[derive(Debug, Clone)]
+pub struct Supervisor {
+    pub limits: SafetyLimits,
+    goal: GoalState,
+    user_stop: bool,
+    takeover: bool,
+    fault: Option<FaultReason>,
+    last: Option<(VelocityCmd, Stamp)>,
+    state: SupervisorState,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum GoalState {
+    None,
+    Active,
+    Holding,
+}
+
+fn fresh(stamp: Option<Stamp>, now: Stamp, max: Duration) -> bool {
+    stamp.is_some_and(|s| s.age_at(now) <= max)
+}
+
+impl Supervisor {
+    pub fn new(limits: SafetyLimits) -> Self {
+        Supervisor {
+            limits,
+            goal: GoalState::None,
+            user_stop: false,
+            takeover: false,
+            fault: None,
+            last: None,
+            state: SupervisorState::Idle,
+        }
+    }
+
+    pub fn state(&self) -> SupervisorState {
+        self.state
+    }
+
+    /// A goal is being driven to.
+    pub fn goal_active(&mut self) {
+        self.goal = GoalState::Active;
+    }
+    /// The goal is held (standing still).
+    pub fn goal_holding(&mut self) {
+        self.goal = GoalState::Holding;
+    }
+    pub fn goal_cleared(&mut self) {
+        self.goal = GoalState::None;
+    }
+    /// A stop from any input; latched until `resume`.
+    pub fn user_stop(&mut self) {
+        self.user_stop = true;
+    }
+    /// The real joystick moved; latched until `resume`.
+    pub fn user_takeover(&mut self) {
+        self.takeover = true;
+    }
+    /// The user asks to go on (after a stop or a takeover).
+    pub fn resume(&mut self) {
+        self.user_stop = false;
+        self.takeover = false;
+    }
+    pub fn can_fault(&mut self, reason: FaultReason) {
+        self.fault = Some(reason);
+    }
+    /// A person cleared the fault.
+    pub fn clear_fault(&mut self) {
+        self.fault = None;
+    }
+
+    /// True when an obstacle point lies in the corridor ahead (v > 0) or
+    /// behind (v < 0).
+    pub fn corridor_blocked(&self, obstacles: &Obstacles, v_mps: f64) -> bool {
+        let l = &self.limits;
+        let half = l.chair_width_m / 2.0 + l.corridor_margin_m;
+        let (lo, hi) = if v_mps > 0.0 {
+            (l.front_offset_m, l.front_offset_m + l.stop_distance_m)
+        } else if v_mps < 0.0 {
+            (-l.rear_offset_m - l.stop_distance_m, -l.rear_offset_m)
+        } else {
+            return false;
+        };
+        obstacles.points_base.iter().any(|p| {
+            let (x, y) = (p[0] as f64, p[1] as f64);
+            x >= lo && x <= hi && y.abs() <= half
+        })
+    }
+
+    /// One control cycle at `now`.
+    pub fn step(&mut self, now: Stamp, inputs: &SupervisorInputs) -> SafeCmd {
+        let l = self.limits;
+        let state = if let Some(f) = self.fault {
+            SupervisorState::Fault(f)
+        } else if self.user_stop {
+            SupervisorState::Stopped(StopReason::UserStop)
+        } else if self.takeover {
+            SupervisorState::Stopped(StopReason::UserTakeover)
+        } else if self.goal == GoalState::None {
+            SupervisorState::Idle
+        } else if self.goal == GoalState::Holding {
+            SupervisorState::Holding
+        } else if !fresh(inputs.obstacles.map(|o| o.stamp), now, l.laser_max_age) {
+            SupervisorState::Stopped(StopReason::LaserStale)
+        } else if !fresh(inputs.odometry_stamp, now, l.odometry_max_age) {
+            SupervisorState::Stopped(StopReason::OdometryStale)
+        } else if !fresh(inputs.command.map(|c| c.stamp), now, l.command_max_age) {
+            SupervisorState::Stopped(StopReason::CommandStale)
+        } else {
+            SupervisorState::Navigating
+        };
+        let mut out = VelocityCmd::default();
+        let mut state = state;
+        if state == SupervisorState::Navigating {
+            if let (Some(cmd), Some(obs)) = (inputs.command, inputs.obstacles) {
+                let c = cmd.value;
+                let finite = c.v_mps.is_finite() && c.omega_radps.is_finite();
+                let v = if finite {
+                    c.v_mps.clamp(-l.v_reverse_max_mps, l.v_forward_max_mps)
+                } else {
+                    0.0
+                };
+                let w = if finite {
+                    c.omega_radps.clamp(-l.omega_max_radps, l.omega_max_radps)
+                } else {
+                    0.0
+                };
+                if self.corridor_blocked(&obs.value, v) {
+                    state = SupervisorState::Stopped(StopReason::Obstacle);
+                } else {
+                    // acceleration limits from the last output
+                    let (prev, dt) = match self.last {
+                        Some((p, t)) => (p, t.age_at(now).as_secs_f64().min(0.1)),
+                        None => (VelocityCmd::default(), 0.0),
+                    };
+                    let dv = l.a_linear_max_mps2 * dt;
+                    let dw = l.a_angular_max_radps2 * dt;
+                    out = VelocityCmd {
+                        v_mps: v.clamp(prev.v_mps - dv, prev.v_mps + dv),
+                        omega_radps: w.clamp(prev.omega_radps - dw, prev.omega_radps + dw),
+                    };
+                }
+            }
+        }
+        if state != self.state {
+            tracing::info!(from = ?self.state, to = ?state, "supervisor state");
+        }
+        self.state = state;
+        self.last = Some((out, now));
+        SafeCmd {
+            cmd: out,
+            state,
+            stamp: now,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ms(v: u64) -> Stamp {
+        Stamp(Duration::from_millis(v))
+    }
+
+    struct World {
+        obstacles: Stamped<Obstacles>,
+        odom: Stamp,
+        cmd: Stamped<VelocityCmd>,
+    }
+
+    impl World {
+        fn new(t: u64, v: f64, w: f64) -> Self {
+            World {
+                obstacles: Stamped::new(
+                    ms(t),
+                    Obstacles {
+                        points_base: vec![[3.0, 0.0]],
+                    },
+                ),
+                odom: ms(t),
+                cmd: Stamped::new(
+                    ms(t),
+                    VelocityCmd {
+                        v_mps: v,
+                        omega_radps: w,
+                    },
+                ),
+            }
+        }
+        fn inputs(&self) -> SupervisorInputs<'_> {
+            SupervisorInputs {
+                obstacles: Some(&self.obstacles),
+                odometry_stamp: Some(self.odom),
+                command: Some(&self.cmd),
+            }
+        }
+    }
+
+    /// A supervisor already moving at `v` (acceleration limits satisfied).
+    fn moving(v: f64) -> Supervisor {
+        let mut s = Supervisor::new(SafetyLimits {
+            a_linear_max_mps2: 100.0,
+            a_angular_max_radps2: 100.0,
+            ..Default::default()
+        });
+        s.goal_active();
+        let w = World::new(0, v, 0.0);
+        s.step(ms(0), &w.inputs());
+        let c = s.step(ms(10), &w.inputs());
+        assert_eq!(c.state, SupervisorState::Navigating);
+        assert!((c.cmd.v_mps - v).abs() < 1e-12);
+        s
+    }
+
+    #[test]
+    fn stale_laser_stops_one_step_after_its_deadline() {
+        let mut s = moving(0.2);
+        let mut w = World::new(0, 0.2, 0.0);
+        // everything but the laser stays fresh
+        w.odom = ms(250);
+        w.cmd.stamp = ms(250);
+        let c = s.step(ms(250), &w.inputs());
+        assert_eq!(c.state, SupervisorState::Navigating);
+        let c = s.step(
+            Stamp(Duration::from_millis(250) + Duration::from_nanos(1)),
+            &w.inputs(),
+        );
+        assert_eq!(c.state, SupervisorState::Stopped(StopReason::LaserStale));
+        assert_eq!(c.cmd, VelocityCmd::default());
+    }
+
+    #[test]
+    fn stale_odometry_and_command_stop() {
+        let mut s = moving(0.2);
+        let mut w = World::new(100, 0.2, 0.0);
+        w.odom = ms(0);
+        assert_eq!(
+            s.step(ms(100), &w.inputs()).state,
+            SupervisorState::Navigating
+        );
+        let c = s.step(ms(101), &w.inputs());
+        assert_eq!(c.state, SupervisorState::Stopped(StopReason::OdometryStale));
+        assert_eq!(c.cmd, VelocityCmd::default());
+
+        let mut s = moving(0.2);
+        let mut w = World::new(200, 0.2, 0.0);
+        w.cmd.stamp = ms(0);
+        assert_eq!(
+            s.step(ms(200), &w.inputs()).state,
+            SupervisorState::Navigating
+        );
+        let c = s.step(ms(201), &w.inputs());
+        assert_eq!(c.state, SupervisorState::Stopped(StopReason::CommandStale));
+        assert_eq!(c.cmd, VelocityCmd::default());
+        // missing inputs are stale too
+        let c = s.step(ms(202), &SupervisorInputs::default());
+        assert_eq!(c.state, SupervisorState::Stopped(StopReason::LaserStale));
+    }
+
+    #[test]
+    fn obstacle_in_the_corridor_stops_in_the_direction_of_travel() {
+        let mut s = moving(0.2);
+        let mut w = World::new(20, 0.2, 0.0);
+        // 0.55 front + 0.30 stop = 0.85 m; half width 0.45 m
+        w.obstacles.value.points_base = vec![[0.84, 0.44]];
+        let c = s.step(ms(20), &w.inputs());
+        assert_eq!(c.state, SupervisorState::Stopped(StopReason::Obstacle));
+        assert_eq!(c.cmd, VelocityCmd::default());
+        // just outside, or behind while going forward: clear
+        for p in [[0.86, 0.0], [0.5, 0.46], [-0.6, 0.0]] {
+            let mut s = moving(0.2);
+            w.obstacles.value.points_base = vec![p];
+            assert_eq!(
+                s.step(ms(20), &w.inputs()).state,
+                SupervisorState::Navigating,
+                "{p:?}"
+            );
+        }
+        // reversing towards something behind
+        let mut s = moving(-0.1);
+        let mut w = World::new(20, -0.1, 0.0);
+        w.obstacles.value.points_base = vec![[-0.6, 0.1]];
+        assert_eq!(
+            s.step(ms(20), &w.inputs()).state,
+            SupervisorState::Stopped(StopReason::Obstacle)
+        );
+    }
+
+    #[test]
+    fn user_stop_takeover_and_can_fault() {
+        let mut s = moving(0.2);
+        let w = World::new(20, 0.2, 0.0);
+        s.user_stop();
+        let c = s.step(ms(20), &w.inputs());
+        assert_eq!(
+            (c.state, c.cmd),
+            (
+                SupervisorState::Stopped(StopReason::UserStop),
+                VelocityCmd::default()
+            )
+        );
+        s.resume();
+        assert_eq!(
+            s.step(ms(20), &w.inputs()).state,
+            SupervisorState::Navigating
+        );
+        s.user_takeover();
+        let c = s.step(ms(20), &w.inputs());
+        assert_eq!(
+            (c.state, c.cmd),
+            (
+                SupervisorState::Stopped(StopReason::UserTakeover),
+                VelocityCmd::default()
+            )
+        );
+        s.resume();
+        s.can_fault(FaultReason::CanBus);
+        s.resume();
+        let c = s.step(ms(20), &w.inputs());
+        assert_eq!(
+            (c.state, c.cmd),
+            (
+                SupervisorState::Fault(FaultReason::CanBus),
+                VelocityCmd::default()
+            )
+        );
+        s.clear_fault();
+        assert_eq!(
+            s.step(ms(20), &w.inputs()).state,
+            SupervisorState::Navigating
+        );
+        s.goal_holding();
+        assert_eq!(s.step(ms(20), &w.inputs()).cmd, VelocityCmd::default());
+        s.goal_cleared();
+        assert_eq!(s.step(ms(20), &w.inputs()).state, SupervisorState::Idle);
+    }
+
+    #[test]
+    fn caps_and_acceleration_limits() {
+        let mut s = Supervisor::new(SafetyLimits::default());
+        s.goal_active();
+        // far too fast, from standstill: capped to 0.3, ramped at 0.5 m/s²
+        let w = World::new(0, 2.0, -3.0);
+        let c = s.step(ms(0), &w.inputs());
+        assert_eq!(c.cmd, VelocityCmd::default());
+        let mut v = 0.0;
+        for k in 1..=100u64 {
+            let w = World::new(10 * k, 2.0, -3.0);
+            let c = s.step(ms(10 * k), &w.inputs());
+            assert!(c.cmd.v_mps - v <= 0.5 * 0.01 + 1e-12);
+            v = c.cmd.v_mps;
+            assert!(c.cmd.v_mps <= 0.30 + 1e-12 && c.cmd.omega_radps >= -0.8 - 1e-12);
+        }
+        assert!((v - 0.30).abs() < 1e-12);
+        // reverse is capped at 0.15; non-finite commands are zero
+        let mut s = moving(0.0);
+        let w = World::new(20, -1.0, f64::NAN);
+        let c = s.step(ms(20), &w.inputs());
+        assert_eq!(c.cmd, VelocityCmd::default());
+        let w = World::new(30, -1.0, 0.0);
+        assert!((s.step(ms(30), &w.inputs()).cmd.v_mps + 0.15).abs() < 1e-12);
+    }
+}
