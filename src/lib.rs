@@ -8,6 +8,7 @@ pub mod actuation;
 pub mod config;
 pub mod estimation;
 pub mod eval;
+pub mod navigation;
 pub mod output;
 pub mod perception;
 pub mod safety;
