@@ -3,3 +3,4 @@
 
 pub mod apf;
 pub mod grid;
+pub mod mpc;

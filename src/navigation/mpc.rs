@@ -1,0 +1,460 @@
+//! Model-predictive control of the chair as a unicycle with accelerations
+//! as inputs (as the paper group's MATMPC): state [x, y, θ, v, ω], inputs
+//! [v̇, ω̇], linearised along a constant-velocity rollout, horizon N at
+//! `dt_s`, bounds on v, ω and their rates, obstacles as half-planes from
+//! the nearest obstacle points; one QP per cycle, solved with clarabel.
+//! Pure: the problem in, the plan out.
+
+use clarabel::algebra::CscMatrix;
+use clarabel::solver::{
+    DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT,
+};
+use serde::Serialize;
+use thiserror::Error;
+
+use crate::safety::VelocityCmd;
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MpcParams {
+    pub horizon: usize,
+    pub dt_s: f64,
+    pub v_min_mps: f64,
+    pub v_max_mps: f64,
+    pub omega_max_radps: f64,
+    pub accel_max_mps2: f64,
+    pub alpha_max_radps2: f64,
+    pub w_position: f64,
+    pub w_terminal: f64,
+    pub w_heading: f64,
+    pub w_speed: f64,
+    pub w_omega: f64,
+    pub w_accel: f64,
+    pub w_alpha: f64,
+    /// Keep this far from obstacle points (chair radius + margin), m.
+    pub clearance_m: f64,
+    /// Obstacle points considered (the nearest ones within `obstacle_range_m`).
+    pub max_obstacles: usize,
+    pub obstacle_range_m: f64,
+}
+
+impl Default for MpcParams {
+    fn default() -> Self {
+        MpcParams {
+            horizon: 20,
+            dt_s: 0.1,
+            v_min_mps: 0.0,
+            v_max_mps: 0.3,
+            omega_max_radps: 0.8,
+            accel_max_mps2: 0.3,
+            alpha_max_radps2: 1.0,
+            w_position: 1.0,
+            w_terminal: 20.0,
+            w_heading: 0.5,
+            w_speed: 0.5,
+            w_omega: 0.1,
+            w_accel: 0.5,
+            w_alpha: 0.1,
+            clearance_m: 0.6,
+            max_obstacles: 8,
+            obstacle_range_m: 3.0,
+        }
+    }
+}
+
+/// [x, y, θ, v, ω] in the odometry frame.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+pub struct UnicycleState {
+    pub x_m: f64,
+    pub y_m: f64,
+    pub theta_rad: f64,
+    pub v_mps: f64,
+    pub omega_radps: f64,
+}
+
+impl UnicycleState {
+    fn to_array(self) -> [f64; 5] {
+        [
+            self.x_m,
+            self.y_m,
+            self.theta_rad,
+            self.v_mps,
+            self.omega_radps,
+        ]
+    }
+    fn from_array(a: &[f64]) -> Self {
+        UnicycleState {
+            x_m: a[0],
+            y_m: a[1],
+            theta_rad: a[2],
+            v_mps: a[3],
+            omega_radps: a[4],
+        }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct MpcProblem {
+    pub state: UnicycleState,
+    /// Where to go (the approach pose's position), same frame as the state.
+    pub goal: [f64; 2],
+    /// Heading to hold (e.g. the potential field's direction); None: free.
+    pub heading_ref_rad: Option<f64>,
+    /// Speed to track (e.g. the potential field's).
+    pub v_ref_mps: f64,
+    /// Obstacle points, same frame.
+    pub obstacles: Vec<[f64; 2]>,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct MpcPlan {
+    /// The velocity to command now (the plan's first step).
+    pub cmd: VelocityCmd,
+    /// First input [v̇, ω̇].
+    pub input: [f64; 2],
+    /// Predicted states 1..=N.
+    pub states: Vec<UnicycleState>,
+    /// Inputs 0..N−1.
+    pub inputs: Vec<[f64; 2]>,
+    /// Obstacle half-planes used: per step k (1-based), (n, b) with n·p ≥ b.
+    pub half_planes: Vec<Vec<([f64; 2], f64)>>,
+    pub iterations: u32,
+}
+
+#[derive(Debug, Error, PartialEq)]
+pub enum MpcError {
+    #[error("MPC QP not solved: {0}")]
+    NotSolved(String),
+    #[error("MPC setup: {0}")]
+    Setup(String),
+}
+
+const NX: usize = 5;
+const NU: usize = 2;
+
+/// Appends `lo ≤ z[var] ≤ hi` as two rows of `A z ≤ b`.
+#[allow(clippy::too_many_arguments)]
+fn push_bound(
+    var: usize,
+    lo: f64,
+    hi: f64,
+    ai: &mut Vec<usize>,
+    aj: &mut Vec<usize>,
+    av: &mut Vec<f64>,
+    b: &mut Vec<f64>,
+    row: &mut usize,
+) {
+    ai.push(*row);
+    aj.push(var);
+    av.push(1.0);
+    b.push(hi);
+    ai.push(*row + 1);
+    aj.push(var);
+    av.push(-1.0);
+    b.push(-lo);
+    *row += 2;
+}
+
+/// Solves one cycle.
+pub fn solve(problem: &MpcProblem, p: &MpcParams) -> Result<MpcPlan, MpcError> {
+    let n = p.horizon.max(1);
+    let dt = p.dt_s;
+    let nz = n * (NX + NU);
+    let sx = |k: usize, i: usize| (k - 1) * NX + i; // state k (1..=n)
+    let ux = |k: usize, i: usize| n * NX + k * NU + i; // input k (0..n-1)
+
+    // reference: constant-velocity rollout from the current state
+    let s0 = problem.state.to_array();
+    let mut sbar = vec![s0];
+    for k in 0..n {
+        let s = sbar[k];
+        sbar.push([
+            s[0] + dt * s[3] * s[2].cos(),
+            s[1] + dt * s[3] * s[2].sin(),
+            s[2] + dt * s[4],
+            s[3],
+            s[4],
+        ]);
+    }
+
+    // cost
+    let (mut pi, mut pj, mut pv) = (Vec::new(), Vec::new(), Vec::new());
+    let mut q = vec![0.0; nz];
+    let mut quad = |i: usize, w: f64, r: f64, q: &mut Vec<f64>| {
+        if w > 0.0 {
+            pi.push(i);
+            pj.push(i);
+            pv.push(2.0 * w);
+            q[i] += -2.0 * w * r;
+        }
+    };
+    let theta_ref = problem.heading_ref_rad.map(|h| {
+        // the branch of the heading nearest the current one
+        let d = (h - s0[2] + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
+            - std::f64::consts::PI;
+        s0[2] + d
+    });
+    for k in 1..=n {
+        let wp = if k == n { p.w_terminal } else { p.w_position };
+        quad(sx(k, 0), wp, problem.goal[0], &mut q);
+        quad(sx(k, 1), wp, problem.goal[1], &mut q);
+        if let Some(h) = theta_ref {
+            quad(sx(k, 2), p.w_heading, h, &mut q);
+        }
+        quad(sx(k, 3), p.w_speed, problem.v_ref_mps, &mut q);
+        quad(sx(k, 4), p.w_omega, 0.0, &mut q);
+    }
+    for k in 0..n {
+        quad(ux(k, 0), p.w_accel, 0.0, &mut q);
+        quad(ux(k, 1), p.w_alpha, 0.0, &mut q);
+    }
+    let pmat = CscMatrix::new_from_triplets(nz, nz, pi, pj, pv);
+
+    // constraints: rows of A z (+ s) = b
+    let (mut ai, mut aj, mut av) = (Vec::new(), Vec::new(), Vec::new());
+    let mut b = Vec::new();
+    let mut row = 0usize;
+    // dynamics: s_{k+1} − A_k s_k − B u_k = c_k (s_0 known, moved to b)
+    for (k, s) in sbar.iter().take(n).enumerate() {
+        let (st, ct) = (s[2].sin(), s[2].cos());
+        // A_k = I + dt·J
+        let mut a = [[0.0; NX]; NX];
+        for (i, r) in a.iter_mut().enumerate() {
+            r[i] = 1.0;
+        }
+        a[0][2] = -dt * s[3] * st;
+        a[0][3] = dt * ct;
+        a[1][2] = dt * s[3] * ct;
+        a[1][3] = dt * st;
+        a[2][4] = dt;
+        let c = [dt * s[3] * st * s[2], -dt * s[3] * ct * s[2], 0.0, 0.0, 0.0];
+        for i in 0..NX {
+            ai.push(row + i);
+            aj.push(sx(k + 1, i));
+            av.push(1.0);
+            let mut rhs = c[i];
+            if k == 0 {
+                rhs += (0..NX).map(|j| a[i][j] * s0[j]).sum::<f64>();
+            } else {
+                for (j, &aij) in a[i].iter().enumerate() {
+                    if aij != 0.0 {
+                        ai.push(row + i);
+                        aj.push(sx(k, j));
+                        av.push(-aij);
+                    }
+                }
+            }
+            b.push(rhs);
+        }
+        // B: v̇ → v, ω̇ → ω
+        ai.push(row + 3);
+        aj.push(ux(k, 0));
+        av.push(-dt);
+        ai.push(row + 4);
+        aj.push(ux(k, 1));
+        av.push(-dt);
+        row += NX;
+    }
+    let n_eq = row;
+    for k in 1..=n {
+        push_bound(
+            sx(k, 3),
+            p.v_min_mps,
+            p.v_max_mps,
+            &mut ai,
+            &mut aj,
+            &mut av,
+            &mut b,
+            &mut row,
+        );
+        push_bound(
+            sx(k, 4),
+            -p.omega_max_radps,
+            p.omega_max_radps,
+            &mut ai,
+            &mut aj,
+            &mut av,
+            &mut b,
+            &mut row,
+        );
+    }
+    for k in 0..n {
+        push_bound(
+            ux(k, 0),
+            -p.accel_max_mps2,
+            p.accel_max_mps2,
+            &mut ai,
+            &mut aj,
+            &mut av,
+            &mut b,
+            &mut row,
+        );
+        push_bound(
+            ux(k, 1),
+            -p.alpha_max_radps2,
+            p.alpha_max_radps2,
+            &mut ai,
+            &mut aj,
+            &mut av,
+            &mut b,
+            &mut row,
+        );
+    }
+    // obstacles: the nearest points; per step a half-plane through the point
+    // pushed out by the clearance, facing the reference position
+    let mut obs: Vec<[f64; 2]> = problem
+        .obstacles
+        .iter()
+        .copied()
+        .filter(|o| o[0].is_finite() && o[1].is_finite())
+        .filter(|o| (o[0] - s0[0]).hypot(o[1] - s0[1]) <= p.obstacle_range_m)
+        .collect();
+    obs.sort_by(|a, c| {
+        let da = (a[0] - s0[0]).hypot(a[1] - s0[1]);
+        let dc = (c[0] - s0[0]).hypot(c[1] - s0[1]);
+        da.total_cmp(&dc)
+    });
+    obs.truncate(p.max_obstacles);
+    let mut half_planes = vec![Vec::new(); n];
+    for k in 1..=n {
+        let (px, py) = (sbar[k][0], sbar[k][1]);
+        for o in &obs {
+            let (dx, dy) = (px - o[0], py - o[1]);
+            let d = dx.hypot(dy);
+            let (nx, ny) = if d > 1e-6 {
+                (dx / d, dy / d)
+            } else {
+                (1.0, 0.0)
+            };
+            let bb = nx * o[0] + ny * o[1] + p.clearance_m;
+            // −n·p ≤ −b
+            ai.push(row);
+            aj.push(sx(k, 0));
+            av.push(-nx);
+            ai.push(row);
+            aj.push(sx(k, 1));
+            av.push(-ny);
+            b.push(-bb);
+            row += 1;
+            half_planes[k - 1].push(([nx, ny], bb));
+        }
+    }
+    let n_ineq = row - n_eq;
+    let amat = CscMatrix::new_from_triplets(row, nz, ai, aj, av);
+    let cones = [
+        SupportedConeT::ZeroConeT(n_eq),
+        SupportedConeT::NonnegativeConeT(n_ineq),
+    ];
+    let settings = DefaultSettingsBuilder::default()
+        .verbose(false)
+        .max_iter(100)
+        // one solve a cycle at 20 Hz: direct solves are accurate enough here
+        // and iterative refinement costs about a third of the time
+        .iterative_refinement_enable(false)
+        .build()
+        .map_err(|e| MpcError::Setup(format!("{e:?}")))?;
+    let mut solver = DefaultSolver::new(&pmat, &q, &amat, &b, &cones, settings)
+        .map_err(|e| MpcError::Setup(e.to_string()))?;
+    solver.solve();
+    let sol = &solver.solution;
+    match sol.status {
+        SolverStatus::Solved | SolverStatus::AlmostSolved => {}
+        other => return Err(MpcError::NotSolved(format!("{other:?}"))),
+    }
+    let z = &sol.x;
+    let states: Vec<UnicycleState> = (1..=n)
+        .map(|k| UnicycleState::from_array(&z[sx(k, 0)..sx(k, 0) + NX]))
+        .collect();
+    let inputs: Vec<[f64; 2]> = (0..n).map(|k| [z[ux(k, 0)], z[ux(k, 1)]]).collect();
+    let first = states[0];
+    Ok(MpcPlan {
+        cmd: VelocityCmd {
+            v_mps: first.v_mps,
+            omega_radps: first.omega_radps,
+        },
+        input: inputs[0],
+        states,
+        inputs,
+        half_planes,
+        iterations: sol.iterations,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn step(s: UnicycleState, cmd: VelocityCmd, dt: f64) -> UnicycleState {
+        let (v, w) = (cmd.v_mps, cmd.omega_radps);
+        let th = s.theta_rad;
+        let (x, y) = if w.abs() < 1e-9 {
+            (s.x_m + v * dt * th.cos(), s.y_m + v * dt * th.sin())
+        } else {
+            let r = v / w;
+            (
+                s.x_m + r * ((th + w * dt).sin() - th.sin()),
+                s.y_m - r * ((th + w * dt).cos() - th.cos()),
+            )
+        };
+        UnicycleState {
+            x_m: x,
+            y_m: y,
+            theta_rad: th + w * dt,
+            v_mps: v,
+            omega_radps: w,
+        }
+    }
+
+    #[test]
+    fn reaches_a_goal_in_open_space_within_bounds() {
+        let p = MpcParams::default();
+        let mut s = UnicycleState::default();
+        let goal = [3.0, 2.0];
+        for _ in 0..300 {
+            let bearing = (goal[1] - s.y_m).atan2(goal[0] - s.x_m);
+            let plan = solve(
+                &MpcProblem {
+                    state: s,
+                    goal,
+                    heading_ref_rad: Some(bearing),
+                    v_ref_mps: 0.3,
+                    obstacles: vec![],
+                },
+                &p,
+            )
+            .unwrap();
+            assert!(plan.cmd.v_mps <= p.v_max_mps + 1e-6 && plan.cmd.v_mps >= p.v_min_mps - 1e-6);
+            assert!(plan.cmd.omega_radps.abs() <= p.omega_max_radps + 1e-6);
+            assert!((plan.cmd.v_mps - s.v_mps).abs() <= p.accel_max_mps2 * p.dt_s + 1e-6);
+            s = step(s, plan.cmd, p.dt_s);
+        }
+        let d = (s.x_m - goal[0]).hypot(s.y_m - goal[1]);
+        assert!(d < 0.15, "ended {d} m from the goal at {s:?}");
+    }
+
+    #[test]
+    fn keeps_clear_of_an_obstacle_on_the_way() {
+        let p = MpcParams::default();
+        let mut s = UnicycleState::default();
+        let goal = [4.0, 0.0];
+        let obstacle = [2.0, 0.05];
+        let mut closest = f64::INFINITY;
+        for _ in 0..300 {
+            let plan = match solve(
+                &MpcProblem {
+                    state: s,
+                    goal,
+                    heading_ref_rad: None,
+                    v_ref_mps: 0.3,
+                    obstacles: vec![obstacle],
+                },
+                &p,
+            ) {
+                Ok(plan) => plan,
+                Err(_) => break,
+            };
+            s = step(s, plan.cmd, p.dt_s);
+            closest = closest.min((s.x_m - obstacle[0]).hypot(s.y_m - obstacle[1]));
+        }
+        assert!(closest > p.clearance_m - 0.1, "came within {closest} m");
+    }
+}
