@@ -8,52 +8,20 @@ use opennav::sensors::scip::{
     build_reply, classify, decode_ranges, encode_value, parse_reply, NoReturn, Reading,
     ReplyFramer, SensorParams,
 };
+use opennav::sim::hokuyo::{load_sena_csv, resample_to_urg};
 use proptest::prelude::*;
 
-/// SENA scans: (timestamp, ranges in metres, NaN = invalid), 361 rays over 180°.
+/// SENA scans: ranges in metres (NaN = invalid), 361 rays over 180°.
 fn sena() -> Vec<Vec<f64>> {
-    let text = std::fs::read_to_string(common::asset(
+    load_sena_csv(&common::asset(
         common::shared().join("data/laser/sena_2006_laser_scans.csv"),
     ))
-    .expect("readable");
-    text.lines()
-        .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
-        .map(|l| {
-            l.split(',')
-                .skip(1)
-                .map(|v| {
-                    if v == "nan" {
-                        f64::NAN
-                    } else {
-                        v.parse().expect("number")
-                    }
-                })
-                .collect()
-        })
-        .collect()
+    .expect("readable")
 }
 
-/// URG steps 44..=725 in millimetres: the nearest SENA ray within half a
-/// ray's spacing; no ray (outside ±90°) or an invalid one → 0 (no object);
-/// beyond 5.6 m → clipped to 5600.
+/// URG steps AMIN..=AMAX in millimetres (the emulator's resampling).
 fn resample(scan: &[f64]) -> Vec<u32> {
-    let p = SensorParams::URG_04LX;
-    let n = scan.len();
-    let spacing = std::f64::consts::PI / (n - 1) as f64;
-    (p.amin..=p.amax)
-        .map(|step| {
-            let a = p.step_angle_rad(step);
-            let k = ((a + std::f64::consts::FRAC_PI_2) / spacing).round();
-            if k < 0.0 || k as usize >= n {
-                return 0;
-            }
-            let r = scan[k as usize];
-            if !r.is_finite() || r <= 0.0 {
-                return 0;
-            }
-            ((r * 1000.0).round() as u32).clamp(20, 5600)
-        })
-        .collect()
+    resample_to_urg(scan, &SensorParams::URG_04LX)
 }
 
 #[test]
