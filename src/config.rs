@@ -38,6 +38,73 @@ pub struct Settings {
     pub models: ModelsSection,
     pub perception: PerceptionSection,
     pub camera: CameraSection,
+    pub safety: SafetySection,
+    pub odometry: OdometrySection,
+    pub encoders: EncodersSection,
+    pub lasers: LasersSection,
+}
+
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct SafetySection {
+    pub v_forward_max_mps: f64,
+    pub v_reverse_max_mps: f64,
+    pub omega_max_radps: f64,
+    pub a_linear_max_mps2: f64,
+    pub a_angular_max_radps2: f64,
+    pub laser_max_age_s: f64,
+    pub odometry_max_age_s: f64,
+    pub command_max_age_s: f64,
+    pub chair_width_m: f64,
+    pub corridor_margin_m: f64,
+    pub stop_distance_m: f64,
+    pub front_offset_m: f64,
+    pub rear_offset_m: f64,
+}
+
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct OdometrySection {
+    pub wheel_radius_m: f64,
+    pub track_m: f64,
+    pub counts_per_rev: f64,
+    pub left_ratio: f64,
+    pub right_ratio: f64,
+    pub left_sign: f64,
+    pub right_sign: f64,
+    pub max_wheel_speed_mps: f64,
+}
+
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct EncodersSection {
+    pub port: String,
+}
+
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct LaserSection {
+    pub port: String,
+    pub translation_m: [f64; 3],
+    pub yaw_rad: f64,
+}
+
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct LasersSection {
+    pub left: LaserSection,
+    pub right: LaserSection,
+}
+
+impl LaserSection {
+    /// The scanner's pose in `base_link`.
+    pub fn base_from_laser(&self) -> nalgebra::Isometry3<f64> {
+        let t = self.translation_m;
+        nalgebra::Isometry3::new(
+            nalgebra::Vector3::new(t[0], t[1], t[2]),
+            nalgebra::Vector3::z() * self.yaw_rad,
+        )
+    }
 }
 
 #[derive(Debug, Clone, Deserialize, PartialEq)]
@@ -220,6 +287,65 @@ impl Settings {
             0.0,
             0.2,
         )?;
+        let sf = &self.safety;
+        finite_range("safety.v_forward_max_mps", sf.v_forward_max_mps, 0.01, 2.0)?;
+        finite_range("safety.v_reverse_max_mps", sf.v_reverse_max_mps, 0.0, 1.0)?;
+        finite_range("safety.omega_max_radps", sf.omega_max_radps, 0.01, 3.0)?;
+        finite_range("safety.a_linear_max_mps2", sf.a_linear_max_mps2, 0.01, 3.0)?;
+        finite_range(
+            "safety.a_angular_max_radps2",
+            sf.a_angular_max_radps2,
+            0.01,
+            6.0,
+        )?;
+        finite_range("safety.laser_max_age_s", sf.laser_max_age_s, 0.01, 1.0)?;
+        finite_range(
+            "safety.odometry_max_age_s",
+            sf.odometry_max_age_s,
+            0.01,
+            1.0,
+        )?;
+        finite_range("safety.command_max_age_s", sf.command_max_age_s, 0.01, 1.0)?;
+        finite_range("safety.chair_width_m", sf.chair_width_m, 0.3, 1.5)?;
+        finite_range("safety.corridor_margin_m", sf.corridor_margin_m, 0.0, 0.5)?;
+        finite_range("safety.stop_distance_m", sf.stop_distance_m, 0.05, 2.0)?;
+        finite_range("safety.front_offset_m", sf.front_offset_m, 0.0, 2.0)?;
+        finite_range("safety.rear_offset_m", sf.rear_offset_m, 0.0, 2.0)?;
+        let o = &self.odometry;
+        finite_range("odometry.wheel_radius_m", o.wheel_radius_m, 0.02, 1.0)?;
+        finite_range("odometry.track_m", o.track_m, 0.1, 2.0)?;
+        finite_range("odometry.counts_per_rev", o.counts_per_rev, 1.0, 1.0e7)?;
+        finite_range("odometry.left_ratio", o.left_ratio, 1e-3, 100.0)?;
+        finite_range("odometry.right_ratio", o.right_ratio, 1e-3, 100.0)?;
+        for (key, v) in [
+            ("odometry.left_sign", o.left_sign),
+            ("odometry.right_sign", o.right_sign),
+        ] {
+            if v != 1.0 && v != -1.0 {
+                return Err(ConfigError::Range {
+                    key: key.into(),
+                    value: v.to_string(),
+                    reason: "must be 1 or -1".into(),
+                });
+            }
+        }
+        finite_range(
+            "odometry.max_wheel_speed_mps",
+            o.max_wheel_speed_mps,
+            0.1,
+            10.0,
+        )?;
+        for (side, l) in [("left", &self.lasers.left), ("right", &self.lasers.right)] {
+            for (i, v) in l.translation_m.iter().enumerate() {
+                finite_range(&format!("lasers.{side}.translation_m[{i}]"), *v, -3.0, 3.0)?;
+            }
+            finite_range(
+                &format!("lasers.{side}.yaw_rad"),
+                l.yaw_rad,
+                -std::f64::consts::PI,
+                std::f64::consts::PI,
+            )?;
+        }
         self.camera
             .base_from_camera
             .to_isometry("camera.base_from_camera")
@@ -270,6 +396,40 @@ impl Settings {
         }
     }
 
+    pub fn safety_limits(&self) -> crate::safety::SafetyLimits {
+        let s = &self.safety;
+        let d = std::time::Duration::from_secs_f64;
+        crate::safety::SafetyLimits {
+            v_forward_max_mps: s.v_forward_max_mps,
+            v_reverse_max_mps: s.v_reverse_max_mps,
+            omega_max_radps: s.omega_max_radps,
+            a_linear_max_mps2: s.a_linear_max_mps2,
+            a_angular_max_radps2: s.a_angular_max_radps2,
+            laser_max_age: d(s.laser_max_age_s),
+            odometry_max_age: d(s.odometry_max_age_s),
+            command_max_age: d(s.command_max_age_s),
+            chair_width_m: s.chair_width_m,
+            corridor_margin_m: s.corridor_margin_m,
+            stop_distance_m: s.stop_distance_m,
+            front_offset_m: s.front_offset_m,
+            rear_offset_m: s.rear_offset_m,
+        }
+    }
+
+    pub fn drive_params(&self) -> crate::estimation::odometry::DiffDriveParams {
+        let o = &self.odometry;
+        crate::estimation::odometry::DiffDriveParams {
+            wheel_radius_m: o.wheel_radius_m,
+            track_m: o.track_m,
+            counts_per_rev: o.counts_per_rev,
+            left_ratio: o.left_ratio,
+            right_ratio: o.right_ratio,
+            left_sign: o.left_sign,
+            right_sign: o.right_sign,
+            max_wheel_speed_mps: o.max_wheel_speed_mps,
+        }
+    }
+
     /// The ONNX Runtime library path from config (None when empty).
     pub fn onnxruntime_library(&self) -> Option<PathBuf> {
         let s = self.runtime.onnxruntime_library.trim();
@@ -295,6 +455,39 @@ mod tests {
         assert_eq!(s.perception.erosion_iterations, 1);
         assert_eq!(s.perception.merge_iou, 0.8);
         assert_eq!(s.runtime.execution_provider, ExecutionProviderKind::Cpu);
+    }
+
+    #[test]
+    fn safety_defaults_are_the_architectures_and_nonsense_is_refused() {
+        let s = Settings::load_with_env(None, env(&[])).unwrap();
+        assert_eq!(s.safety_limits(), crate::safety::SafetyLimits::default());
+        let p = s.drive_params();
+        let q = crate::estimation::odometry::DiffDriveParams::paper_chair();
+        assert!(
+            (p.left_ratio - q.left_ratio).abs() < 1e-6
+                && (p.right_ratio - q.right_ratio).abs() < 1e-6
+        );
+        for (k, v, key) in [
+            (
+                "OPENNAV_SAFETY__V_FORWARD_MAX_MPS",
+                "5",
+                "safety.v_forward_max_mps",
+            ),
+            (
+                "OPENNAV_SAFETY__LASER_MAX_AGE_S",
+                "3",
+                "safety.laser_max_age_s",
+            ),
+            ("OPENNAV_ODOMETRY__LEFT_SIGN", "0.5", "odometry.left_sign"),
+            ("OPENNAV_ODOMETRY__TRACK_M", "-1", "odometry.track_m"),
+        ] {
+            let e = Settings::load_with_env(None, env(&[(k, v)]))
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(key), "{e}");
+        }
+        let l = s.lasers.left.base_from_laser();
+        assert!((l.translation.vector.x - 0.33).abs() < 1e-12);
     }
 
     #[test]

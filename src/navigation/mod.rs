@@ -4,3 +4,4 @@
 pub mod apf;
 pub mod grid;
 pub mod mpc;
+pub mod planner;

@@ -1,0 +1,203 @@
+//! The 20 Hz planner step: the potential field gives the direction and
+//! speed to track, the MPC plans within the chair's bounds and around
+//! obstacles; a failed solve falls back to the field at reduced speed, and
+//! repeated failures stop the chair. Every outcome is counted.
+
+use nalgebra::{Isometry2, Point2, Vector2};
+use serde::Serialize;
+
+use super::apf::{apf, ApfParams};
+use super::grid::ProximityGrid;
+use super::mpc::{solve, MpcParams, MpcProblem, UnicycleState};
+use crate::safety::VelocityCmd;
+use crate::sensors::laser::Obstacles;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub enum CommandSource {
+    Mpc,
+    /// The MPC failed: the potential field, slowed down.
+    ApfFallback,
+    /// Repeated MPC failures, or the goal reached.
+    Stop,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct PlanOutput {
+    pub cmd: VelocityCmd,
+    pub source: CommandSource,
+    pub goal_distance_m: f64,
+    pub reached: bool,
+}
+
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize)]
+pub struct PlannerStats {
+    pub cycles: u64,
+    pub mpc_solved: u64,
+    pub mpc_failed: u64,
+    pub fallbacks: u64,
+    pub stops: u64,
+}
+
+#[derive(Debug, Clone)]
+pub struct Planner {
+    pub mpc: MpcParams,
+    pub apf: ApfParams,
+    pub grid: ProximityGrid,
+    /// Consecutive MPC failures that stop the chair.
+    pub max_failures: u32,
+    /// Speed factor of the fallback.
+    pub fallback_speed_factor: f64,
+    /// Closer than this to the goal: reached, m.
+    pub goal_tolerance_m: f64,
+    failures_in_row: u32,
+    pub stats: PlannerStats,
+}
+
+impl Planner {
+    pub fn new(mpc: MpcParams, apf: ApfParams) -> Self {
+        Planner {
+            mpc,
+            apf,
+            grid: ProximityGrid::paper(),
+            max_failures: 5,
+            fallback_speed_factor: 0.5,
+            goal_tolerance_m: 0.1,
+            failures_in_row: 0,
+            stats: PlannerStats::default(),
+        }
+    }
+
+    /// One cycle: `state` in odom, `goal_odom` the approach position,
+    /// `obstacles` in base_link (as the lasers give them).
+    pub fn step(
+        &mut self,
+        state: UnicycleState,
+        goal_odom: [f64; 2],
+        obstacles: &Obstacles,
+    ) -> PlanOutput {
+        self.stats.cycles += 1;
+        let odom_from_base = Isometry2::new(Vector2::new(state.x_m, state.y_m), state.theta_rad);
+        let goal_base = odom_from_base.inverse() * Point2::new(goal_odom[0], goal_odom[1]);
+        let dist = goal_base.coords.norm();
+        if dist < self.goal_tolerance_m {
+            return PlanOutput {
+                cmd: VelocityCmd::default(),
+                source: CommandSource::Stop,
+                goal_distance_m: dist,
+                reached: true,
+            };
+        }
+        self.grid.update(obstacles);
+        let bearing = goal_base.y.atan2(goal_base.x);
+        let field = apf(&self.grid, Some(bearing), &self.apf);
+        let obstacles_odom: Vec<[f64; 2]> = obstacles
+            .points_base
+            .iter()
+            .map(|p| {
+                let q = odom_from_base * Point2::new(p[0] as f64, p[1] as f64);
+                [q.x, q.y]
+            })
+            .collect();
+        let problem = MpcProblem {
+            state,
+            goal: goal_odom,
+            heading_ref_rad: Some(state.theta_rad + bearing),
+            v_ref_mps: field.v_mps.max(0.0),
+            obstacles: obstacles_odom,
+        };
+        let (cmd, source) = match solve(&problem, &self.mpc) {
+            Ok(plan) => {
+                self.stats.mpc_solved += 1;
+                self.failures_in_row = 0;
+                (plan.cmd, CommandSource::Mpc)
+            }
+            Err(e) => {
+                self.stats.mpc_failed += 1;
+                self.failures_in_row += 1;
+                if self.failures_in_row >= self.max_failures {
+                    self.stats.stops += 1;
+                    tracing::warn!(error = %e, failures = self.failures_in_row, "MPC failing repeatedly: stop");
+                    (VelocityCmd::default(), CommandSource::Stop)
+                } else {
+                    self.stats.fallbacks += 1;
+                    tracing::warn!(error = %e, "MPC failed: potential field at reduced speed");
+                    (
+                        VelocityCmd {
+                            v_mps: field.v_mps * self.fallback_speed_factor,
+                            omega_radps: field.omega_radps,
+                        },
+                        CommandSource::ApfFallback,
+                    )
+                }
+            }
+        };
+        PlanOutput {
+            cmd,
+            source,
+            goal_distance_m: dist,
+            reached: false,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn open_space_uses_the_mpc_and_reaches_the_goal() {
+        let mut p = Planner::new(MpcParams::default(), ApfParams::default());
+        let mut s = UnicycleState::default();
+        let goal = [2.0, 1.0];
+        let mut reached = false;
+        for _ in 0..400 {
+            let o = p.step(s, goal, &Obstacles::default());
+            if o.reached {
+                reached = true;
+                break;
+            }
+            assert_eq!(o.source, CommandSource::Mpc);
+            // the chair follows the command exactly (unicycle, 0.1 s)
+            let (v, w) = (o.cmd.v_mps, o.cmd.omega_radps);
+            s.x_m += v * 0.1 * (s.theta_rad + w * 0.05).cos();
+            s.y_m += v * 0.1 * (s.theta_rad + w * 0.05).sin();
+            s.theta_rad += w * 0.1;
+            s.v_mps = v;
+            s.omega_radps = w;
+        }
+        assert!(reached, "{s:?}");
+        assert_eq!(p.stats.mpc_failed, 0);
+    }
+
+    #[test]
+    fn failures_fall_back_then_stop() {
+        let mut p = Planner::new(MpcParams::default(), ApfParams::default());
+        // an obstacle inside the clearance ahead: the MPC cannot satisfy it
+        let s = UnicycleState {
+            v_mps: 0.2,
+            ..Default::default()
+        };
+        let obstacles = Obstacles {
+            points_base: vec![[0.3, 0.0]],
+        };
+        let mut sources = Vec::new();
+        for _ in 0..6 {
+            sources.push(p.step(s, [3.0, 0.0], &obstacles).source);
+        }
+        assert_eq!(
+            sources,
+            vec![
+                CommandSource::ApfFallback,
+                CommandSource::ApfFallback,
+                CommandSource::ApfFallback,
+                CommandSource::ApfFallback,
+                CommandSource::Stop,
+                CommandSource::Stop
+            ]
+        );
+        assert_eq!(
+            (p.stats.mpc_failed, p.stats.fallbacks, p.stats.stops),
+            (6, 4, 2)
+        );
+    }
+}
