@@ -1,0 +1,398 @@
+//! Objects in the odometry frame over time (pure): association by label and
+//! 3D overlap or centroid distance, a Kalman filter per track on position
+//! and extent, confirmation after N hits, confidence that decays when an
+//! object should be visible but is not, last-seen time kept, several
+//! instances of a label kept apart and fragments of one object merged.
+//! Also the goal: the confirmed track matching the prompt, and an approach
+//! pose at a standoff distance on the free side, facing it.
+
+use serde::Serialize;
+
+use crate::perception::boxes::{Aabb, Object3D};
+use crate::types::Stamp;
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrackerParams {
+    /// Hits before a track is confirmed.
+    pub confirm_hits: u32,
+    /// Detections whose centroid is farther than this from a track (and
+    /// whose box does not overlap it) start a new track, m.
+    pub max_center_distance_m: f64,
+    /// Same-label tracks whose boxes overlap more than this merge.
+    pub merge_iou: f64,
+    /// Confidence lost per missed detection where the track should be visible.
+    pub miss_decay: f64,
+    /// Tracks below this confidence are dropped.
+    pub drop_confidence: f64,
+    /// Position random walk, m² per second.
+    pub process_noise_m2ps: f64,
+    /// Detection position noise, m².
+    pub measurement_noise_m2: f64,
+}
+
+impl Default for TrackerParams {
+    fn default() -> Self {
+        TrackerParams {
+            confirm_hits: 3,
+            max_center_distance_m: 0.5,
+            merge_iou: 0.8,
+            miss_decay: 0.2,
+            drop_confidence: 0.1,
+            process_noise_m2ps: 0.01,
+            measurement_noise_m2: 0.01,
+        }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Track {
+    pub id: u64,
+    pub label: String,
+    pub center_m: [f64; 3],
+    pub size_m: [f64; 3],
+    /// Position variance (isotropic), m².
+    pub variance_m2: f64,
+    pub hits: u32,
+    pub misses: u32,
+    pub confidence: f64,
+    pub confirmed: bool,
+    pub score: f32,
+    pub first_seen: Stamp,
+    pub last_seen: Stamp,
+    last_update: Stamp,
+}
+
+impl Track {
+    pub fn aabb(&self) -> Aabb {
+        Aabb {
+            min_m: std::array::from_fn(|i| self.center_m[i] - self.size_m[i] / 2.0),
+            max_m: std::array::from_fn(|i| self.center_m[i] + self.size_m[i] / 2.0),
+        }
+    }
+}
+
+#[derive(Debug, Clone, Default)]
+pub struct Tracker {
+    pub params: TrackerParams,
+    tracks: Vec<Track>,
+    next_id: u64,
+}
+
+fn dist3(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+}
+
+impl Tracker {
+    pub fn new(params: TrackerParams) -> Self {
+        Tracker {
+            params,
+            tracks: Vec::new(),
+            next_id: 1,
+        }
+    }
+
+    pub fn tracks(&self) -> &[Track] {
+        &self.tracks
+    }
+
+    /// One view's objects (already in odom, stamped `stamp`); `visible`
+    /// says whether a point in odom was in view (tracks that should have
+    /// been seen but were not lose confidence).
+    pub fn update(
+        &mut self,
+        stamp: Stamp,
+        objects: &[Object3D],
+        visible: impl Fn(&[f64; 3]) -> bool,
+    ) {
+        let p = self.params;
+        // predict: uncertainty grows with time
+        for t in &mut self.tracks {
+            let dt = t.last_update.age_at(stamp).as_secs_f64();
+            t.variance_m2 += p.process_noise_m2ps * dt;
+            t.last_update = stamp;
+        }
+        // candidate pairs (cost = centroid distance), greedy from the cheapest
+        let mut pairs: Vec<(f64, usize, usize)> = Vec::new();
+        for (di, o) in objects.iter().enumerate() {
+            let c = o.aabb.center_m();
+            for (ti, t) in self.tracks.iter().enumerate() {
+                if t.label != o.label {
+                    continue;
+                }
+                let d = dist3(&c, &t.center_m);
+                if d <= p.max_center_distance_m || t.aabb().iou(&o.aabb) > 0.1 {
+                    pairs.push((d, di, ti));
+                }
+            }
+        }
+        pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let mut det_used = vec![false; objects.len()];
+        let mut trk_used = vec![false; self.tracks.len()];
+        for (_, di, ti) in pairs {
+            if det_used[di] || trk_used[ti] {
+                continue;
+            }
+            det_used[di] = true;
+            trk_used[ti] = true;
+            let o = &objects[di];
+            let t = &mut self.tracks[ti];
+            let k = t.variance_m2 / (t.variance_m2 + p.measurement_noise_m2);
+            let c = o.aabb.center_m();
+            let s = o.aabb.size_m();
+            for i in 0..3 {
+                t.center_m[i] += k * (c[i] - t.center_m[i]);
+                t.size_m[i] += k * (s[i] - t.size_m[i]);
+            }
+            t.variance_m2 *= 1.0 - k;
+            t.hits += 1;
+            t.misses = 0;
+            t.confidence = 1.0 - (1.0 - t.confidence) * 0.5;
+            t.confirmed |= t.hits >= p.confirm_hits;
+            t.score = t.score.max(o.score);
+            t.last_seen = stamp;
+        }
+        // misses where the track should have been seen
+        for (ti, t) in self.tracks.iter_mut().enumerate() {
+            if !trk_used[ti] && visible(&t.center_m) {
+                t.misses += 1;
+                t.confidence -= p.miss_decay;
+            }
+        }
+        self.tracks.retain(|t| t.confidence >= p.drop_confidence);
+        // new tracks: several instances of a label stay apart
+        for (di, o) in objects.iter().enumerate() {
+            if det_used[di] {
+                continue;
+            }
+            self.tracks.push(Track {
+                id: self.next_id,
+                label: o.label.clone(),
+                center_m: o.aabb.center_m(),
+                size_m: o.aabb.size_m(),
+                variance_m2: p.measurement_noise_m2,
+                hits: 1,
+                misses: 0,
+                confidence: 0.5,
+                confirmed: p.confirm_hits <= 1,
+                score: o.score,
+                first_seen: stamp,
+                last_seen: stamp,
+                last_update: stamp,
+            });
+            self.next_id += 1;
+        }
+        self.merge_fragments();
+    }
+
+    /// Same-label tracks whose boxes overlap beyond `merge_iou` become one:
+    /// the older id, the union of the boxes, the hits added.
+    fn merge_fragments(&mut self) {
+        let mut i = 0;
+        while i < self.tracks.len() {
+            let mut j = i + 1;
+            while j < self.tracks.len() {
+                let (a, b) = (&self.tracks[i], &self.tracks[j]);
+                if a.label == b.label && a.aabb().iou(&b.aabb()) > self.params.merge_iou {
+                    let b = self.tracks.remove(j);
+                    let a = &mut self.tracks[i];
+                    let (ba, bb) = (a.aabb(), b.aabb());
+                    let lo: [f64; 3] = std::array::from_fn(|k| ba.min_m[k].min(bb.min_m[k]));
+                    let hi: [f64; 3] = std::array::from_fn(|k| ba.max_m[k].max(bb.max_m[k]));
+                    a.center_m = std::array::from_fn(|k| 0.5 * (lo[k] + hi[k]));
+                    a.size_m = std::array::from_fn(|k| hi[k] - lo[k]);
+                    a.id = a.id.min(b.id);
+                    a.hits += b.hits;
+                    a.confirmed |= b.confirmed;
+                    a.confidence = a.confidence.max(b.confidence);
+                    a.first_seen = a.first_seen.min(b.first_seen);
+                    a.last_seen = a.last_seen.max(b.last_seen);
+                    a.score = a.score.max(b.score);
+                    continue;
+                }
+                j += 1;
+            }
+            i += 1;
+        }
+    }
+
+    /// The confirmed track of `label` closest to `from` (odom, x y).
+    pub fn goal(&self, label: &str, from: [f64; 2]) -> Option<&Track> {
+        self.tracks
+            .iter()
+            .filter(|t| t.confirmed && t.label.eq_ignore_ascii_case(label))
+            .min_by(|a, b| {
+                let da = (a.center_m[0] - from[0]).hypot(a.center_m[1] - from[1]);
+                let db = (b.center_m[0] - from[0]).hypot(b.center_m[1] - from[1]);
+                da.total_cmp(&db)
+            })
+    }
+}
+
+/// A pose on the ground plane: x, y (m) and yaw (rad).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct ApproachPose {
+    pub x_m: f64,
+    pub y_m: f64,
+    pub yaw_rad: f64,
+}
+
+/// The pose `standoff_m` from the object's box edge, facing its centre: on
+/// the side towards `from` when that spot is at least `clearance_m` from
+/// every obstacle point, else the nearest free direction around the
+/// object (15° steps). None when no side is free.
+pub fn approach_pose(
+    track: &Track,
+    from: [f64; 2],
+    standoff_m: f64,
+    obstacles: &[[f64; 2]],
+    clearance_m: f64,
+) -> Option<ApproachPose> {
+    let (cx, cy) = (track.center_m[0], track.center_m[1]);
+    let base = (from[1] - cy).atan2(from[0] - cx);
+    let reach = |a: f64| {
+        // distance from the centre to the box edge along direction a
+        let (hx, hy) = (track.size_m[0] / 2.0, track.size_m[1] / 2.0);
+        let (c, s) = (a.cos().abs(), a.sin().abs());
+        let tx = if c > 1e-9 { hx / c } else { f64::INFINITY };
+        let ty = if s > 1e-9 { hy / s } else { f64::INFINITY };
+        tx.min(ty)
+    };
+    for k in 0..=12 {
+        for sign in [1.0, -1.0] {
+            if k == 0 && sign < 0.0 {
+                continue;
+            }
+            let a = base + sign * (k as f64) * 15f64.to_radians();
+            let r = reach(a) + standoff_m;
+            let (x, y) = (cx + r * a.cos(), cy + r * a.sin());
+            let free = obstacles
+                .iter()
+                .all(|o| (o[0] - x).hypot(o[1] - y) >= clearance_m);
+            if free {
+                return Some(ApproachPose {
+                    x_m: x,
+                    y_m: y,
+                    yaw_rad: (cy - y).atan2(cx - x),
+                });
+            }
+        }
+    }
+    None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::types::Frame;
+    use nalgebra::Point3;
+
+    fn obj(label: &str, c: [f32; 3], half: f32) -> Object3D {
+        let pts = vec![
+            Point3::new(c[0] - half, c[1] - half, c[2] - half),
+            Point3::new(c[0] + half, c[1] + half, c[2] + half),
+        ];
+        Object3D::from_points(label.into(), 0.8, Frame::Odom, pts, None).unwrap()
+    }
+
+    fn s(t: f64) -> Stamp {
+        Stamp::from_secs_f64(t)
+    }
+
+    #[test]
+    fn two_chairs_stay_apart_and_confirm() {
+        let mut tr = Tracker::new(TrackerParams::default());
+        for k in 0..3 {
+            let j = 0.02 * k as f32;
+            tr.update(
+                s(k as f64 * 0.1),
+                &[
+                    obj("chair", [2.0 + j, 0.0, 0.4], 0.25),
+                    obj("chair", [2.0, 2.0 - j, 0.4], 0.25),
+                ],
+                |_| true,
+            );
+        }
+        assert_eq!(tr.tracks().len(), 2);
+        assert!(tr.tracks().iter().all(|t| t.confirmed && t.hits == 3));
+        let g = tr.goal("chair", [0.0, 0.0]).unwrap();
+        assert!((g.center_m[1]).abs() < 0.1);
+        assert!(tr.goal("table", [0.0, 0.0]).is_none());
+        // the filter smooths: the first chair is between its detections
+        assert!(tr.tracks()[0].center_m[0] > 2.0 && tr.tracks()[0].center_m[0] < 2.04);
+    }
+
+    #[test]
+    fn unseen_tracks_decay_only_when_they_should_be_visible() {
+        let mut tr = Tracker::new(TrackerParams::default());
+        tr.update(s(0.0), &[obj("sofa", [3.0, 0.0, 0.4], 0.5)], |_| true);
+        tr.update(
+            s(0.1),
+            &[
+                obj("sofa", [3.0, 0.0, 0.4], 0.5),
+                obj("sofa", [3.0, 1.1, 0.4], 0.5),
+            ],
+            |_| true,
+        );
+        // a second sofa a metre away is another instance
+        assert_eq!(tr.tracks().len(), 2);
+        tr.update(s(0.2), &[obj("sofa", [3.0, 0.0, 0.4], 0.5)], |_| false);
+        assert_eq!(tr.tracks().len(), 2);
+        // out of view: confidence kept; in view but missed: decays until dropped
+        let before = tr.tracks()[0].confidence;
+        tr.update(s(0.3), &[], |_| false);
+        assert_eq!(tr.tracks()[0].confidence, before);
+        for k in 0..10 {
+            tr.update(s(0.4 + 0.1 * k as f64), &[], |_| true);
+        }
+        assert!(tr.tracks().is_empty());
+    }
+
+    #[test]
+    fn overlapping_same_label_tracks_merge() {
+        let mut tr = Tracker::new(TrackerParams {
+            max_center_distance_m: 0.01,
+            ..Default::default()
+        });
+        // two detections of one table, boxes overlapping (IoU ≈ 0.9) but
+        // centres apart beyond association: two tracks, then one
+        tr.update(
+            s(0.0),
+            &[
+                obj("table", [1.0, 1.0, 0.4], 0.5),
+                obj("table", [1.02, 1.0, 0.4], 0.5),
+            ],
+            |_| true,
+        );
+        assert_eq!(tr.tracks().len(), 1);
+        assert_eq!(tr.tracks()[0].hits, 2);
+    }
+
+    #[test]
+    fn approach_pose_faces_the_object_from_the_free_side() {
+        let mut tr = Tracker::new(TrackerParams {
+            confirm_hits: 1,
+            ..Default::default()
+        });
+        tr.update(s(0.0), &[obj("chair", [3.0, 0.0, 0.4], 0.25)], |_| true);
+        let t = tr.goal("chair", [0.0, 0.0]).unwrap().clone();
+        let p = approach_pose(&t, [0.0, 0.0], 0.6, &[], 0.4).unwrap();
+        assert!(
+            (p.x_m - (3.0 - 0.25 - 0.6)).abs() < 1e-6
+                && p.y_m.abs() < 1e-6
+                && p.yaw_rad.abs() < 1e-9
+        );
+        // something stands there: the next free direction, still facing it
+        let p = approach_pose(&t, [0.0, 0.0], 0.6, &[[2.15, 0.0]], 0.4).unwrap();
+        assert!(p.y_m.abs() > 0.1);
+        let to_obj = (0.0 - p.y_m).atan2(3.0 - p.x_m);
+        assert!((p.yaw_rad - to_obj).abs() < 1e-9);
+        // surrounded: none
+        let ring: Vec<[f64; 2]> = (0..72)
+            .map(|k| {
+                let a = k as f64 * 5f64.to_radians();
+                [3.0 + 0.9 * a.cos(), 0.9 * a.sin()]
+            })
+            .collect();
+        assert!(approach_pose(&t, [0.0, 0.0], 0.6, &ring, 0.4).is_none());
+    }
+}
