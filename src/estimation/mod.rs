@@ -1,4 +1,5 @@
 //! Estimation: wheel odometry (and, later, the EKF and the object tracker).
 
+pub mod ekf;
 pub mod odometry;
 pub mod tracker;
