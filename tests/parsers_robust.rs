@@ -86,3 +86,19 @@ proptest! {
         prop_assert!((-100..=100).contains(&x) && (-100..=100).contains(&y));
     }
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(500))]
+
+    #[test]
+    fn rebus_decoder_never_panics_and_round_trips(noise in proptest::collection::vec(any::<u8>(), 0..200), seq in 0u8..32, vx in any::<i8>(), vy in any::<i8>()) {
+        use opennav::actuation::rebus::{Decoder, Packet};
+        let mut d = Decoder::default();
+        let _ = d.push(&noise);
+        // after any noise, a packet preceded by a fresh decoder state decodes
+        let p = Packet::velocity(seq, vx, vy);
+        let mut d = Decoder::default();
+        let got: Vec<_> = d.push(&p.encode()).into_iter().filter_map(|r| r.ok()).collect();
+        prop_assert_eq!(got, vec![p]);
+    }
+}
