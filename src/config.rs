@@ -39,7 +39,7 @@ pub struct Settings {
     pub perception: PerceptionSection,
     pub camera: CameraSection,
     pub safety: SafetySection,
-    pub odometry: OdometrySection,
+    pub odometry: crate::estimation::odometry::DiffDriveParams,
     pub encoders: EncodersSection,
     pub lasers: LasersSection,
 }
@@ -60,19 +60,6 @@ pub struct SafetySection {
     pub stop_distance_m: f64,
     pub front_offset_m: f64,
     pub rear_offset_m: f64,
-}
-
-#[derive(Debug, Clone, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
-pub struct OdometrySection {
-    pub wheel_radius_m: f64,
-    pub track_m: f64,
-    pub counts_per_rev: f64,
-    pub left_ratio: f64,
-    pub right_ratio: f64,
-    pub left_sign: f64,
-    pub right_sign: f64,
-    pub max_wheel_speed_mps: f64,
 }
 
 #[derive(Debug, Clone, Deserialize, PartialEq)]
@@ -417,17 +404,7 @@ impl Settings {
     }
 
     pub fn drive_params(&self) -> crate::estimation::odometry::DiffDriveParams {
-        let o = &self.odometry;
-        crate::estimation::odometry::DiffDriveParams {
-            wheel_radius_m: o.wheel_radius_m,
-            track_m: o.track_m,
-            counts_per_rev: o.counts_per_rev,
-            left_ratio: o.left_ratio,
-            right_ratio: o.right_ratio,
-            left_sign: o.left_sign,
-            right_sign: o.right_sign,
-            max_wheel_speed_mps: o.max_wheel_speed_mps,
-        }
+        self.odometry
     }
 
     /// The ONNX Runtime library path from config (None when empty).

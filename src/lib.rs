@@ -6,6 +6,7 @@
 
 pub mod actuation;
 pub mod config;
+pub mod crc;
 pub mod estimation;
 pub mod eval;
 pub mod navigation;

@@ -38,33 +38,11 @@ pub enum RebusError {
 }
 
 pub fn crc8(data: &[u8]) -> u8 {
-    let mut crc: u8 = 0xFF;
-    for &b in data {
-        crc ^= b;
-        for _ in 0..8 {
-            crc = if crc & 0x80 != 0 {
-                (crc << 1) ^ 0x2F
-            } else {
-                crc << 1
-            };
-        }
-    }
-    crc
+    crate::crc::crc8_msb(0x2F, 0xFF, data)
 }
 
 pub fn crc16(data: &[u8]) -> u16 {
-    let mut crc: u16 = 0xFFFF;
-    for &b in data {
-        crc ^= (b as u16) << 8;
-        for _ in 0..8 {
-            crc = if crc & 0x8000 != 0 {
-                (crc << 1) ^ 0x90D9
-            } else {
-                crc << 1
-            };
-        }
-    }
-    crc
+    crate::crc::crc16_msb(0x90D9, 0xFFFF, data)
 }
 
 impl Packet {

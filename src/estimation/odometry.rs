@@ -8,8 +8,9 @@ use serde::Serialize;
 
 use crate::sensors::encoders::WheelTicks;
 
-/// The chair's drive geometry (config `[odometry]`).
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// The chair's drive geometry (config `[odometry]`, read directly).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct DiffDriveParams {
     pub wheel_radius_m: f64,
     /// Distance between the wheels' contact points, metres.

@@ -41,18 +41,7 @@ pub enum FrameError {
 
 /// CRC-16/CCITT-FALSE.
 pub fn crc16(data: &[u8]) -> u16 {
-    let mut crc: u16 = 0xFFFF;
-    for &b in data {
-        crc ^= (b as u16) << 8;
-        for _ in 0..8 {
-            crc = if crc & 0x8000 != 0 {
-                (crc << 1) ^ 0x1021
-            } else {
-                crc << 1
-            };
-        }
-    }
-    crc
+    crate::crc::crc16_msb(0x1021, 0xFFFF, data)
 }
 
 pub fn cobs_encode(data: &[u8]) -> Vec<u8> {
