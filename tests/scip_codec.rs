@@ -109,3 +109,40 @@ proptest! {
         }
     }
 }
+
+/// Every single-byte corruption of a few scans (every position, every flip)
+/// is an error or leaves the values and timestamp intact. Includes the case
+/// a data line ending in ';' once slipped through on the PP/VV/II
+/// alternative checksum.
+#[test]
+fn every_single_byte_corruption_is_caught_exhaustively() {
+    let mut semicolon_line = vec![0u32; 98];
+    semicolon_line[24] = 2624;
+    semicolon_line[42] = 704;
+    let cases = [
+        semicolon_line,
+        (0..682).map(|i| (i * 37 % 4096) as u32).collect(),
+        vec![4095; 21],
+    ];
+    for values in cases {
+        let data: Vec<u8> = values.iter().flat_map(|&v| encode_value(v, 3)).collect();
+        let good = build_reply(b"MD0044072501000", b"99", Some(7), &data);
+        for i in 0..good.len() {
+            for flip in 1..=255u8 {
+                let mut bad = good.clone();
+                bad[i] ^= flip;
+                if let Ok(r) = parse_reply(&bad) {
+                    if r.echo == b"MD0044072501000" {
+                        let decoded = decode_ranges(&r.data, 3);
+                        assert!(
+                            decoded.is_err()
+                                || (decoded.as_deref() == Ok(&values[..])
+                                    && r.timestamp == Some(7)),
+                            "flip {flip:#04x} at byte {i} changed the scan silently"
+                        );
+                    }
+                }
+            }
+        }
+    }
+}

@@ -218,7 +218,11 @@ pub struct Reply {
     pub lines: Vec<Vec<u8>>,
 }
 
-fn check_line(line: &[u8], idx: usize) -> Result<&[u8], ScipError> {
+/// Verifies a line's checksum. `key_value` admits the `KEY:VALUE;S` form of
+/// PP/VV/II lines whose sum excludes the ';'; scan data never gets that
+/// leniency (';' is a valid data character, so a corrupted data line ending
+/// in ';' would otherwise pass on the alternative sum).
+fn check_line(line: &[u8], idx: usize, key_value: bool) -> Result<&[u8], ScipError> {
     let (&sum, body) = line.split_last().ok_or_else(|| ScipError::Malformed {
         line: idx,
         reason: "empty line where a checksummed line belongs".into(),
@@ -229,8 +233,8 @@ fn check_line(line: &[u8], idx: usize) -> Result<&[u8], ScipError> {
     }
     // PP/VV/II lines `KEY:VALUE;S`: the sum excludes the ';' (urg_library
     // accepts both forms, so do we)
-    if let Some((&semi, kv)) = body.split_last() {
-        if semi == b';' && checksum(kv) == sum {
+    if let Some((&semi, kv)) = body.split_last().filter(|_| key_value) {
+        if semi == b';' && kv.contains(&b':') && checksum(kv) == sum {
             return Ok(body);
         }
     }
@@ -263,7 +267,7 @@ pub fn parse_reply(block: &[u8]) -> Result<Reply, ScipError> {
             reason: format!("status line has {} bytes, expected 3", status_line.len()),
         });
     }
-    let st = check_line(status_line, 1)?;
+    let st = check_line(status_line, 1, false)?;
     let status = Status([st[0], st[1]]);
     let scan_reply = ((echo.starts_with(b"MD") || echo.starts_with(b"MS")) && &status.0 == b"99")
         || ((echo.starts_with(b"GD") || echo.starts_with(b"GS")) && &status.0 == b"00");
@@ -280,7 +284,7 @@ pub fn parse_reply(block: &[u8]) -> Result<Reply, ScipError> {
                 reason: format!("timestamp line has {} bytes, expected 5", l.len()),
             });
         }
-        timestamp = Some(decode_value(check_line(l, 2)?)?);
+        timestamp = Some(decode_value(check_line(l, 2, false)?)?);
         rest = 3;
     }
     let mut data = Vec::new();
@@ -292,7 +296,7 @@ pub fn parse_reply(block: &[u8]) -> Result<Reply, ScipError> {
                 reason: format!("data line of {} bytes (at most 64 + checksum)", l.len()),
             });
         }
-        let b = check_line(l, i)?;
+        let b = check_line(l, i, !scan_reply)?;
         data.extend_from_slice(b);
         out_lines.push(b.to_vec());
     }
