@@ -111,3 +111,32 @@ mod tests {
         assert_eq!(b.age_at(a), Duration::ZERO);
     }
 }
+
+/// tokio's clock, counted from when this value was made: the real monotonic
+/// clock normally, and the test's controlled clock under
+/// `tokio::time::pause()`. Drivers that time with tokio timers read this so
+/// that stamps and timers agree.
+#[derive(Debug, Clone, Copy)]
+pub struct TokioClock {
+    origin: tokio::time::Instant,
+}
+
+impl TokioClock {
+    pub fn new() -> Self {
+        TokioClock {
+            origin: tokio::time::Instant::now(),
+        }
+    }
+}
+
+impl Default for TokioClock {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Clock for TokioClock {
+    fn now(&self) -> Stamp {
+        Stamp(self.origin.elapsed())
+    }
+}

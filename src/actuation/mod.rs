@@ -1,6 +1,120 @@
 //! Actuation: the chair's R-Net motor interface. `rnet.rs` is the pure
 //! codec, the velocity ↔ joystick mapping and the takeover state machine;
-//! the SocketCAN adapter and the Rebus serial backend wrap it.
+//! `can.rs` the SocketCAN adapter (and an in-memory bus for tests);
+//! `writer.rs` the 100 Hz R-Net writer; `rebus.rs` the Rebus USB-serial
+//! codec and `rebus_link.rs` its link and backend. Both backends implement
+//! [`Actuator`] and are chosen in config (`[actuation] backend`).
 
+use std::future::Future;
+use std::sync::Arc;
+
+use serde::Serialize;
+use tokio::sync::{mpsc, watch};
+use tokio_util::sync::CancellationToken;
+
+use crate::safety::SafeCmd;
+use crate::types::Clock;
+
+pub mod can;
 pub mod rebus;
+pub mod rebus_link;
 pub mod rnet;
+pub mod writer;
+
+/// What an actuator tells the supervisor (and the log).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub enum ActuatorEvent {
+    /// The link to the chair is up (R-Net: the joystick id learned; Rebus:
+    /// start-up acknowledged).
+    Ready { joystick_id: Option<u32> },
+    /// Our frames drive the chair (R-Net JSMerror: the JSM went quiet).
+    Active,
+    /// The user moved the real joystick: autonomy yields (supervisor stop).
+    UserDeflection { x: i8, y: i8 },
+    /// A bus or link fault: the supervisor latches a fault.
+    Fault { reason: String },
+    /// The JSM's heartbeat is gone (chair switched off?).
+    JsmLost,
+    /// Shutdown finished: centred frames sent, then nothing.
+    Released,
+}
+
+/// Period statistics of the writer, microseconds.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct PeriodStats {
+    pub count: usize,
+    pub p50_us: f64,
+    pub p99_us: f64,
+    /// The 1st percentile (with p99: the spread around the period).
+    pub p01_us: f64,
+    pub max_us: f64,
+}
+
+impl PeriodStats {
+    /// From measured intervals (seconds). Nearest-rank percentiles.
+    pub fn from_intervals(intervals_s: &[f64]) -> PeriodStats {
+        if intervals_s.is_empty() {
+            return PeriodStats::default();
+        }
+        let mut v: Vec<f64> = intervals_s.iter().map(|s| s * 1e6).collect();
+        v.sort_by(f64::total_cmp);
+        let q = |p: f64| v[((p * (v.len() - 1) as f64).round() as usize).min(v.len() - 1)];
+        PeriodStats {
+            count: v.len(),
+            p50_us: q(0.5),
+            p99_us: q(0.99),
+            p01_us: q(0.01),
+            max_us: v[v.len() - 1],
+        }
+    }
+}
+
+/// Live status of an actuator (for `opennav status`, logs and tests).
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct ActuatorStatus {
+    pub backend: &'static str,
+    pub state: String,
+    pub joystick_id: Option<u32>,
+    /// Frames (packets) sent.
+    pub sent: u64,
+    /// Frames not sent in their slot (TX queue full, write error): never
+    /// sent late.
+    pub dropped: u64,
+    /// Writer slots missed (the task woke more than a period late).
+    pub late: u64,
+    /// Error frames / link errors seen.
+    pub bus_errors: u64,
+    /// Last joystick values sent (turn, forward).
+    pub last_output: (i8, i8),
+    /// Writer period over the last second or so.
+    pub period: PeriodStats,
+}
+
+/// The channels an actuator runs with.
+pub struct ActuatorIo {
+    /// The supervisor's latest output (its stamp is the freshness clock:
+    /// older than the command limit → centred).
+    pub commands: watch::Receiver<Option<SafeCmd>>,
+    pub events: mpsc::Sender<ActuatorEvent>,
+    pub status: watch::Sender<ActuatorStatus>,
+    /// Cancelled on shutdown: the actuator centres, then releases.
+    pub cancel: CancellationToken,
+    pub clock: Arc<dyn Clock>,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum ActuatorError {
+    #[error(transparent)]
+    Can(#[from] can::CanBusError),
+    #[error("Rebus link: {0}")]
+    Rebus(String),
+}
+
+/// A motor interface: runs until cancelled (then centres and releases) or
+/// until its device fails.
+pub trait Actuator: Send + 'static {
+    fn run(
+        self,
+        io: ActuatorIo,
+    ) -> impl Future<Output = Result<ActuatorStatus, ActuatorError>> + Send;
+}

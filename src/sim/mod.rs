@@ -3,4 +3,5 @@
 
 pub mod hokuyo;
 pub mod replica;
+pub mod rnet;
 pub mod room;

@@ -1,0 +1,262 @@
+//! The R-Net writer: the [`Takeover`] state machine on a CAN bus, ticking
+//! every 10 ms on the monotonic clock.
+//!
+//! - JSMerror: after learning the joystick id and silencing the JSM, one
+//!   joystick frame per tick; FollowJSM: one right after each JSM frame.
+//! - The supervisor's latest command is sent only while younger than
+//!   `command_max_age` (100 ms); otherwise centred. Frames start centred.
+//! - A frame the bus cannot take in its slot is dropped and counted, never
+//!   sent late; a slot the task missed is counted (`late`).
+//! - Error frames: bus-off, error-passive and controller problems → a
+//!   `Fault` event, and centred output at least until the supervisor
+//!   acknowledges it (a command in its fault state), whose latch then
+//!   holds the chair still.
+//! - The user deflecting the real joystick → `UserDeflection`, we yield.
+//! - Cancelled → centred frames for `release_after` (200 ms), then nothing.
+
+use std::collections::VecDeque;
+use std::time::Duration;
+
+use tokio::sync::mpsc::error::TrySendError;
+use tokio::time::MissedTickBehavior;
+
+use super::can::{BusEvent, CanBus, CanBusError};
+use super::rnet::{
+    CanFrame, JoystickMapping, Takeover, TakeoverEvent, TakeoverMode, TakeoverState,
+};
+use super::{Actuator, ActuatorError, ActuatorEvent, ActuatorIo, ActuatorStatus, PeriodStats};
+use crate::safety::SupervisorState;
+use crate::types::Stamp;
+
+/// R-Net writer settings (config `[actuation.rnet]`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RnetSettings {
+    pub mode: TakeoverMode,
+    pub mapping: JoystickMapping,
+    /// Joystick frame period (10 ms on R-Net).
+    pub period: Duration,
+    /// A command older than this is sent as centred (100 ms).
+    pub command_max_age: Duration,
+    /// Centred frames on shutdown before release (200 ms).
+    pub release_after: Duration,
+    /// The JSM heartbeat (every 100 ms) missing this long → `JsmLost`.
+    pub jsm_lost_after: Duration,
+}
+
+impl RnetSettings {
+    pub fn new(mode: TakeoverMode, mapping: JoystickMapping) -> RnetSettings {
+        RnetSettings {
+            mode,
+            mapping,
+            period: Duration::from_millis(10),
+            command_max_age: Duration::from_millis(100),
+            release_after: Duration::from_millis(200),
+            jsm_lost_after: Duration::from_millis(500),
+        }
+    }
+}
+
+/// The R-Net backend on any [`CanBus`] (SocketCAN on the chair).
+pub struct RnetActuator<B: CanBus> {
+    pub bus: B,
+    pub settings: RnetSettings,
+}
+
+/// How many recent periods the status statistics cover.
+const PERIOD_WINDOW: usize = 1000;
+
+struct WriterState {
+    status: ActuatorStatus,
+    last_send: Option<Stamp>,
+    intervals: VecDeque<f64>,
+    fault_at: Option<Stamp>,
+}
+
+impl WriterState {
+    fn send<B: CanBus>(&mut self, bus: &B, f: &CanFrame, now: Stamp, joystick: bool) {
+        match bus.try_send(f) {
+            Ok(()) => {
+                self.status.sent += 1;
+                if joystick {
+                    let p = f.payload();
+                    if p.len() == 2 {
+                        self.status.last_output = (p[0] as i8, p[1] as i8);
+                    }
+                    if let Some(prev) = self.last_send {
+                        if self.intervals.len() == PERIOD_WINDOW {
+                            self.intervals.pop_front();
+                        }
+                        self.intervals.push_back(prev.age_at(now).as_secs_f64());
+                    }
+                    self.last_send = Some(now);
+                }
+            }
+            Err(e) => {
+                self.status.dropped += 1;
+                tracing::warn!(frame = %f, error = %e, "R-Net frame dropped");
+            }
+        }
+    }
+}
+
+fn emit(io: &ActuatorIo, ev: ActuatorEvent) {
+    tracing::info!(event = ?ev, "R-Net");
+    match io.events.try_send(ev) {
+        Ok(()) | Err(TrySendError::Closed(_)) => {}
+        Err(TrySendError::Full(ev)) => {
+            tracing::error!(event = ?ev, "actuator event queue full: event lost")
+        }
+    }
+}
+
+fn state_name(s: TakeoverState) -> &'static str {
+    match s {
+        TakeoverState::Listening => "listening",
+        TakeoverState::Silencing => "silencing",
+        TakeoverState::Active => "active",
+        TakeoverState::Yielded => "yielded",
+        TakeoverState::Released => "released",
+    }
+}
+
+impl<B: CanBus> RnetActuator<B> {
+    /// The supervisor's latest command into the takeover (or nothing, when
+    /// a bus fault has not yet been seen by the supervisor).
+    fn apply_command(&self, tk: &mut Takeover, w: &mut WriterState, io: &ActuatorIo) {
+        let cmd = *io.commands.borrow();
+        let Some(cmd) = cmd else {
+            tk.clear_command();
+            return;
+        };
+        if let Some(at) = w.fault_at {
+            // centred until the supervisor acknowledges the fault; from then
+            // on its latch holds the chair (and a person clears it)
+            if cmd.stamp >= at && matches!(cmd.state, SupervisorState::Fault(_)) {
+                w.fault_at = None;
+            }
+            tk.clear_command();
+            return;
+        }
+        let (x, y) = self
+            .settings
+            .mapping
+            .to_joystick(cmd.cmd.v_mps, cmd.cmd.omega_radps);
+        tk.set_command(x, y, cmd.stamp);
+    }
+}
+
+impl<B: CanBus> Actuator for RnetActuator<B> {
+    async fn run(self, io: ActuatorIo) -> Result<ActuatorStatus, ActuatorError> {
+        let s = self.settings;
+        let mut tk = Takeover::new(s.mode);
+        tk.command_max_age = s.command_max_age;
+        tk.period = s.period;
+        let mut w = WriterState {
+            status: ActuatorStatus {
+                backend: "rnet",
+                state: state_name(tk.state).into(),
+                ..Default::default()
+            },
+            last_send: None,
+            intervals: VecDeque::with_capacity(PERIOD_WINDOW),
+            fault_at: None,
+        };
+        let mut interval = tokio::time::interval(s.period);
+        interval.set_missed_tick_behavior(MissedTickBehavior::Skip);
+        let mut release_at: Option<Stamp> = None;
+        let mut jsm_lost_reported = false;
+        let mut ticks: u64 = 0;
+        loop {
+            tokio::select! {
+                biased;
+                _ = io.cancel.cancelled(), if release_at.is_none() => {
+                    let now = io.clock.now();
+                    tracing::info!("R-Net writer: shutdown, centred frames then release");
+                    tk.clear_command();
+                    release_at = Some(Stamp(now.0 + s.release_after));
+                }
+                _ = interval.tick() => {
+                    let now = io.clock.now();
+                    ticks += 1;
+                    match release_at {
+                        Some(at) if now >= at => {
+                            tk.release();
+                            w.status.state = state_name(tk.state).into();
+                            io.status.send_replace(w.status.clone());
+                            emit(&io, ActuatorEvent::Released);
+                            return Ok(w.status);
+                        }
+                        Some(_) => tk.clear_command(),
+                        None => self.apply_command(&mut tk, &mut w, &io),
+                    }
+                    let before = tk.state;
+                    if let Some(f) = tk.tick(now) {
+                        w.send(&self.bus, &f, now, true);
+                    }
+                    if before == TakeoverState::Silencing && tk.state == TakeoverState::Active {
+                        emit(&io, ActuatorEvent::Active);
+                    }
+                    let lost = tk.jsm_lost(now, s.jsm_lost_after);
+                    if lost && !jsm_lost_reported && tk.joystick_id().is_some() {
+                        emit(&io, ActuatorEvent::JsmLost);
+                    }
+                    jsm_lost_reported = lost;
+                    if ticks.is_multiple_of(10) {
+                        w.status.state = state_name(tk.state).into();
+                        w.status.joystick_id = tk.joystick_id();
+                        w.status.late = tk.late_frames;
+                        w.status.period = PeriodStats::from_intervals(w.intervals.make_contiguous());
+                        io.status.send_replace(w.status.clone());
+                    }
+                }
+                ev = self.bus.recv() => {
+                    let now = io.clock.now();
+                    match ev {
+                        Ok(BusEvent::Frame(f)) => {
+                            if release_at.is_none() {
+                                self.apply_command(&mut tk, &mut w, &io);
+                            }
+                            let (out, event) = tk.on_frame(&f, now);
+                            for o in &out {
+                                let joystick = o.len == 2;
+                                w.send(&self.bus, o, now, joystick);
+                            }
+                            match event {
+                                Some(TakeoverEvent::Learned(id)) => {
+                                    w.status.joystick_id = Some(id);
+                                    emit(&io, ActuatorEvent::Ready { joystick_id: Some(id) });
+                                    if s.mode == TakeoverMode::FollowJsm {
+                                        emit(&io, ActuatorEvent::Active);
+                                    }
+                                }
+                                Some(TakeoverEvent::UserDeflection { x, y }) => {
+                                    emit(&io, ActuatorEvent::UserDeflection { x, y });
+                                }
+                                Some(TakeoverEvent::JsmLost) => emit(&io, ActuatorEvent::JsmLost),
+                                None => {}
+                            }
+                        }
+                        Ok(BusEvent::Error(e)) => {
+                            w.status.bus_errors += 1;
+                            if e.is_fault() {
+                                tracing::error!(error = %e.describe(), "CAN bus fault");
+                                w.fault_at = Some(now);
+                                tk.clear_command();
+                                emit(&io, ActuatorEvent::Fault { reason: e.describe() });
+                            } else {
+                                tracing::warn!(error = %e.describe(), "CAN bus error");
+                            }
+                        }
+                        Err(e @ (CanBusError::Closed | CanBusError::Io { .. })) => {
+                            emit(&io, ActuatorEvent::Fault { reason: e.to_string() });
+                            w.status.state = "failed".into();
+                            io.status.send_replace(w.status.clone());
+                            return Err(e.into());
+                        }
+                        Err(e) => tracing::warn!(error = %e, "CAN receive"),
+                    }
+                }
+            }
+        }
+    }
+}
