@@ -42,6 +42,45 @@ pub struct Settings {
     pub odometry: crate::estimation::odometry::DiffDriveParams,
     pub encoders: EncodersSection,
     pub lasers: LasersSection,
+    pub actuation: ActuationSection,
+}
+
+/// Which motor interface drives the chair.
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum ActuationBackend {
+    /// R-Net over SocketCAN.
+    Rnet,
+    /// The R-Net "Rebus" chipset on USB serial.
+    Rebus,
+}
+
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ActuationSection {
+    pub backend: ActuationBackend,
+    pub forward_full_mps: f64,
+    pub reverse_full_mps: f64,
+    pub turn_full_radps: f64,
+    pub deadband: i8,
+    pub command_max_age_s: f64,
+    pub release_s: f64,
+    pub rnet: RnetSection,
+    pub rebus: RebusSection,
+}
+
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct RnetSection {
+    pub iface: String,
+    pub mode: crate::actuation::rnet::TakeoverMode,
+}
+
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct RebusSection {
+    pub port: String,
+    pub ack_timeout_s: f64,
 }
 
 #[derive(Debug, Clone, Deserialize, PartialEq)]
@@ -333,6 +372,31 @@ impl Settings {
                 std::f64::consts::PI,
             )?;
         }
+        let a = &self.actuation;
+        finite_range("actuation.forward_full_mps", a.forward_full_mps, 0.1, 5.0)?;
+        finite_range("actuation.reverse_full_mps", a.reverse_full_mps, 0.05, 5.0)?;
+        finite_range("actuation.turn_full_radps", a.turn_full_radps, 0.1, 6.0)?;
+        range("actuation.deadband", a.deadband, 0, 20)?;
+        finite_range(
+            "actuation.command_max_age_s",
+            a.command_max_age_s,
+            0.02,
+            0.1,
+        )?;
+        finite_range("actuation.release_s", a.release_s, 0.0, 2.0)?;
+        finite_range(
+            "actuation.rebus.ack_timeout_s",
+            a.rebus.ack_timeout_s,
+            0.005,
+            0.5,
+        )?;
+        if a.rnet.iface.trim().is_empty() {
+            return Err(ConfigError::Range {
+                key: "actuation.rnet.iface".into(),
+                value: a.rnet.iface.clone(),
+                reason: "must name a CAN interface (e.g. can0)".into(),
+            });
+        }
         self.camera
             .base_from_camera
             .to_isometry("camera.base_from_camera")
@@ -401,6 +465,27 @@ impl Settings {
             front_offset_m: s.front_offset_m,
             rear_offset_m: s.rear_offset_m,
         }
+    }
+
+    /// The chair's joystick calibration.
+    pub fn joystick_mapping(&self) -> crate::actuation::rnet::JoystickMapping {
+        let a = &self.actuation;
+        crate::actuation::rnet::JoystickMapping {
+            forward_full_mps: a.forward_full_mps,
+            reverse_full_mps: a.reverse_full_mps,
+            turn_full_radps: a.turn_full_radps,
+            deadband: a.deadband,
+        }
+    }
+
+    /// The R-Net writer's settings.
+    pub fn rnet_settings(&self) -> crate::actuation::writer::RnetSettings {
+        let a = &self.actuation;
+        let mut s =
+            crate::actuation::writer::RnetSettings::new(a.rnet.mode, self.joystick_mapping());
+        s.command_max_age = std::time::Duration::from_secs_f64(a.command_max_age_s);
+        s.release_after = std::time::Duration::from_secs_f64(a.release_s);
+        s
     }
 
     pub fn drive_params(&self) -> crate::estimation::odometry::DiffDriveParams {

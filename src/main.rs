@@ -96,6 +96,33 @@ enum MergeArg {
     Containment,
 }
 
+#[derive(Debug, Clone, Copy, ValueEnum)]
+enum TakeoverArg {
+    Jsmerror,
+    Followjsm,
+}
+
+/// "5s", "500ms", "2.5" (seconds).
+fn parse_duration(s: &str) -> Result<std::time::Duration, String> {
+    let t = s.trim();
+    let (num, scale) = if let Some(n) = t.strip_suffix("ms") {
+        (n, 1e-3)
+    } else if let Some(n) = t.strip_suffix('s') {
+        (n, 1.0)
+    } else {
+        (t, 1.0)
+    };
+    let v: f64 = num
+        .trim()
+        .parse()
+        .map_err(|_| format!("{s:?} is not a duration (e.g. 5s, 500ms)"))?;
+    let secs = v * scale;
+    if !secs.is_finite() || secs < 0.0 || secs > 86_400.0 {
+        return Err(format!("{s:?}: out of range (0 to 1 day)"));
+    }
+    Ok(std::time::Duration::from_secs_f64(secs))
+}
+
 #[derive(Subcommand, Debug)]
 enum CheckCommand {
     /// Reads RGB-D frames (a RealSense, or a recording with --replay) and prints one JSON line per frame.
@@ -115,6 +142,25 @@ enum CheckCommand {
         /// Frames to print before exiting.
         #[arg(long, default_value_t = 100)]
         count: u64,
+    },
+    /// R-Net over SocketCAN: listens and reports what the chair says, or
+    /// drives joystick values for a bounded time (wheels lifted!).
+    Rnet {
+        /// CAN interface (default: config actuation.rnet.iface).
+        #[arg(long)]
+        iface: Option<String>,
+        /// How long to listen, e.g. 5s or 500ms.
+        #[arg(long, default_value = "5s", value_parser = parse_duration)]
+        listen: std::time::Duration,
+        /// Joystick values to drive: TURN,FORWARD (each −100..100; turn positive = right).
+        #[arg(long, allow_hyphen_values = true)]
+        drive: Option<String>,
+        /// How long to drive (at most 30 s), then centre and release.
+        #[arg(long = "for", default_value = "2s", value_parser = parse_duration)]
+        drive_for: std::time::Duration,
+        /// Takeover mode (default: config actuation.rnet.mode).
+        #[arg(long)]
+        mode: Option<TakeoverArg>,
     },
     /// Reads a Hokuyo URG over SCIP 2.0 and prints each scan as a JSON line.
     Hokuyo {
@@ -469,6 +515,86 @@ fn check_encoders(port: &str, count: u64) -> Result<(), Failure> {
     Ok(())
 }
 
+/// "X,Y" joystick values, each −100..100.
+fn parse_joystick(s: &str) -> Result<(i8, i8), Failure> {
+    let bad = || {
+        bad_input(anyhow::anyhow!(
+            "--drive {s:?}: expected TURN,FORWARD, each -100..100"
+        ))
+    };
+    let (x, y) = s.split_once(',').ok_or_else(bad)?;
+    let p = |v: &str| -> Result<i8, Failure> {
+        let n: i32 = v.trim().parse().map_err(|_| bad())?;
+        if (-100..=100).contains(&n) {
+            Ok(n as i8)
+        } else {
+            Err(bad())
+        }
+    };
+    Ok((p(x)?, p(y)?))
+}
+
+fn check_rnet(
+    config: Option<&std::path::Path>,
+    iface: Option<String>,
+    listen: std::time::Duration,
+    drive: Option<&str>,
+    drive_for: std::time::Duration,
+    mode: Option<TakeoverArg>,
+) -> Result<(), Failure> {
+    use opennav::actuation::can::SocketCanBus;
+    use opennav::actuation::check;
+    use opennav::actuation::rnet::TakeoverMode;
+    let settings = Settings::load(config).map_err(bad_input)?;
+    let iface = iface.unwrap_or_else(|| settings.actuation.rnet.iface.clone());
+    let joystick = drive.map(parse_joystick).transpose()?;
+    if joystick.is_some() && drive_for > std::time::Duration::from_secs(30) {
+        return Err(bad_input(anyhow::anyhow!(
+            "--for {drive_for:?}: at most 30 s of driving from the command line"
+        )));
+    }
+    let mut rnet = settings.rnet_settings();
+    if let Some(m) = mode {
+        rnet.mode = match m {
+            TakeoverArg::Jsmerror => TakeoverMode::JsmError,
+            TakeoverArg::Followjsm => TakeoverMode::FollowJsm,
+        };
+    }
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .map_err(failed)?;
+    rt.block_on(async move {
+        let bus = SocketCanBus::open(&iface).map_err(failed)?;
+        let report = match joystick {
+            None => serde_json::to_value(check::listen(&bus, listen).await.map_err(failed)?),
+            Some(xy) => {
+                let stop = tokio_util::sync::CancellationToken::new();
+                let s = stop.clone();
+                let mut term =
+                    tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate())
+                        .map_err(failed)?;
+                tokio::spawn(async move {
+                    tokio::select! {
+                        _ = term.recv() => {}
+                        _ = tokio::signal::ctrl_c() => {}
+                    }
+                    tracing::warn!("signal: centring and releasing");
+                    s.cancel();
+                });
+                serde_json::to_value(
+                    check::drive(bus, rnet, xy, drive_for, stop)
+                        .await
+                        .map_err(failed)?,
+                )
+            }
+        }
+        .map_err(failed)?;
+        println!("{report}");
+        Ok(())
+    })
+}
+
 fn check_hokuyo(port: &str, count: u64) -> Result<(), Failure> {
     use opennav::sensors::hokuyo::{HokuyoDriver, HokuyoSettings, ScanJson};
     use std::io::Write;
@@ -543,6 +669,20 @@ fn run(cli: Cli) -> Result<(), Failure> {
             )
         }
         Command::Check(CheckCommand::Hokuyo { port, count }) => check_hokuyo(&port, count),
+        Command::Check(CheckCommand::Rnet {
+            iface,
+            listen,
+            drive,
+            drive_for,
+            mode,
+        }) => check_rnet(
+            cli.config.as_deref(),
+            iface,
+            listen,
+            drive.as_deref(),
+            drive_for,
+            mode,
+        ),
         Command::Check(CheckCommand::Encoders { port, count }) => check_encoders(&port, count),
         Command::Check(CheckCommand::Camera { replay, count }) => {
             check_camera(replay.as_deref(), count)

@@ -167,7 +167,7 @@ pub enum BusEvent {
 
 #[derive(Debug, thiserror::Error)]
 pub enum CanBusError {
-    #[error("CAN interface {iface}: {source} (is the interface up? `ip link set {iface} up type can bitrate 125000`)")]
+    #[error("CAN interface {iface} cannot be opened (does it exist and is it up? `ip link set {iface} up type can bitrate 125000`)")]
     Open {
         iface: String,
         source: std::io::Error,
@@ -177,7 +177,7 @@ pub enum CanBusError {
     QueueFull,
     #[error("CAN frame {0} cannot be sent (bad id or length)")]
     BadFrame(String),
-    #[error("CAN {op} on {iface}: {source}")]
+    #[error("CAN {op} on {iface}")]
     Io {
         op: &'static str,
         iface: String,

@@ -16,6 +16,7 @@ use crate::safety::SafeCmd;
 use crate::types::Clock;
 
 pub mod can;
+pub mod check;
 pub mod rebus;
 pub mod rebus_link;
 pub mod rnet;
@@ -108,6 +109,8 @@ pub enum ActuatorError {
     Can(#[from] can::CanBusError),
     #[error("Rebus link: {0}")]
     Rebus(String),
+    #[error("actuator task: {0}")]
+    Task(String),
 }
 
 /// A motor interface: runs until cancelled (then centres and releases) or

@@ -1,0 +1,172 @@
+//! `opennav check rnet`: what a maintainer runs at the chair. Listening
+//! reports the joystick id, heartbeats, battery and frame rates seen;
+//! driving sends joystick frames through the real writer for a bounded
+//! time (wheels lifted), then centres and releases. SIGTERM or Ctrl-C
+//! centre and release at once.
+
+use std::collections::BTreeMap;
+use std::sync::Arc;
+use std::time::Duration;
+
+use serde::Serialize;
+use tokio::sync::{mpsc, watch};
+use tokio_util::sync::CancellationToken;
+
+use super::can::{BusEvent, CanBus, CanBusError};
+use super::rnet::{decode, RnetMessage};
+use super::writer::{RnetActuator, RnetSettings};
+use super::{Actuator, ActuatorError, ActuatorEvent, ActuatorIo, ActuatorStatus};
+use crate::safety::{SafeCmd, SupervisorState, VelocityCmd};
+use crate::types::{Clock, TokioClock};
+
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct IdReport {
+    pub frames: u64,
+    pub rate_hz: f64,
+    /// Last (turn, forward) seen.
+    pub last: (i8, i8),
+}
+
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct ListenReport {
+    pub seconds: f64,
+    pub frames_total: u64,
+    /// Joystick ids seen (`02000X00`), with their rates.
+    pub joystick: BTreeMap<String, IdReport>,
+    pub jsm_heartbeat_hz: f64,
+    pub power_module_heartbeat_hz: f64,
+    pub battery_percent: Option<u8>,
+    pub motor_current_raw: Option<u16>,
+    pub other_frames: u64,
+    pub error_frames: u64,
+    /// Each kind of bus error seen, described.
+    pub errors: Vec<String>,
+}
+
+/// Listens on `bus` for `duration` (tokio time).
+pub async fn listen<B: CanBus>(bus: &B, duration: Duration) -> Result<ListenReport, CanBusError> {
+    let mut r = ListenReport {
+        seconds: duration.as_secs_f64(),
+        ..Default::default()
+    };
+    let (mut jsm_hb, mut pm_hb) = (0u64, 0u64);
+    let end = tokio::time::sleep(duration);
+    tokio::pin!(end);
+    loop {
+        tokio::select! {
+            _ = &mut end => break,
+            ev = bus.recv() => match ev? {
+                BusEvent::Frame(f) => {
+                    r.frames_total += 1;
+                    match decode(&f) {
+                        RnetMessage::Joystick { id, x, y } => {
+                            let e = r.joystick.entry(format!("{id:08X}")).or_default();
+                            e.frames += 1;
+                            e.last = (x, y);
+                        }
+                        RnetMessage::JsmHeartbeat => jsm_hb += 1,
+                        RnetMessage::PowerModuleHeartbeat { .. } => pm_hb += 1,
+                        RnetMessage::Battery { percent, .. } => r.battery_percent = Some(percent),
+                        RnetMessage::MotorCurrent { raw, .. } => r.motor_current_raw = Some(raw),
+                        _ => r.other_frames += 1,
+                    }
+                }
+                BusEvent::Error(e) => {
+                    r.error_frames += 1;
+                    let d = e.describe();
+                    if !r.errors.contains(&d) {
+                        r.errors.push(d);
+                    }
+                }
+            }
+        }
+    }
+    let secs = duration.as_secs_f64().max(1e-9);
+    for e in r.joystick.values_mut() {
+        e.rate_hz = e.frames as f64 / secs;
+    }
+    r.jsm_heartbeat_hz = jsm_hb as f64 / secs;
+    r.power_module_heartbeat_hz = pm_hb as f64 / secs;
+    Ok(r)
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct DriveReport {
+    pub joystick: (i8, i8),
+    pub seconds: f64,
+    pub events: Vec<ActuatorEvent>,
+    pub status: ActuatorStatus,
+}
+
+/// Drives joystick values (turn, forward) through the writer for
+/// `duration`, then centres and releases; `stop` (a signal) ends it early
+/// the same way. The command is refreshed every 20 ms as the supervisor
+/// would, so the writer's freshness rule is exercised as on the chair.
+pub async fn drive<B: CanBus>(
+    bus: B,
+    settings: RnetSettings,
+    joystick: (i8, i8),
+    duration: Duration,
+    stop: CancellationToken,
+) -> Result<DriveReport, ActuatorError> {
+    let clock: Arc<dyn Clock> = Arc::new(TokioClock::new());
+    let (v_mps, omega_radps) = settings.mapping.to_velocity(joystick.0, joystick.1);
+    let (cmd_tx, cmd_rx) = watch::channel(None);
+    let (ev_tx, mut ev_rx) = mpsc::channel(64);
+    let (status_tx, _status_rx) = watch::channel(ActuatorStatus::default());
+    let writer_cancel = CancellationToken::new();
+    let writer = tokio::spawn(RnetActuator { bus, settings }.run(ActuatorIo {
+        commands: cmd_rx,
+        events: ev_tx,
+        status: status_tx,
+        cancel: writer_cancel.clone(),
+        clock: clock.clone(),
+    }));
+    let mut events = Vec::new();
+    let end = tokio::time::sleep(duration);
+    tokio::pin!(end);
+    let mut tick = tokio::time::interval(Duration::from_millis(20));
+    let mut yielded = false;
+    loop {
+        tokio::select! {
+            biased;
+            _ = stop.cancelled() => break,
+            _ = &mut end => break,
+            ev = ev_rx.recv() => match ev {
+                Some(e) => {
+                    if matches!(e, ActuatorEvent::UserDeflection { .. } | ActuatorEvent::Fault { .. }) {
+                        yielded = true;
+                    }
+                    events.push(e);
+                }
+                None => break,
+            },
+            _ = tick.tick() => {
+                let cmd = if yielded {
+                    VelocityCmd::default()
+                } else {
+                    VelocityCmd { v_mps, omega_radps }
+                };
+                cmd_tx.send_replace(Some(SafeCmd {
+                    cmd,
+                    state: SupervisorState::Navigating,
+                    stamp: clock.now(),
+                }));
+            }
+        }
+    }
+    cmd_tx.send_replace(None);
+    writer_cancel.cancel();
+    let status = writer
+        .await
+        .map_err(|e| ActuatorError::Task(e.to_string()))??;
+    while let Ok(e) = ev_rx.try_recv() {
+        events.push(e);
+    }
+    Ok(DriveReport {
+        joystick,
+        seconds: duration.as_secs_f64(),
+        events,
+        status,
+    })
+}
