@@ -117,7 +117,7 @@ fn parse_duration(s: &str) -> Result<std::time::Duration, String> {
         .parse()
         .map_err(|_| format!("{s:?} is not a duration (e.g. 5s, 500ms)"))?;
     let secs = v * scale;
-    if !secs.is_finite() || secs < 0.0 || secs > 86_400.0 {
+    if !secs.is_finite() || !(0.0..=86_400.0).contains(&secs) {
         return Err(format!("{s:?}: out of range (0 to 1 day)"));
     }
     Ok(std::time::Duration::from_secs_f64(secs))
@@ -565,9 +565,11 @@ fn check_rnet(
         .build()
         .map_err(failed)?;
     rt.block_on(async move {
-        let bus = SocketCanBus::open(&iface).map_err(failed)?;
         let report = match joystick {
-            None => serde_json::to_value(check::listen(&bus, listen).await.map_err(failed)?),
+            None => {
+                let bus = SocketCanBus::open(&iface).map_err(failed)?;
+                serde_json::to_value(check::listen(&bus, listen).await.map_err(failed)?)
+            }
             Some(xy) => {
                 let stop = tokio_util::sync::CancellationToken::new();
                 let s = stop.clone();
@@ -583,9 +585,15 @@ fn check_rnet(
                     s.cancel();
                 });
                 serde_json::to_value(
-                    check::drive(bus, rnet, xy, drive_for, stop)
-                        .await
-                        .map_err(failed)?,
+                    check::drive(
+                        move || SocketCanBus::open(&iface),
+                        rnet,
+                        xy,
+                        drive_for,
+                        stop,
+                    )
+                    .await
+                    .map_err(failed)?,
                 )
             }
         }

@@ -100,7 +100,11 @@ fn rig(mode: TakeoverMode) -> Rig {
     let writer = tokio::spawn(
         RnetActuator {
             bus: endpoint,
-            settings: RnetSettings::new(mode, MAPPING),
+            settings: RnetSettings {
+                // tokio's timer: these tests run on its paused clock
+                precise_timer: false,
+                ..RnetSettings::new(mode, MAPPING)
+            },
         }
         .run(ActuatorIo {
             commands: cmd_rx,

@@ -15,8 +15,9 @@ as_root() {
 }
 
 step "system packages"
-# firmware: avr-gcc + avr-libc; firmware in the loop: simavr + libsimavr + libelf
-apt_pkgs=(make gcc gcc-avr avr-libc simavr libsimavr-dev libelf-dev)
+# AVR toolchain + simavr: firmware in the loop; qemu + busybox + cpio: the
+# vcan HIL VM (tests/vcan/run-vm.sh; binutils for objcopy)
+apt_pkgs=(make gcc binutils gcc-avr avr-libc simavr libsimavr-dev libelf-dev qemu-system-x86 busybox-static cpio)
 # a python3 with venv already on PATH (pyenv, say) is enough; else Debian's
 python3 -c 'import venv, ensurepip' 2>/dev/null || apt_pkgs+=(python3 python3-venv python3-pip)
 missing=()
@@ -45,6 +46,10 @@ for f in "$OPENNAV_SHARED/models/yolo11n_coco.onnx" "$OPENNAV_SHARED/data/images
   fi
 done
 .venv/bin/python tests/fixtures/generate.py "$OPENNAV_SHARED" tests/fixtures/generated
+
+step "vcan HIL VM kernel"
+# Debian's kernel (pinned, cached in ~/.cache/opennav/vm) for the CAN tests
+bash tests/vcan/run-vm.sh --fetch-only
 
 step "format"
 cargo fmt --all -- --check

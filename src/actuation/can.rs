@@ -253,7 +253,7 @@ fn to_socketcan(f: &CanFrame) -> Result<socketcan::CanFrame, CanBusError> {
 
 /// Converts a received frame: data frames to [`CanFrame`], error frames to
 /// [`BusError`]; remote frames are ignored (`None`).
-fn from_socketcan(f: &socketcan::CanFrame) -> Option<BusEvent> {
+pub fn from_socketcan(f: &socketcan::CanFrame) -> Option<BusEvent> {
     use socketcan::{EmbeddedFrame, Frame};
     match f {
         socketcan::CanFrame::Data(d) => {

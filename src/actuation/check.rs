@@ -15,7 +15,7 @@ use tokio_util::sync::CancellationToken;
 use super::can::{BusEvent, CanBus, CanBusError};
 use super::rnet::{decode, RnetMessage};
 use super::writer::{RnetActuator, RnetSettings};
-use super::{Actuator, ActuatorError, ActuatorEvent, ActuatorIo, ActuatorStatus};
+use super::{spawn_actuator_thread, ActuatorError, ActuatorEvent, ActuatorIo, ActuatorStatus};
 use crate::safety::{SafeCmd, SupervisorState, VelocityCmd};
 use crate::types::{Clock, TokioClock};
 
@@ -102,26 +102,40 @@ pub struct DriveReport {
 /// `duration`, then centres and releases; `stop` (a signal) ends it early
 /// the same way. The command is refreshed every 20 ms as the supervisor
 /// would, so the writer's freshness rule is exercised as on the chair.
-pub async fn drive<B: CanBus>(
-    bus: B,
+pub async fn drive<B: CanBus, F>(
+    make_bus: F,
     settings: RnetSettings,
     joystick: (i8, i8),
     duration: Duration,
     stop: CancellationToken,
-) -> Result<DriveReport, ActuatorError> {
+) -> Result<DriveReport, ActuatorError>
+where
+    F: FnOnce() -> Result<B, CanBusError> + Send + 'static,
+{
     let clock: Arc<dyn Clock> = Arc::new(TokioClock::new());
     let (v_mps, omega_radps) = settings.mapping.to_velocity(joystick.0, joystick.1);
     let (cmd_tx, cmd_rx) = watch::channel(None);
     let (ev_tx, mut ev_rx) = mpsc::channel(64);
     let (status_tx, _status_rx) = watch::channel(ActuatorStatus::default());
     let writer_cancel = CancellationToken::new();
-    let writer = tokio::spawn(RnetActuator { bus, settings }.run(ActuatorIo {
-        commands: cmd_rx,
-        events: ev_tx,
-        status: status_tx,
-        cancel: writer_cancel.clone(),
-        clock: clock.clone(),
-    }));
+    let writer = spawn_actuator_thread(
+        "rnet-writer",
+        50,
+        move || {
+            Ok(RnetActuator {
+                bus: make_bus()?,
+                settings,
+            })
+        },
+        ActuatorIo {
+            commands: cmd_rx,
+            events: ev_tx,
+            status: status_tx,
+            cancel: writer_cancel.clone(),
+            clock: clock.clone(),
+        },
+    )
+    .map_err(|e| ActuatorError::Task(e.to_string()))?;
     let mut events = Vec::new();
     let end = tokio::time::sleep(duration);
     tokio::pin!(end);
@@ -157,9 +171,10 @@ pub async fn drive<B: CanBus>(
     }
     cmd_tx.send_replace(None);
     writer_cancel.cancel();
-    let status = writer
+    let status = tokio::task::spawn_blocking(move || writer.join())
         .await
-        .map_err(|e| ActuatorError::Task(e.to_string()))??;
+        .map_err(|e| ActuatorError::Task(e.to_string()))?
+        .map_err(|_| ActuatorError::Task("writer thread panicked".into()))??;
     while let Ok(e) = ev_rx.try_recv() {
         events.push(e);
     }

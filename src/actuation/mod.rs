@@ -121,3 +121,49 @@ pub trait Actuator: Send + 'static {
         io: ActuatorIo,
     ) -> impl Future<Output = Result<ActuatorStatus, ActuatorError>> + Send;
 }
+
+/// Runs an actuator on its own OS thread with its own single-threaded
+/// tokio runtime, so that nothing else on the async workers delays its
+/// 10 ms ticks. `make` builds the actuator on that thread (a SocketCAN
+/// socket registers with the runtime it is opened in). The thread asks
+/// for real-time scheduling (`SCHED_FIFO`, priority `rt_priority`) when
+/// `rt_priority > 0` and goes on at normal priority when refused.
+pub fn spawn_actuator_thread<A, F>(
+    name: &str,
+    rt_priority: i32,
+    make: F,
+    io: ActuatorIo,
+) -> std::io::Result<std::thread::JoinHandle<Result<ActuatorStatus, ActuatorError>>>
+where
+    A: Actuator,
+    F: FnOnce() -> Result<A, ActuatorError> + Send + 'static,
+{
+    std::thread::Builder::new()
+        .name(name.to_string())
+        .spawn(move || {
+            if rt_priority > 0 {
+                set_realtime(rt_priority);
+            }
+            let rt = tokio::runtime::Builder::new_current_thread()
+                .enable_all()
+                .build()
+                .map_err(|e| ActuatorError::Task(format!("runtime: {e}")))?;
+            rt.block_on(async move { make()?.run(io).await })
+        })
+}
+
+/// Best effort: SCHED_FIFO for the calling thread.
+pub(crate) fn set_realtime(priority: i32) {
+    let param = libc::sched_param {
+        sched_priority: priority,
+    };
+    // SAFETY: plain syscall on the calling thread with a valid parameter
+    let rc = unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) };
+    if rc != 0 {
+        tracing::info!(
+            priority,
+            error = %std::io::Error::last_os_error(),
+            "real-time scheduling refused; writer runs at normal priority"
+        );
+    }
+}

@@ -15,6 +15,8 @@
 //! - Cancelled → centred frames for `release_after` (200 ms), then nothing.
 
 use std::collections::VecDeque;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::time::Duration;
 
 use tokio::sync::mpsc::error::TrySendError;
@@ -41,6 +43,10 @@ pub struct RnetSettings {
     pub release_after: Duration,
     /// The JSM heartbeat (every 100 ms) missing this long → `JsmLost`.
     pub jsm_lost_after: Duration,
+    /// Tick from a thread sleeping to absolute deadlines on the monotonic
+    /// clock (nanosecond timers) instead of tokio's millisecond timer
+    /// wheel. On for the chair; off where tests control tokio's clock.
+    pub precise_timer: bool,
 }
 
 impl RnetSettings {
@@ -52,6 +58,7 @@ impl RnetSettings {
             command_max_age: Duration::from_millis(100),
             release_after: Duration::from_millis(200),
             jsm_lost_after: Duration::from_millis(500),
+            precise_timer: true,
         }
     }
 }
@@ -60,6 +67,75 @@ impl RnetSettings {
 pub struct RnetActuator<B: CanBus> {
     pub bus: B,
     pub settings: RnetSettings,
+}
+
+/// Where the writer's ticks come from.
+enum Ticker {
+    Tokio(tokio::time::Interval),
+    Thread {
+        rx: tokio::sync::mpsc::Receiver<()>,
+        stop: Arc<AtomicBool>,
+    },
+}
+
+impl Ticker {
+    fn new(period: Duration, precise: bool) -> std::io::Result<Ticker> {
+        if !precise {
+            let mut i = tokio::time::interval(period);
+            i.set_missed_tick_behavior(MissedTickBehavior::Skip);
+            return Ok(Ticker::Tokio(i));
+        }
+        let (tx, rx) = tokio::sync::mpsc::channel(1);
+        let stop = Arc::new(AtomicBool::new(false));
+        let s = stop.clone();
+        std::thread::Builder::new()
+            .name("rnet-ticker".into())
+            .spawn(move || {
+                super::set_realtime(60);
+                let mut next = std::time::Instant::now();
+                while !s.load(Ordering::Relaxed) {
+                    // a full channel means the writer has not taken the last
+                    // tick: this slot is skipped, never sent late
+                    if let Err(tokio::sync::mpsc::error::TrySendError::Closed(_)) = tx.try_send(())
+                    {
+                        return;
+                    }
+                    next += period;
+                    let now = std::time::Instant::now();
+                    if next <= now {
+                        // missed slots: keep the grid, skip what passed
+                        let behind = now - next;
+                        let k = behind.as_nanos() / period.as_nanos().max(1) + 1;
+                        next += period * k as u32;
+                    }
+                    std::thread::sleep(next - std::time::Instant::now().min(next));
+                }
+            })?;
+        Ok(Ticker::Thread { rx, stop })
+    }
+
+    async fn tick(&mut self) {
+        match self {
+            Ticker::Tokio(i) => {
+                i.tick().await;
+            }
+            Ticker::Thread { rx, .. } => {
+                if rx.recv().await.is_none() {
+                    // the ticker thread is gone: never tick again (the
+                    // power module stops within 30 ms)
+                    std::future::pending::<()>().await;
+                }
+            }
+        }
+    }
+}
+
+impl Drop for Ticker {
+    fn drop(&mut self) {
+        if let Ticker::Thread { stop, .. } = self {
+            stop.store(true, Ordering::Relaxed);
+        }
+    }
 }
 
 /// How many recent periods the status statistics cover.
@@ -161,8 +237,8 @@ impl<B: CanBus> Actuator for RnetActuator<B> {
             intervals: VecDeque::with_capacity(PERIOD_WINDOW),
             fault_at: None,
         };
-        let mut interval = tokio::time::interval(s.period);
-        interval.set_missed_tick_behavior(MissedTickBehavior::Skip);
+        let mut interval = Ticker::new(s.period, s.precise_timer)
+            .map_err(|e| ActuatorError::Task(format!("ticker thread: {e}")))?;
         let mut release_at: Option<Stamp> = None;
         let mut jsm_lost_reported = false;
         let mut ticks: u64 = 0;
