@@ -39,6 +39,8 @@ pub enum StopReason {
 pub enum FaultReason {
     /// Bus-off, error-passive or controller problems on CAN.
     CanBus,
+    /// The motor interface's link (Rebus: packets not acknowledged).
+    MotorLink,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]

@@ -102,3 +102,78 @@ proptest! {
         prop_assert_eq!(got, vec![p]);
     }
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(300))]
+
+    /// Error frames of any content decode without panicking, and what is
+    /// decoded encodes back to the same fields.
+    #[test]
+    fn can_error_frames_decode_anything(id in any::<u32>(), data in proptest::collection::vec(any::<u8>(), 0..12)) {
+        use opennav::actuation::can::BusError;
+        let e = BusError::decode(id, &data);
+        let _ = (e.is_fault(), e.describe());
+        let (id2, d2) = e.encode();
+        prop_assert_eq!(BusError::decode(id2, &d2), e);
+    }
+
+    /// The takeover fed any frames from the bus at any times never panics,
+    /// never sends values it was not commanded, and sends only centred
+    /// frames once the command is stale.
+    #[test]
+    fn takeover_survives_any_bus_traffic(frames in proptest::collection::vec((any::<u32>(), any::<bool>(), 0u8..=8, any::<[u8; 8]>(), 0u64..30), 0..200), follow in any::<bool>()) {
+        use opennav::actuation::rnet::{CanFrame, Takeover, TakeoverMode};
+        use opennav::types::Stamp;
+        use std::time::Duration;
+        let mode = if follow { TakeoverMode::FollowJsm } else { TakeoverMode::JsmError };
+        let mut tk = Takeover::new(mode);
+        tk.set_command(-7, 12, Stamp::ZERO);
+        let mut t = 0u64;
+        for (id, ext, len, data, dt) in frames {
+            t += dt;
+            let now = Stamp(Duration::from_millis(t));
+            let f = CanFrame { id, extended: ext, len, data };
+            let (out, _) = tk.on_frame(&f, now);
+            let ticked = tk.tick(now);
+            for o in out.iter().chain(ticked.iter()) {
+                if o.len == 2 {
+                    let xy = (o.data[0] as i8, o.data[1] as i8);
+                    prop_assert!(xy == (0, 0) || xy == (-7, 12), "{:?}", xy);
+                    if t > 100 {
+                        prop_assert_eq!(xy, (0, 0));
+                    }
+                }
+            }
+        }
+    }
+
+    /// The Rebus link fed any packets never panics and only ever sends
+    /// start-up, centred or commanded velocity packets.
+    #[test]
+    fn rebus_link_survives_any_chipset_traffic(packets in proptest::collection::vec((0u8..32, 0u8..3, proptest::collection::vec(any::<u8>(), 0..6), 0u64..40), 0..200)) {
+        use opennav::actuation::rebus::{Kind, Packet};
+        use opennav::actuation::rebus_link::{RebusLink, RebusSettings};
+        use opennav::actuation::rnet::JoystickMapping;
+        use opennav::types::Stamp;
+        use std::time::Duration;
+        let mut l = RebusLink::new(RebusSettings::new(JoystickMapping { forward_full_mps: 1.0, reverse_full_mps: 0.5, turn_full_radps: 1.5, deadband: 3 }));
+        l.set_command(5, -9, Stamp::ZERO);
+        let mut t = 0u64;
+        for (seq, kind, data, dt) in packets {
+            t += dt;
+            let now = Stamp(Duration::from_millis(t));
+            let kind = [Kind::Ack, Kind::Nack, Kind::Data][kind as usize];
+            let (reply, _) = l.on_packet(&Packet { seq, startup: false, kind, data }, now);
+            if let Some(r) = reply {
+                prop_assert_eq!(r.kind, Kind::Ack);
+                prop_assert_eq!(r.seq, seq);
+            }
+            if let (Some(p), _) = l.tick(now) {
+                if !p.startup {
+                    let xy = (p.data[3] as i8, p.data[4] as i8);
+                    prop_assert!(xy == (0, 0) || (xy == (5, -9) && t <= 100), "{:?} at {}", xy, t);
+                }
+            }
+        }
+    }
+}

@@ -64,6 +64,15 @@ impl Packet {
         }
     }
 
+    pub fn nack(seq: u8) -> Packet {
+        Packet {
+            seq,
+            startup: false,
+            kind: Kind::Nack,
+            data: vec![],
+        }
+    }
+
     /// Joystick values (R-Net convention: `vx` turn, positive right; `vy`
     /// forward), clamped to ±100.
     pub fn velocity(seq: u8, vx: i8, vy: i8) -> Packet {
