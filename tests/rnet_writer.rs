@@ -392,3 +392,45 @@ async fn a_full_tx_queue_drops_frames_and_never_sends_them_late() {
     let st = r.status.borrow().clone();
     assert_eq!(st.dropped, 5, "{st:?}");
 }
+
+#[tokio::test(start_paused = true)]
+async fn check_listen_reports_ids_heartbeats_and_battery() {
+    let clock: Arc<dyn Clock> = Arc::new(TokioClock::new());
+    let bus = MemoryBus::new();
+    let chair = Arc::new(Mutex::new(SimChair::new(
+        SimChairSettings {
+            joystick_id: JSM_ID,
+            battery_percent: 64,
+            ..Default::default()
+        },
+        clock.now(),
+    )));
+    chair.lock().expect("chair").user = (-3, 17);
+    tokio::spawn(run_sim_chair(
+        bus.endpoint(),
+        chair,
+        clock,
+        CancellationToken::new(),
+    ));
+    let listener = bus.endpoint();
+    let bus2 = bus.clone();
+    tokio::spawn(async move {
+        sleep_ms(500).await;
+        bus2.inject_error(BusError::bus_off());
+    });
+    let r = opennav::actuation::check::listen(&listener, Duration::from_secs(2))
+        .await
+        .expect("listen");
+    let j = r.joystick.get("02000200").expect("joystick id reported");
+    assert!((j.rate_hz - 100.0).abs() <= 1.0, "{}", j.rate_hz);
+    assert_eq!(j.last, (-3, 17));
+    assert!(
+        (r.jsm_heartbeat_hz - 10.0).abs() <= 0.5,
+        "{}",
+        r.jsm_heartbeat_hz
+    );
+    assert!((r.power_module_heartbeat_hz - 1.0).abs() <= 0.5);
+    assert_eq!(r.battery_percent, Some(64));
+    assert_eq!(r.error_frames, 1);
+    assert_eq!(r.errors, vec!["bus-off".to_string()]);
+}
