@@ -2,4 +2,5 @@
 
 pub mod ekf;
 pub mod odometry;
+pub mod scan_match;
 pub mod tracker;

@@ -1,0 +1,460 @@
+//! Laser scan matching (pure): point-to-point ICP in 2D on the merged
+//! scans (base_link points), with a hashed grid for nearest neighbours and
+//! trimming of the worst pairs (partial overlap, moving people), and a
+//! keyframe matcher that turns each match into an absolute pose for
+//! [`PoseEkf::correct`](super::ekf::PoseEkf::correct): the current scan is
+//! matched against the last keyframe's, starting from the odometry's guess,
+//! so wheel slip on turns is measured by the walls and removed.
+
+use std::collections::HashMap;
+
+use nalgebra::Matrix3;
+use serde::Serialize;
+
+use super::ekf::PoseEkf;
+use super::odometry::{wrap_angle, Pose2};
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct IcpParams {
+    pub max_iterations: usize,
+    /// Pairs farther apart than this are not correspondences, m (the
+    /// first iteration's gate; it shrinks by `gate_decay` per iteration
+    /// down to `min_pair_distance_m`, coarse to fine).
+    pub max_pair_distance_m: f64,
+    pub min_pair_distance_m: f64,
+    pub gate_decay: f64,
+    /// Keep this fraction of the closest pairs each iteration.
+    pub trim_fraction: f64,
+    /// Fewer matched pairs than this: no result.
+    pub min_pairs: usize,
+    /// Stop when an iteration moves less than this (m and rad).
+    pub converged_step: f64,
+    /// A result with a larger RMS pair distance is rejected, m.
+    pub max_rms_m: f64,
+    /// Smallest / largest eigenvalue of the translation block of the
+    /// information matrix below this: degenerate, rejected.
+    pub min_information_ratio: f64,
+}
+
+impl Default for IcpParams {
+    fn default() -> Self {
+        IcpParams {
+            max_iterations: 60,
+            max_pair_distance_m: 1.0,
+            min_pair_distance_m: 0.1,
+            gate_decay: 0.85,
+            trim_fraction: 0.9,
+            min_pairs: 40,
+            converged_step: 1e-5,
+            max_rms_m: 0.05,
+            min_information_ratio: 0.05,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct IcpResult {
+    /// The current scan's pose in the reference scan's frame.
+    pub ref_from_cur: Pose2,
+    pub rms_m: f64,
+    pub pairs: usize,
+    pub iterations: usize,
+    pub converged: bool,
+    /// Smallest / largest eigenvalue of the translation information.
+    pub information_ratio: f64,
+}
+
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ScanMatchError {
+    #[error("scan matching: {which} scan has {got} points, at least {need} needed")]
+    TooFewPoints {
+        which: &'static str,
+        got: usize,
+        need: usize,
+    },
+    #[error("scan matching: only {pairs} point pairs within {max_m} m (need {need})")]
+    TooFewPairs {
+        pairs: usize,
+        max_m: f64,
+        need: usize,
+    },
+    #[error("scan matching: residual {rms_m:.3} m above {max_m} m")]
+    PoorFit { rms_m: f64, max_m: f64 },
+    /// The scene constrains the pose in too few directions (a bare
+    /// corridor, one wall): the match would slide.
+    #[error("scan matching: degenerate geometry (information ratio {ratio:.1e} below {min:.0e})")]
+    Degenerate { ratio: f64, min: f64 },
+}
+
+/// Reference points hashed on a grid of the pair distance.
+struct Grid<'a> {
+    cell: f64,
+    cells: HashMap<(i64, i64), Vec<usize>>,
+    pts: &'a [[f64; 2]],
+}
+
+impl<'a> Grid<'a> {
+    fn new(pts: &'a [[f64; 2]], cell: f64) -> Self {
+        let mut cells: HashMap<(i64, i64), Vec<usize>> = HashMap::new();
+        for (i, p) in pts.iter().enumerate() {
+            cells.entry(Self::key(p, cell)).or_default().push(i);
+        }
+        Grid { cell, cells, pts }
+    }
+
+    fn key(p: &[f64; 2], cell: f64) -> (i64, i64) {
+        ((p[0] / cell).floor() as i64, (p[1] / cell).floor() as i64)
+    }
+
+    /// Nearest reference point within one cell's reach: (index, distance²).
+    fn nearest(&self, q: &[f64; 2]) -> Option<(usize, f64)> {
+        let (kx, ky) = Self::key(q, self.cell);
+        let mut best: Option<(usize, f64)> = None;
+        for dx in -1..=1 {
+            for dy in -1..=1 {
+                if let Some(v) = self.cells.get(&(kx + dx, ky + dy)) {
+                    for &i in v {
+                        let p = self.pts[i];
+                        let d2 = (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2);
+                        if best.is_none_or(|(_, b)| d2 < b) {
+                            best = Some((i, d2));
+                        }
+                    }
+                }
+            }
+        }
+        best
+    }
+}
+
+/// The unit normal of the reference surface at each point (the line
+/// through its neighbours within `radius_m`), or None where the
+/// neighbourhood is not line-like (corners, clutter, isolated points).
+fn normals(pts: &[[f64; 2]], grid: &Grid, radius_m: f64) -> Vec<Option<[f64; 2]>> {
+    let r2 = radius_m * radius_m;
+    pts.iter()
+        .map(|p| {
+            let (kx, ky) = Grid::key(p, grid.cell);
+            let (mut n, mut mx, mut my) = (0.0, 0.0, 0.0);
+            let mut near = Vec::new();
+            for dx in -1..=1 {
+                for dy in -1..=1 {
+                    for &i in grid.cells.get(&(kx + dx, ky + dy)).into_iter().flatten() {
+                        let q = pts[i];
+                        if (q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2) <= r2 {
+                            near.push(q);
+                            n += 1.0;
+                            mx += q[0];
+                            my += q[1];
+                        }
+                    }
+                }
+            }
+            if near.len() < 3 {
+                return None;
+            }
+            let (mx, my) = (mx / n, my / n);
+            let (mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0);
+            for q in &near {
+                let (dx, dy) = (q[0] - mx, q[1] - my);
+                sxx += dx * dx;
+                sxy += dx * dy;
+                syy += dy * dy;
+            }
+            // eigenvalues of [[sxx, sxy], [sxy, syy]]
+            let tr = sxx + syy;
+            let det = sxx * syy - sxy * sxy;
+            let disc = (tr * tr / 4.0 - det).max(0.0).sqrt();
+            let (l_big, l_small) = (tr / 2.0 + disc, tr / 2.0 - disc);
+            if l_big <= 0.0 || l_small > 0.05 * l_big {
+                return None;
+            }
+            // direction of the line: eigenvector of l_big; the normal is
+            // perpendicular to it
+            let (vx, vy) = if sxy.abs() > 1e-15 {
+                (l_big - syy, sxy)
+            } else if sxx >= syy {
+                (1.0, 0.0)
+            } else {
+                (0.0, 1.0)
+            };
+            let norm = vx.hypot(vy);
+            Some([-vy / norm, vx / norm])
+        })
+        .collect()
+}
+
+fn apply(t: &Pose2, p: &[f64; 2]) -> [f64; 2] {
+    let (c, s) = (t.theta_rad.cos(), t.theta_rad.sin());
+    [t.x_m + c * p[0] - s * p[1], t.y_m + s * p[0] + c * p[1]]
+}
+
+/// Composes `a ∘ b` (b expressed in a's frame).
+pub fn compose(a: &Pose2, b: &Pose2) -> Pose2 {
+    let p = apply(a, &[b.x_m, b.y_m]);
+    Pose2 {
+        x_m: p[0],
+        y_m: p[1],
+        theta_rad: wrap_angle(a.theta_rad + b.theta_rad),
+    }
+}
+
+/// The inverse transform.
+pub fn inverse(a: &Pose2) -> Pose2 {
+    let (c, s) = (a.theta_rad.cos(), a.theta_rad.sin());
+    Pose2 {
+        x_m: -(c * a.x_m + s * a.y_m),
+        y_m: s * a.x_m - c * a.y_m,
+        theta_rad: wrap_angle(-a.theta_rad),
+    }
+}
+
+/// Aligns `current` to `reference` from `initial` (the current scan's pose
+/// in the reference frame, e.g. from odometry).
+pub fn icp(
+    reference: &[[f64; 2]],
+    current: &[[f64; 2]],
+    initial: Pose2,
+    p: &IcpParams,
+) -> Result<IcpResult, ScanMatchError> {
+    for (which, pts) in [("reference", reference), ("current", current)] {
+        if pts.len() < p.min_pairs {
+            return Err(ScanMatchError::TooFewPoints {
+                which,
+                got: pts.len(),
+                need: p.min_pairs,
+            });
+        }
+    }
+    let grid = Grid::new(reference, p.max_pair_distance_m);
+    let mut gate = p.max_pair_distance_m;
+    let mut t = initial;
+    let mut rms = f64::INFINITY;
+    let mut pairs_used = 0;
+    let mut converged = false;
+    let mut iterations = 0;
+    let mut info = Matrix3::<f64>::zeros();
+    let ref_normals = normals(reference, &grid, 0.3);
+    let mut pairs: Vec<([f64; 2], [f64; 2], f64, Option<[f64; 2]>)> =
+        Vec::with_capacity(current.len());
+    for it in 0..p.max_iterations {
+        iterations = it + 1;
+        let max_d2 = gate * gate;
+        gate = (gate * p.gate_decay).max(p.min_pair_distance_m);
+        pairs.clear();
+        for q in current {
+            let qt = apply(&t, q);
+            if let Some((i, d2)) = grid.nearest(&qt) {
+                if d2 <= max_d2 {
+                    pairs.push((qt, reference[i], d2, ref_normals[i]));
+                }
+            }
+        }
+        pairs.sort_by(|a, b| a.2.total_cmp(&b.2));
+        let keep = ((pairs.len() as f64) * p.trim_fraction).round() as usize;
+        pairs.truncate(keep);
+        if pairs.len() < p.min_pairs {
+            return Err(ScanMatchError::TooFewPairs {
+                pairs: pairs.len(),
+                max_m: p.max_pair_distance_m,
+                need: p.min_pairs,
+            });
+        }
+        pairs_used = pairs.len();
+        // the residual: distance to the line where there is one
+        rms = (pairs
+            .iter()
+            .map(|(a, b, d2, n)| match n {
+                Some(n) => ((a[0] - b[0]) * n[0] + (a[1] - b[1]) * n[1]).powi(2),
+                None => *d2,
+            })
+            .sum::<f64>()
+            / pairs.len() as f64)
+            .sqrt();
+        // point-to-line where the reference has a line-like normal,
+        // point-to-point elsewhere: one Gauss-Newton step in (dx, dy, dθ),
+        // rotation about the origin of the reference frame
+        let mut h = Matrix3::<f64>::zeros();
+        let mut g = nalgebra::Vector3::<f64>::zeros();
+        for (a, b, _, n) in &pairs {
+            let e = [a[0] - b[0], a[1] - b[1]];
+            let perp = [-a[1], a[0]];
+            let rows: [([f64; 3], f64); 2] = match n {
+                Some(n) => [
+                    (
+                        [n[0], n[1], n[0] * perp[0] + n[1] * perp[1]],
+                        n[0] * e[0] + n[1] * e[1],
+                    ),
+                    ([0.0; 3], 0.0),
+                ],
+                None => [([1.0, 0.0, perp[0]], e[0]), ([0.0, 1.0, perp[1]], e[1])],
+            };
+            for (j, r) in rows {
+                let jv = nalgebra::Vector3::new(j[0], j[1], j[2]);
+                h += jv * jv.transpose();
+                g += jv * r;
+            }
+        }
+        info = h;
+        h += Matrix3::identity() * 1e-9;
+        let Some(delta) = h.lu().solve(&(-g)) else {
+            break;
+        };
+        let dth = delta[2];
+        let step = Pose2 {
+            x_m: delta[0],
+            y_m: delta[1],
+            theta_rad: dth,
+        };
+        t = compose(&step, &t);
+        if step.x_m.hypot(step.y_m) < p.converged_step
+            && dth.abs() < p.converged_step
+            && gate <= p.min_pair_distance_m
+        {
+            converged = true;
+            break;
+        }
+    }
+    if rms > p.max_rms_m {
+        return Err(ScanMatchError::PoorFit {
+            rms_m: rms,
+            max_m: p.max_rms_m,
+        });
+    }
+    // observability of the translation (the rotation is pinned by the
+    // lever arms of far points in any scene): a bare corridor leaves the
+    // direction along it unconstrained
+    let eig = info
+        .fixed_view::<2, 2>(0, 0)
+        .into_owned()
+        .symmetric_eigenvalues();
+    let (lo, hi) = (eig.min(), eig.max());
+    let ratio = if hi > 0.0 { lo / hi } else { 0.0 };
+    if ratio < p.min_information_ratio {
+        return Err(ScanMatchError::Degenerate {
+            ratio,
+            min: p.min_information_ratio,
+        });
+    }
+    Ok(IcpResult {
+        ref_from_cur: t,
+        rms_m: rms,
+        pairs: pairs_used,
+        iterations,
+        converged,
+        information_ratio: ratio,
+    })
+}
+
+/// Scan-to-keyframe matching feeding the EKF.
+#[derive(Debug, Clone)]
+pub struct KeyframeMatcher {
+    pub icp: IcpParams,
+    /// A new keyframe after moving this far, m / turning this much, rad.
+    pub keyframe_distance_m: f64,
+    pub keyframe_turn_rad: f64,
+    /// Measurement standard deviation at zero residual (m, rad); grows
+    /// with the residual.
+    pub sigma_xy_m: f64,
+    pub sigma_theta_rad: f64,
+    keyframe: Option<(Pose2, Vec<[f64; 2]>)>,
+    pub matched: u64,
+    pub rejected: u64,
+}
+
+impl Default for KeyframeMatcher {
+    fn default() -> Self {
+        KeyframeMatcher {
+            icp: IcpParams::default(),
+            keyframe_distance_m: 0.3,
+            keyframe_turn_rad: 0.35,
+            sigma_xy_m: 0.01,
+            sigma_theta_rad: 0.005,
+            keyframe: None,
+            matched: 0,
+            rejected: 0,
+        }
+    }
+}
+
+impl KeyframeMatcher {
+    /// A merged scan (points in base_link) taken when the EKF's pose was
+    /// its current one: matches it against the keyframe and corrects the
+    /// EKF. The keyframes' poses are chained from the matches themselves
+    /// (scan odometry), not from the EKF, so a correction the filter only
+    /// partly adopted is not baked into the next keyframe. Returns the
+    /// match, or why there was none (the chain restarts from the EKF).
+    pub fn update(
+        &mut self,
+        ekf: &mut PoseEkf,
+        scan_base: &[[f64; 2]],
+    ) -> Option<Result<IcpResult, ScanMatchError>> {
+        let Some((key_pose, key_pts)) = &self.keyframe else {
+            self.keyframe = Some((ekf.pose, scan_base.to_vec()));
+            return None;
+        };
+        let key_pose = *key_pose;
+        // odometry's guess of the scan's pose in the keyframe
+        let guess = compose(&inverse(&key_pose), &ekf.pose);
+        let r = icp(key_pts, scan_base, guess, &self.icp);
+        match &r {
+            Ok(m) => {
+                self.matched += 1;
+                let z = compose(&key_pose, &m.ref_from_cur);
+                let grow = 1.0 + m.rms_m / 0.01;
+                let (sxy, sth) = (self.sigma_xy_m * grow, self.sigma_theta_rad * grow);
+                ekf.correct(
+                    z,
+                    Matrix3::from_diagonal(&nalgebra::Vector3::new(
+                        sxy * sxy,
+                        sxy * sxy,
+                        sth * sth,
+                    )),
+                );
+                let moved = m.ref_from_cur.x_m.hypot(m.ref_from_cur.y_m);
+                if moved >= self.keyframe_distance_m
+                    || m.ref_from_cur.theta_rad.abs() >= self.keyframe_turn_rad
+                {
+                    self.keyframe = Some((z, scan_base.to_vec()));
+                }
+            }
+            Err(_) => {
+                self.rejected += 1;
+                // start again from here: the old keyframe no longer overlaps
+                self.keyframe = Some((ekf.pose, scan_base.to_vec()));
+            }
+        }
+        Some(r)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn compose_and_inverse_are_consistent() {
+        let a = Pose2 {
+            x_m: 1.0,
+            y_m: -2.0,
+            theta_rad: 0.7,
+        };
+        let id = compose(&a, &inverse(&a));
+        assert!(id.x_m.abs() < 1e-12 && id.y_m.abs() < 1e-12 && id.theta_rad.abs() < 1e-12);
+    }
+
+    #[test]
+    fn too_few_points_is_an_error_naming_the_scan() {
+        let e = icp(
+            &[[0.0, 0.0]; 10],
+            &[[0.0, 0.0]; 100],
+            Pose2::default(),
+            &IcpParams::default(),
+        )
+        .expect_err("too few");
+        assert!(
+            e.to_string().contains("reference scan has 10 points"),
+            "{e}"
+        );
+    }
+}
