@@ -209,6 +209,10 @@ pub fn inverse(a: &Pose2) -> Pose2 {
     }
 }
 
+/// (current point moved into the reference frame, its reference point,
+/// squared distance, the reference normal there)
+type Pair = ([f64; 2], [f64; 2], f64, Option<[f64; 2]>);
+
 /// Aligns `current` to `reference` from `initial` (the current scan's pose
 /// in the reference frame, e.g. from odometry).
 pub fn icp(
@@ -235,8 +239,7 @@ pub fn icp(
     let mut iterations = 0;
     let mut info = Matrix3::<f64>::zeros();
     let ref_normals = normals(reference, &grid, 0.3);
-    let mut pairs: Vec<([f64; 2], [f64; 2], f64, Option<[f64; 2]>)> =
-        Vec::with_capacity(current.len());
+    let mut pairs: Vec<Pair> = Vec::with_capacity(current.len());
     for it in 0..p.max_iterations {
         iterations = it + 1;
         let max_d2 = gate * gate;
