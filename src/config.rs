@@ -43,6 +43,17 @@ pub struct Settings {
     pub encoders: EncodersSection,
     pub lasers: LasersSection,
     pub actuation: ActuationSection,
+    pub goal: GoalSection,
+}
+
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct GoalSection {
+    pub standoff_m: f64,
+    pub clearance_m: f64,
+    pub unseen_after_s: f64,
+    pub hold_s: f64,
+    pub reached_within_m: f64,
 }
 
 /// Which motor interface drives the chair.
@@ -372,6 +383,12 @@ impl Settings {
                 std::f64::consts::PI,
             )?;
         }
+        let g = &self.goal;
+        finite_range("goal.standoff_m", g.standoff_m, 0.2, 3.0)?;
+        finite_range("goal.clearance_m", g.clearance_m, 0.1, 1.5)?;
+        finite_range("goal.unseen_after_s", g.unseen_after_s, 0.1, 10.0)?;
+        finite_range("goal.hold_s", g.hold_s, 0.0, 120.0)?;
+        finite_range("goal.reached_within_m", g.reached_within_m, 0.02, 1.0)?;
         let a = &self.actuation;
         finite_range("actuation.forward_full_mps", a.forward_full_mps, 0.1, 5.0)?;
         finite_range("actuation.reverse_full_mps", a.reverse_full_mps, 0.05, 5.0)?;
@@ -464,6 +481,17 @@ impl Settings {
             stop_distance_m: s.stop_distance_m,
             front_offset_m: s.front_offset_m,
             rear_offset_m: s.rear_offset_m,
+        }
+    }
+
+    pub fn goal_settings(&self) -> crate::estimation::goal::GoalSettings {
+        let g = &self.goal;
+        crate::estimation::goal::GoalSettings {
+            standoff_m: g.standoff_m,
+            clearance_m: g.clearance_m,
+            unseen_after: std::time::Duration::from_secs_f64(g.unseen_after_s),
+            hold_for: std::time::Duration::from_secs_f64(g.hold_s),
+            reached_within_m: g.reached_within_m,
         }
     }
 

@@ -1,0 +1,337 @@
+//! The goal (pure): the track matching the user's word, its approach pose,
+//! re-planned as the track updates; a goal that disappears from view is
+//! held (the chair stands still and keeps looking) for a configured time,
+//! then dropped — the chair stops and says so.
+
+use std::time::Duration;
+
+use serde::Serialize;
+
+use super::odometry::Pose2;
+use super::tracker::{approach_pose, ApproachPose, Tracker};
+use crate::types::Stamp;
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GoalSettings {
+    /// Distance from the object's box to the approach pose, m (0.6).
+    pub standoff_m: f64,
+    /// The approach pose keeps this far from every obstacle point, m.
+    pub clearance_m: f64,
+    /// The goal's track unseen for longer than this: not in view.
+    pub unseen_after: Duration,
+    /// Held this long out of view, then dropped.
+    pub hold_for: Duration,
+    /// Within this of the approach pose: reached, m.
+    pub reached_within_m: f64,
+}
+
+impl Default for GoalSettings {
+    fn default() -> Self {
+        GoalSettings {
+            standoff_m: 0.6,
+            clearance_m: 0.35,
+            unseen_after: Duration::from_secs(1),
+            hold_for: Duration::from_secs(5),
+            reached_within_m: 0.1,
+        }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(tag = "state", rename_all = "snake_case")]
+pub enum GoalState {
+    /// No word given.
+    None,
+    /// A word given, no confirmed track of it yet.
+    Searching {
+        label: String,
+    },
+    /// Driving to the approach pose of track `track`.
+    Tracking {
+        label: String,
+        track: u64,
+        approach: ApproachPose,
+    },
+    /// The track is out of view: standing still, looking, since `since`.
+    Holding {
+        label: String,
+        track: u64,
+        since: Stamp,
+    },
+    Reached {
+        label: String,
+        track: u64,
+    },
+}
+
+/// What the user hears (and the log records).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub enum GoalEvent {
+    Acquired {
+        label: String,
+        track: u64,
+    },
+    /// No free side around the object to stop at.
+    NoApproach {
+        label: String,
+        track: u64,
+    },
+    OutOfView {
+        label: String,
+    },
+    BackInView {
+        label: String,
+    },
+    /// Held too long out of view: dropped, the chair stops.
+    Lost {
+        label: String,
+        held_s: f64,
+    },
+    Reached {
+        label: String,
+    },
+}
+
+impl GoalEvent {
+    /// A sentence for the voice output / display.
+    pub fn say(&self) -> String {
+        match self {
+            GoalEvent::Acquired { label, .. } => format!("Going to the {label}."),
+            GoalEvent::NoApproach { label, .. } => {
+                format!("I see the {label} but cannot find a free place beside it.")
+            }
+            GoalEvent::OutOfView { label } => format!("I lost sight of the {label}; waiting."),
+            GoalEvent::BackInView { label } => format!("I see the {label} again."),
+            GoalEvent::Lost { label, held_s } => {
+                format!("I could not find the {label} again after {held_s:.0} seconds. Stopped.")
+            }
+            GoalEvent::Reached { label } => format!("Arrived at the {label}."),
+        }
+    }
+}
+
+#[derive(Debug, Clone)]
+pub struct GoalKeeper {
+    pub settings: GoalSettings,
+    state: GoalState,
+}
+
+impl GoalKeeper {
+    pub fn new(settings: GoalSettings) -> GoalKeeper {
+        GoalKeeper {
+            settings,
+            state: GoalState::None,
+        }
+    }
+
+    pub fn state(&self) -> &GoalState {
+        &self.state
+    }
+
+    /// The user said a word.
+    pub fn set_prompt(&mut self, label: &str) {
+        self.state = GoalState::Searching {
+            label: label.trim().to_lowercase(),
+        };
+    }
+
+    pub fn clear(&mut self) {
+        self.state = GoalState::None;
+    }
+
+    /// Where to drive now (only while tracking).
+    pub fn approach(&self) -> Option<ApproachPose> {
+        match &self.state {
+            GoalState::Tracking { approach, .. } => Some(*approach),
+            _ => None,
+        }
+    }
+
+    /// One update at `now` with the tracks, the chair's pose (odom) and
+    /// the obstacle points (odom).
+    pub fn update(
+        &mut self,
+        now: Stamp,
+        tracker: &Tracker,
+        chair: Pose2,
+        obstacles_odom: &[[f64; 2]],
+    ) -> Option<GoalEvent> {
+        let s = self.settings;
+        let from = [chair.x_m, chair.y_m];
+        let in_view = |id: u64| {
+            tracker
+                .tracks()
+                .iter()
+                .find(|t| t.id == id)
+                .filter(|t| t.last_seen.age_at(now) <= s.unseen_after)
+        };
+        match self.state.clone() {
+            GoalState::None | GoalState::Reached { .. } => None,
+            GoalState::Searching { label } => {
+                let t = tracker.goal(&label, from)?;
+                if t.last_seen.age_at(now) > s.unseen_after {
+                    return None;
+                }
+                let id = t.id;
+                match approach_pose(t, from, s.standoff_m, obstacles_odom, s.clearance_m) {
+                    Some(approach) => {
+                        self.state = GoalState::Tracking {
+                            label: label.clone(),
+                            track: id,
+                            approach,
+                        };
+                        Some(GoalEvent::Acquired { label, track: id })
+                    }
+                    None => Some(GoalEvent::NoApproach { label, track: id }),
+                }
+            }
+            GoalState::Tracking {
+                label,
+                track,
+                approach,
+            } => match in_view(track) {
+                Some(t) => {
+                    // re-planned as the track updates
+                    let a = approach_pose(t, from, s.standoff_m, obstacles_odom, s.clearance_m)
+                        .unwrap_or(approach);
+                    if (a.x_m - chair.x_m).hypot(a.y_m - chair.y_m) <= s.reached_within_m {
+                        self.state = GoalState::Reached {
+                            label: label.clone(),
+                            track,
+                        };
+                        return Some(GoalEvent::Reached { label });
+                    }
+                    self.state = GoalState::Tracking {
+                        label,
+                        track,
+                        approach: a,
+                    };
+                    None
+                }
+                None => {
+                    self.state = GoalState::Holding {
+                        label: label.clone(),
+                        track,
+                        since: now,
+                    };
+                    Some(GoalEvent::OutOfView { label })
+                }
+            },
+            GoalState::Holding {
+                label,
+                track,
+                since,
+            } => {
+                if let Some(t) = in_view(track) {
+                    if let Some(approach) =
+                        approach_pose(t, from, s.standoff_m, obstacles_odom, s.clearance_m)
+                    {
+                        self.state = GoalState::Tracking {
+                            label: label.clone(),
+                            track,
+                            approach,
+                        };
+                        return Some(GoalEvent::BackInView { label });
+                    }
+                }
+                let held = since.age_at(now);
+                if held > s.hold_for {
+                    self.state = GoalState::None;
+                    return Some(GoalEvent::Lost {
+                        label,
+                        held_s: held.as_secs_f64(),
+                    });
+                }
+                None
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::estimation::tracker::TrackerParams;
+    use crate::perception::boxes::Object3D;
+    use crate::types::Frame;
+    use nalgebra::Point3;
+
+    fn chair_obj(x: f32) -> Object3D {
+        let pts = vec![
+            Point3::new(x - 0.25, -0.25, 0.0),
+            Point3::new(x + 0.25, 0.25, 0.9),
+        ];
+        Object3D::from_points("chair".into(), 0.9, Frame::Odom, pts, None).expect("object")
+    }
+
+    fn t(s: f64) -> Stamp {
+        Stamp::from_secs_f64(s)
+    }
+
+    #[test]
+    fn acquire_hold_back_in_view_then_lost_after_the_hold_time() {
+        let mut tracker = Tracker::new(TrackerParams::default());
+        let mut g = GoalKeeper::new(GoalSettings::default());
+        let chair = Pose2::default();
+        g.set_prompt(" Chair ");
+        // three hits confirm the track
+        let mut ev = Vec::new();
+        for k in 0..3 {
+            tracker.update(t(k as f64 * 0.1), &[chair_obj(3.0)], |_| true);
+            ev.extend(g.update(t(k as f64 * 0.1), &tracker, chair, &[]));
+        }
+        assert!(matches!(&ev[..], [GoalEvent::Acquired { label, .. }] if label == "chair"));
+        let a = g.approach().expect("approach");
+        // 0.6 m in front of the box edge (x 2.75), facing it
+        assert!((a.x_m - 2.15).abs() < 1e-6 && a.y_m.abs() < 1e-6, "{a:?}");
+        assert!(a.yaw_rad.abs() < 1e-9);
+        // out of view: held after 1 s unseen
+        assert_eq!(g.update(t(1.1), &tracker, chair, &[]), None);
+        assert!(matches!(
+            g.update(t(1.3), &tracker, chair, &[]),
+            Some(GoalEvent::OutOfView { .. })
+        ));
+        assert!(g.approach().is_none(), "standing still while holding");
+        // seen again within the hold time
+        tracker.update(t(3.0), &[chair_obj(3.0)], |_| true);
+        assert!(matches!(
+            g.update(t(3.0), &tracker, chair, &[]),
+            Some(GoalEvent::BackInView { .. })
+        ));
+        // gone for good: held 5 s, then lost, and the keeper says so
+        assert!(matches!(
+            g.update(t(4.1), &tracker, chair, &[]),
+            Some(GoalEvent::OutOfView { .. })
+        ));
+        assert_eq!(g.update(t(9.0), &tracker, chair, &[]), None);
+        let lost = g.update(t(9.2), &tracker, chair, &[]).expect("lost");
+        assert!(matches!(lost, GoalEvent::Lost { .. }));
+        assert!(
+            lost.say().contains("could not find the chair"),
+            "{}",
+            lost.say()
+        );
+        assert_eq!(g.state(), &GoalState::None);
+    }
+
+    #[test]
+    fn reached_when_at_the_approach_pose() {
+        let mut tracker = Tracker::new(TrackerParams::default());
+        let mut g = GoalKeeper::new(GoalSettings::default());
+        g.set_prompt("chair");
+        for k in 0..3 {
+            tracker.update(t(k as f64 * 0.1), &[chair_obj(3.0)], |_| true);
+            g.update(t(k as f64 * 0.1), &tracker, Pose2::default(), &[]);
+        }
+        let at = Pose2 {
+            x_m: 2.12,
+            y_m: 0.02,
+            theta_rad: 0.0,
+        };
+        tracker.update(t(0.4), &[chair_obj(3.0)], |_| true);
+        assert!(matches!(
+            g.update(t(0.4), &tracker, at, &[]),
+            Some(GoalEvent::Reached { .. })
+        ));
+    }
+}
