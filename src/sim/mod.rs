@@ -6,3 +6,4 @@ pub mod rebus;
 pub mod replica;
 pub mod rnet;
 pub mod room;
+pub mod world;

@@ -1,0 +1,348 @@
+//! The simulated chair in a room, standing in for the hardware when none is
+//! attached: the chair's true pose driven by the power module's motor
+//! output (the joystick values it acts on, through the chair's calibrated
+//! mapping, with a first-order motor lag), the wheel encoders' counts, the
+//! two lasers' scans (2D ray casting at the lasers' height) and the RGB-D
+//! camera's view (the room renderer). Pure: time steps and poses in.
+//!
+//! World frame: the room's (x, y on the floor, z up). The chair's odometry
+//! frame is where it started; the simulator knows both, the daemon only
+//! the odometry frame.
+
+use nalgebra::{Isometry3, Point3, Vector3};
+use serde::Serialize;
+
+use super::room::{Rendered, Room};
+use crate::actuation::rnet::JoystickMapping;
+use crate::estimation::odometry::{DiffDriveParams, Pose2};
+use crate::perception::calibration::Intrinsics;
+use crate::perception::image::ImageError;
+use crate::sensors::encoders::WheelTicks;
+use crate::sensors::hokuyo::LaserScan;
+use crate::sensors::scip::SensorParams;
+
+/// The chair's footprint about base_link, metres.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Footprint {
+    pub front_m: f64,
+    pub rear_m: f64,
+    pub half_width_m: f64,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct SimReport {
+    pub truth: Pose2,
+    /// Steps in which the footprint overlapped an obstacle.
+    pub collision_steps: u64,
+    /// Smallest distance from the footprint to an obstacle, m.
+    pub min_clearance_m: f64,
+    pub distance_travelled_m: f64,
+}
+
+#[derive(Debug, Clone)]
+pub struct SimWorld {
+    pub room: Room,
+    /// base_link in the world.
+    pub truth: Pose2,
+    pub start: Pose2,
+    pub v_mps: f64,
+    pub omega_radps: f64,
+    /// Motor time constant, s.
+    pub motor_tau_s: f64,
+    pub footprint: Footprint,
+    pub drive: DiffDriveParams,
+    counts: (f64, f64),
+    mcu_us: u64,
+    seq: u16,
+    pub report: SimReport,
+}
+
+/// 2D segments of everything a laser at `height_m` sees: the walls and the
+/// footprints of objects spanning that height.
+pub fn segments_at(room: &Room, height_m: f64) -> Vec<([f64; 2], [f64; 2])> {
+    let [sx, sy, _] = room.size_m;
+    let mut segs = rect(0.0, 0.0, sx, sy);
+    for o in &room.objects {
+        if o.min_m[2] <= height_m && o.max_m[2] >= height_m {
+            segs.extend(rect(o.min_m[0], o.min_m[1], o.max_m[0], o.max_m[1]));
+        }
+    }
+    segs
+}
+
+fn rect(x0: f64, y0: f64, x1: f64, y1: f64) -> Vec<([f64; 2], [f64; 2])> {
+    vec![
+        ([x0, y0], [x1, y0]),
+        ([x1, y0], [x1, y1]),
+        ([x1, y1], [x0, y1]),
+        ([x0, y1], [x0, y0]),
+    ]
+}
+
+/// Distance along the ray from `o` in direction `a` to the nearest
+/// segment, or None.
+pub fn ray_cast(o: [f64; 2], a: f64, segs: &[([f64; 2], [f64; 2])]) -> Option<f64> {
+    let (dx, dy) = (a.cos(), a.sin());
+    let mut best: Option<f64> = None;
+    for (p, q) in segs {
+        let (ex, ey) = (q[0] - p[0], q[1] - p[1]);
+        let den = dx * ey - dy * ex;
+        if den.abs() < 1e-12 {
+            continue;
+        }
+        let (wx, wy) = (p[0] - o[0], p[1] - o[1]);
+        let t = (wx * ey - wy * ex) / den;
+        let u = (wx * dy - wy * dx) / den;
+        if t > 1e-6 && (0.0..=1.0).contains(&u) && best.is_none_or(|b| t < b) {
+            best = Some(t);
+        }
+    }
+    best
+}
+
+impl SimWorld {
+    /// The living room, the chair in its free middle facing the two chairs
+    /// by the wall.
+    pub fn living_room(drive: DiffDriveParams) -> SimWorld {
+        let start = Pose2 {
+            x_m: 3.4,
+            y_m: 2.6,
+            theta_rad: -2.0,
+        };
+        SimWorld {
+            room: Room::living_room(),
+            truth: start,
+            start,
+            v_mps: 0.0,
+            omega_radps: 0.0,
+            motor_tau_s: 0.15,
+            footprint: Footprint {
+                front_m: 0.55,
+                rear_m: 0.45,
+                half_width_m: 0.35,
+            },
+            drive,
+            counts: (0.0, 0.0),
+            mcu_us: 0,
+            seq: 0,
+            report: SimReport {
+                truth: start,
+                collision_steps: 0,
+                min_clearance_m: f64::INFINITY,
+                distance_travelled_m: 0.0,
+            },
+        }
+    }
+
+    /// Advances `dt_s` with the power module driving `joystick` (None:
+    /// motors stopped).
+    pub fn step(&mut self, dt_s: f64, joystick: Option<(i8, i8)>, mapping: &JoystickMapping) {
+        let (v_cmd, w_cmd) = match joystick {
+            Some((x, y)) => mapping.to_velocity(x, y),
+            None => (0.0, 0.0),
+        };
+        let k = (dt_s / self.motor_tau_s).min(1.0);
+        self.v_mps += (v_cmd - self.v_mps) * k;
+        self.omega_radps += (w_cmd - self.omega_radps) * k;
+        let (ds, dth) = (self.v_mps * dt_s, self.omega_radps * dt_s);
+        self.truth = self.truth.advanced(ds, dth);
+        // wheels: left and right arc lengths → counts (the board's signs)
+        let d = &self.drive;
+        let half = d.track_m / 2.0;
+        let (sl, sr) = (ds - dth * half, ds + dth * half);
+        // metres per count carry the board's count direction (sign)
+        let (ml, mr) = d.metres_per_count();
+        self.counts.0 += sl / ml;
+        self.counts.1 += sr / mr;
+        self.mcu_us += (dt_s * 1e6) as u64;
+        self.report.truth = self.truth;
+        self.report.distance_travelled_m += ds.abs();
+        let c = self.clearance();
+        self.report.min_clearance_m = self.report.min_clearance_m.min(c);
+        if c <= 0.0 {
+            self.report.collision_steps += 1;
+        }
+    }
+
+    /// What the encoder board would send now.
+    pub fn wheel_ticks(&mut self) -> WheelTicks {
+        self.seq = self.seq.wrapping_add(1);
+        WheelTicks {
+            seq: self.seq,
+            mcu_time_us: self.mcu_us,
+            left: self.counts.0.round() as i32,
+            right: self.counts.1.round() as i32,
+            left_illegal: 0,
+            right_illegal: 0,
+            gap: 0,
+        }
+    }
+
+    /// A URG-04LX scan from the laser at `base_from_laser`.
+    pub fn laser_scan(&self, base_from_laser: &Isometry3<f64>, sensor_ms: u32) -> LaserScan {
+        let p = SensorParams::URG_04LX;
+        let t = base_from_laser.translation.vector;
+        let laser_yaw = base_from_laser.rotation.euler_angles().2;
+        let (c, s) = (self.truth.theta_rad.cos(), self.truth.theta_rad.sin());
+        let origin = [
+            self.truth.x_m + c * t.x - s * t.y,
+            self.truth.y_m + s * t.x + c * t.y,
+        ];
+        let segs = segments_at(&self.room, t.z);
+        let values: Vec<u32> = (p.amin..=p.amax)
+            .map(|step| {
+                let a = self.truth.theta_rad + laser_yaw + p.step_angle_rad(step);
+                match ray_cast(origin, a, &segs) {
+                    Some(r) if r * 1000.0 <= p.dmax_mm as f64 => {
+                        ((r * 1000.0).round() as u32).max(p.dmin_mm)
+                    }
+                    // no return: the URG's code for "nothing in range"
+                    _ => 0,
+                }
+            })
+            .collect();
+        LaserScan::from_values(&p, p.amin, &values, sensor_ms)
+    }
+
+    /// The camera's pose in the world.
+    pub fn world_from_camera(&self, base_from_camera: &Isometry3<f64>) -> Isometry3<f64> {
+        let world_from_base = Isometry3::new(
+            Vector3::new(self.truth.x_m, self.truth.y_m, 0.0),
+            Vector3::z() * self.truth.theta_rad,
+        );
+        world_from_base * base_from_camera
+    }
+
+    pub fn render(
+        &self,
+        k: &Intrinsics,
+        base_from_camera: &Isometry3<f64>,
+    ) -> Result<Rendered, ImageError> {
+        self.room
+            .render(k, &self.world_from_camera(base_from_camera))
+    }
+
+    /// The true pose of the start (odometry origin) → world transform of a
+    /// point in odometry coordinates.
+    pub fn world_from_odom(&self, p: [f64; 2]) -> [f64; 2] {
+        let (c, s) = (self.start.theta_rad.cos(), self.start.theta_rad.sin());
+        [
+            self.start.x_m + c * p[0] - s * p[1],
+            self.start.y_m + s * p[0] + c * p[1],
+        ]
+    }
+
+    /// Smallest distance from the chair's footprint to the walls and to
+    /// objects taller than 5 cm (negative: overlapping).
+    pub fn clearance(&self) -> f64 {
+        let f = self.footprint;
+        let (c, s) = (self.truth.theta_rad.cos(), self.truth.theta_rad.sin());
+        // sample the footprint's outline
+        let mut outline = Vec::new();
+        for i in 0..=10 {
+            let u = i as f64 / 10.0;
+            let x = -f.rear_m + u * (f.front_m + f.rear_m);
+            let y = -f.half_width_m + u * 2.0 * f.half_width_m;
+            outline.extend([
+                [x, f.half_width_m],
+                [x, -f.half_width_m],
+                [f.front_m, y],
+                [-f.rear_m, y],
+            ]);
+        }
+        let [sx, sy, _] = self.room.size_m;
+        let mut best = f64::INFINITY;
+        for q in outline {
+            let p = [
+                self.truth.x_m + c * q[0] - s * q[1],
+                self.truth.y_m + s * q[0] + c * q[1],
+            ];
+            best = best.min(p[0]).min(p[1]).min(sx - p[0]).min(sy - p[1]);
+            for o in self.room.objects.iter().filter(|o| o.max_m[2] > 0.05) {
+                let dx = (o.min_m[0] - p[0]).max(p[0] - o.max_m[0]);
+                let dy = (o.min_m[1] - p[1]).max(p[1] - o.max_m[1]);
+                let d = if dx <= 0.0 && dy <= 0.0 {
+                    dx.max(dy)
+                } else {
+                    dx.max(0.0).hypot(dy.max(0.0))
+                };
+                best = best.min(d);
+            }
+        }
+        best
+    }
+
+    /// The world position of the nearest object labelled `label`, to
+    /// judge arrival.
+    pub fn nearest_object(&self, label: &str) -> Option<Point3<f64>> {
+        self.room
+            .objects
+            .iter()
+            .filter(|o| o.label.eq_ignore_ascii_case(label))
+            .map(|o| {
+                Point3::new(
+                    (o.min_m[0] + o.max_m[0]) / 2.0,
+                    (o.min_m[1] + o.max_m[1]) / 2.0,
+                    (o.min_m[2] + o.max_m[2]) / 2.0,
+                )
+            })
+            .min_by(|a, b| {
+                let da = (a.x - self.truth.x_m).hypot(a.y - self.truth.y_m);
+                let db = (b.x - self.truth.x_m).hypot(b.y - self.truth.y_m);
+                da.total_cmp(&db)
+            })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn world() -> SimWorld {
+        SimWorld::living_room(DiffDriveParams::paper_chair())
+    }
+
+    #[test]
+    fn the_start_is_free_and_a_wall_is_where_the_laser_says() {
+        let w = world();
+        assert!(w.clearance() > 0.3, "{}", w.clearance());
+        // a laser at the base, looking along the chair's heading
+        let scan = w.laser_scan(&Isometry3::identity(), 0);
+        let ahead = scan.ranges_m
+            [(SensorParams::URG_04LX.afrt - SensorParams::URG_04LX.amin) as usize]
+            .expect("a return ahead");
+        let truth = ray_cast(
+            [w.truth.x_m, w.truth.y_m],
+            w.truth.theta_rad,
+            &segments_at(&w.room, 0.0),
+        )
+        .expect("hit");
+        assert!((ahead as f64 - truth).abs() < 0.002, "{ahead} vs {truth}");
+    }
+
+    #[test]
+    fn driving_forward_moves_the_chair_and_the_wheels_agree() {
+        let mut w = world();
+        let mapping = JoystickMapping {
+            forward_full_mps: 1.0,
+            reverse_full_mps: 0.5,
+            turn_full_radps: 1.5,
+            deadband: 3,
+        };
+        let mut odo = crate::estimation::odometry::Odometry::new(w.drive);
+        odo.update(&w.wheel_ticks());
+        for _ in 0..200 {
+            w.step(0.01, Some((0, 30)), &mapping);
+            odo.update(&w.wheel_ticks());
+        }
+        let moved = (w.truth.x_m - w.start.x_m).hypot(w.truth.y_m - w.start.y_m);
+        assert!((moved - 0.555).abs() < 0.03, "{moved}");
+        let p = odo.pose();
+        assert!((p.x_m - moved).abs() < 0.01 && p.y_m.abs() < 0.01, "{p:?}");
+        // motors stopped: the chair comes to rest
+        for _ in 0..200 {
+            w.step(0.01, None, &mapping);
+        }
+        assert!(w.v_mps.abs() < 1e-3);
+    }
+}
