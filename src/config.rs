@@ -386,6 +386,16 @@ impl Settings {
         let g = &self.goal;
         finite_range("goal.standoff_m", g.standoff_m, 0.2, 3.0)?;
         finite_range("goal.clearance_m", g.clearance_m, 0.1, 1.5)?;
+        if g.standoff_m <= self.safety.stop_distance_m {
+            return Err(ConfigError::Range {
+                key: "goal.standoff_m".into(),
+                value: g.standoff_m.to_string(),
+                reason: format!(
+                    "must exceed safety.stop_distance_m ({}): the stop corridor would halt the chair before it arrives",
+                    self.safety.stop_distance_m
+                ),
+            });
+        }
         finite_range("goal.unseen_after_s", g.unseen_after_s, 0.1, 10.0)?;
         finite_range("goal.hold_s", g.hold_s, 0.0, 120.0)?;
         finite_range("goal.reached_within_m", g.reached_within_m, 0.02, 1.0)?;
@@ -488,6 +498,7 @@ impl Settings {
         let g = &self.goal;
         crate::estimation::goal::GoalSettings {
             standoff_m: g.standoff_m,
+            front_offset_m: self.safety.front_offset_m,
             clearance_m: g.clearance_m,
             unseen_after: std::time::Duration::from_secs_f64(g.unseen_after_s),
             hold_for: std::time::Duration::from_secs_f64(g.hold_s),

@@ -7,6 +7,7 @@
 pub mod actuation;
 pub mod config;
 pub mod crc;
+pub mod daemon;
 pub mod estimation;
 pub mod eval;
 pub mod navigation;

@@ -209,6 +209,26 @@ enum Command {
     /// Technician checks of the chair's devices: decoded readings as JSON lines.
     #[command(subcommand)]
     Check(CheckCommand),
+    /// The daemon: sensors → detection → goal → planner → supervisor →
+    /// motors. Words on stdin (or --prompt): an object to go to, `stop`,
+    /// `quit`. Without the chair's devices it runs the simulator.
+    Run {
+        /// Run the simulator (the living room) even if devices are present.
+        #[arg(long)]
+        sim: bool,
+        /// A word to go to at start (repeatable: said in order).
+        #[arg(long)]
+        prompt: Vec<String>,
+        /// Exit when the goal is reached or lost (prints the report).
+        #[arg(long)]
+        exit_on_arrival: bool,
+        /// Stop after this long, e.g. 90s.
+        #[arg(long, value_parser = parse_duration)]
+        max_duration: Option<std::time::Duration>,
+        /// Do not read words from stdin.
+        #[arg(long)]
+        no_stdin: bool,
+    },
     /// Detect prompted objects in one RGB(-D) image: 2D boxes, and 3D objects with depth.
     Detect {
         /// Colour image (PNG or JPEG).
@@ -515,6 +535,62 @@ fn check_encoders(port: &str, count: u64) -> Result<(), Failure> {
     Ok(())
 }
 
+fn run_daemon(
+    config: Option<&std::path::Path>,
+    sim: bool,
+    opts: opennav::daemon::RunOptions,
+) -> Result<(), Failure> {
+    let settings = Settings::load(config).map_err(bad_input)?;
+    if !sim {
+        let devices = [
+            settings.lasers.left.port.clone(),
+            settings.lasers.right.port.clone(),
+            settings.encoders.port.clone(),
+            format!("/sys/class/net/{}", settings.actuation.rnet.iface),
+        ];
+        let present: Vec<&String> = devices
+            .iter()
+            .filter(|d| std::path::Path::new(d.as_str()).exists())
+            .collect();
+        if !present.is_empty() {
+            return Err(failed(anyhow::anyhow!(
+                "devices present ({}) but this build's daemon drives the simulator only; \
+                 the hardware wiring is not built yet (run with --sim, or use `opennav check …` on the devices)",
+                present.iter().map(|s| s.as_str()).collect::<Vec<_>>().join(", ")
+            )));
+        }
+        eprintln!(
+            "opennav: no chair devices found ({}): running the simulator",
+            devices.join(", ")
+        );
+    }
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .map_err(failed)?;
+    let report = rt.block_on(async move {
+        let cancel = tokio_util::sync::CancellationToken::new();
+        let c = cancel.clone();
+        let mut term = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate())
+            .map_err(failed)?;
+        tokio::spawn(async move {
+            tokio::select! {
+                _ = term.recv() => {}
+                _ = tokio::signal::ctrl_c() => {}
+            }
+            tracing::warn!("signal: stopping the chair and shutting down");
+            c.cancel();
+        });
+        opennav::daemon::run_sim(&settings, opts, cancel)
+            .await
+            .map_err(failed)
+    })?;
+    println!("{}", serde_json::to_string(&report).map_err(failed)?);
+    // the process exits even while the stdin reader waits for a line
+    std::process::exit(0);
+}
+
 /// "X,Y" joystick values, each −100..100.
 fn parse_joystick(s: &str) -> Result<(i8, i8), Failure> {
     let bad = || {
@@ -676,6 +752,22 @@ fn run(cli: Cli) -> Result<(), Failure> {
                 },
             )
         }
+        Command::Run {
+            sim,
+            prompt,
+            exit_on_arrival,
+            max_duration,
+            no_stdin,
+        } => run_daemon(
+            cli.config.as_deref(),
+            sim,
+            opennav::daemon::RunOptions {
+                prompts: prompt,
+                stdin_prompts: !no_stdin,
+                exit_on_arrival,
+                max_duration,
+            },
+        ),
         Command::Check(CheckCommand::Hokuyo { port, count }) => check_hokuyo(&port, count),
         Command::Check(CheckCommand::Rnet {
             iface,

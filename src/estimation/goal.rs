@@ -13,11 +13,16 @@ use crate::types::Stamp;
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GoalSettings {
-    /// Distance from the object's box to the approach pose, m (0.6).
+    /// Gap between the chair's front edge and the object's box at the
+    /// approach pose, m (0.6).
     pub standoff_m: f64,
+    /// From base_link to the chair's front edge, m (safety.front_offset_m).
+    pub front_offset_m: f64,
     /// The approach pose keeps this far from every obstacle point, m.
     pub clearance_m: f64,
-    /// The goal's track unseen for longer than this: not in view.
+    /// The goal's track unseen for longer than this (or dropped by the
+    /// tracker, which drops tracks missed where they should be visible):
+    /// out of view.
     pub unseen_after: Duration,
     /// Held this long out of view, then dropped.
     pub hold_for: Duration,
@@ -29,8 +34,9 @@ impl Default for GoalSettings {
     fn default() -> Self {
         GoalSettings {
             standoff_m: 0.6,
+            front_offset_m: 0.55,
             clearance_m: 0.35,
-            unseen_after: Duration::from_secs(1),
+            unseen_after: Duration::from_secs(3),
             hold_for: Duration::from_secs(5),
             reached_within_m: 0.1,
         }
@@ -114,13 +120,21 @@ impl GoalEvent {
 pub struct GoalKeeper {
     pub settings: GoalSettings,
     state: GoalState,
+    /// Where the goal's object was last seen (odom), to pick up its track
+    /// again when the tracker re-identifies it.
+    last_center: Option<[f64; 3]>,
 }
+
+/// A track of the same word this close to where the goal was last seen is
+/// the goal (the tracker split or renumbered it), m.
+const REACQUIRE_M: f64 = 0.6;
 
 impl GoalKeeper {
     pub fn new(settings: GoalSettings) -> GoalKeeper {
         GoalKeeper {
             settings,
             state: GoalState::None,
+            last_center: None,
         }
     }
 
@@ -147,23 +161,41 @@ impl GoalKeeper {
         }
     }
 
-    /// One update at `now` with the tracks, the chair's pose (odom) and
-    /// the obstacle points (odom).
+    /// One update at `now` with the tracks, the chair's pose (odom), the
+    /// obstacle points (odom) and whether a point (odom) is in the
+    /// camera's view now: a goal outside the view (too close for the
+    /// camera, behind the chair while it turns) is not "lost" for being
+    /// unseen; the tracker drops tracks missed where they should be seen.
     pub fn update(
         &mut self,
         now: Stamp,
         tracker: &Tracker,
         chair: Pose2,
         obstacles_odom: &[[f64; 2]],
+        visible: &dyn Fn(&[f64; 3]) -> bool,
     ) -> Option<GoalEvent> {
         let s = self.settings;
         let from = [chair.x_m, chair.y_m];
-        let in_view = |id: u64| {
-            tracker
-                .tracks()
+        let last_center = self.last_center;
+        let in_view = |id: u64, label: &str| {
+            let tracks = tracker.tracks();
+            tracks
                 .iter()
                 .find(|t| t.id == id)
-                .filter(|t| t.last_seen.age_at(now) <= s.unseen_after)
+                .or_else(|| {
+                    let c = last_center?;
+                    tracks
+                        .iter()
+                        .filter(|t| t.confirmed && t.label.eq_ignore_ascii_case(label))
+                        .map(|t| {
+                            let d = (t.center_m[0] - c[0]).hypot(t.center_m[1] - c[1]);
+                            (d, t)
+                        })
+                        .filter(|(d, _)| *d <= REACQUIRE_M)
+                        .min_by(|a, b| a.0.total_cmp(&b.0))
+                        .map(|(_, t)| t)
+                })
+                .filter(|t| t.last_seen.age_at(now) <= s.unseen_after || !visible(&t.center_m))
         };
         match self.state.clone() {
             GoalState::None | GoalState::Reached { .. } => None,
@@ -173,7 +205,14 @@ impl GoalKeeper {
                     return None;
                 }
                 let id = t.id;
-                match approach_pose(t, from, s.standoff_m, obstacles_odom, s.clearance_m) {
+                self.last_center = Some(t.center_m);
+                match approach_pose(
+                    t,
+                    from,
+                    s.standoff_m + s.front_offset_m,
+                    obstacles_odom,
+                    s.clearance_m,
+                ) {
                     Some(approach) => {
                         self.state = GoalState::Tracking {
                             label: label.clone(),
@@ -189,11 +228,19 @@ impl GoalKeeper {
                 label,
                 track,
                 approach,
-            } => match in_view(track) {
+            } => match in_view(track, &label) {
                 Some(t) => {
+                    let track = t.id;
+                    self.last_center = Some(t.center_m);
                     // re-planned as the track updates
-                    let a = approach_pose(t, from, s.standoff_m, obstacles_odom, s.clearance_m)
-                        .unwrap_or(approach);
+                    let a = approach_pose(
+                        t,
+                        from,
+                        s.standoff_m + s.front_offset_m,
+                        obstacles_odom,
+                        s.clearance_m,
+                    )
+                    .unwrap_or(approach);
                     if (a.x_m - chair.x_m).hypot(a.y_m - chair.y_m) <= s.reached_within_m {
                         self.state = GoalState::Reached {
                             label: label.clone(),
@@ -222,10 +269,16 @@ impl GoalKeeper {
                 track,
                 since,
             } => {
-                if let Some(t) = in_view(track) {
-                    if let Some(approach) =
-                        approach_pose(t, from, s.standoff_m, obstacles_odom, s.clearance_m)
-                    {
+                if let Some(t) = in_view(track, &label) {
+                    let track = t.id;
+                    self.last_center = Some(t.center_m);
+                    if let Some(approach) = approach_pose(
+                        t,
+                        from,
+                        s.standoff_m + s.front_offset_m,
+                        obstacles_odom,
+                        s.clearance_m,
+                    ) {
                         self.state = GoalState::Tracking {
                             label: label.clone(),
                             track,
@@ -271,40 +324,46 @@ mod tests {
     #[test]
     fn acquire_hold_back_in_view_then_lost_after_the_hold_time() {
         let mut tracker = Tracker::new(TrackerParams::default());
-        let mut g = GoalKeeper::new(GoalSettings::default());
+        let mut g = GoalKeeper::new(GoalSettings {
+            unseen_after: Duration::from_secs(1),
+            ..GoalSettings::default()
+        });
         let chair = Pose2::default();
         g.set_prompt(" Chair ");
         // three hits confirm the track
         let mut ev = Vec::new();
         for k in 0..3 {
             tracker.update(t(k as f64 * 0.1), &[chair_obj(3.0)], |_| true);
-            ev.extend(g.update(t(k as f64 * 0.1), &tracker, chair, &[]));
+            ev.extend(g.update(t(k as f64 * 0.1), &tracker, chair, &[], &|_| true));
         }
         assert!(matches!(&ev[..], [GoalEvent::Acquired { label, .. }] if label == "chair"));
         let a = g.approach().expect("approach");
-        // 0.6 m in front of the box edge (x 2.75), facing it
-        assert!((a.x_m - 2.15).abs() < 1e-6 && a.y_m.abs() < 1e-6, "{a:?}");
+        // base_link 0.6 + 0.55 m (front offset) before the box edge
+        // (x 2.75): the chair's front 0.6 m from it, facing it
+        assert!((a.x_m - 1.6).abs() < 1e-6 && a.y_m.abs() < 1e-6, "{a:?}");
         assert!(a.yaw_rad.abs() < 1e-9);
         // out of view: held after 1 s unseen
-        assert_eq!(g.update(t(1.1), &tracker, chair, &[]), None);
+        assert_eq!(g.update(t(1.1), &tracker, chair, &[], &|_| true), None);
         assert!(matches!(
-            g.update(t(1.3), &tracker, chair, &[]),
+            g.update(t(1.3), &tracker, chair, &[], &|_| true),
             Some(GoalEvent::OutOfView { .. })
         ));
         assert!(g.approach().is_none(), "standing still while holding");
         // seen again within the hold time
         tracker.update(t(3.0), &[chair_obj(3.0)], |_| true);
         assert!(matches!(
-            g.update(t(3.0), &tracker, chair, &[]),
+            g.update(t(3.0), &tracker, chair, &[], &|_| true),
             Some(GoalEvent::BackInView { .. })
         ));
         // gone for good: held 5 s, then lost, and the keeper says so
         assert!(matches!(
-            g.update(t(4.1), &tracker, chair, &[]),
+            g.update(t(4.1), &tracker, chair, &[], &|_| true),
             Some(GoalEvent::OutOfView { .. })
         ));
-        assert_eq!(g.update(t(9.0), &tracker, chair, &[]), None);
-        let lost = g.update(t(9.2), &tracker, chair, &[]).expect("lost");
+        assert_eq!(g.update(t(9.0), &tracker, chair, &[], &|_| true), None);
+        let lost = g
+            .update(t(9.2), &tracker, chair, &[], &|_| true)
+            .expect("lost");
         assert!(matches!(lost, GoalEvent::Lost { .. }));
         assert!(
             lost.say().contains("could not find the chair"),
@@ -315,22 +374,62 @@ mod tests {
     }
 
     #[test]
+    fn a_renumbered_track_near_the_goal_is_still_the_goal() {
+        let mut tracker = Tracker::new(TrackerParams::default());
+        let mut g = GoalKeeper::new(GoalSettings::default());
+        g.set_prompt("chair");
+        for k in 0..3 {
+            tracker.update(t(k as f64 * 0.1), &[chair_obj(3.0)], |_| true);
+            g.update(t(k as f64 * 0.1), &tracker, Pose2::default(), &[], &|_| {
+                true
+            });
+        }
+        let first = match g.state() {
+            GoalState::Tracking { track, .. } => *track,
+            s => panic!("{s:?}"),
+        };
+        // the old track is dropped (missed where visible), a new one of the
+        // same chair, 0.55 m on, is confirmed
+        let mut k = 3;
+        while tracker.tracks().iter().any(|tr| tr.id == first) {
+            tracker.update(t(k as f64 * 0.1), &[], |_| true);
+            k += 1;
+        }
+        for _ in 0..3 {
+            tracker.update(t(k as f64 * 0.1), &[chair_obj(3.55)], |_| true);
+            k += 1;
+        }
+        assert_eq!(
+            g.update(t(k as f64 * 0.1), &tracker, Pose2::default(), &[], &|_| {
+                true
+            }),
+            None
+        );
+        match g.state() {
+            GoalState::Tracking { track, .. } => assert_ne!(*track, first),
+            s => panic!("{s:?}"),
+        }
+    }
+
+    #[test]
     fn reached_when_at_the_approach_pose() {
         let mut tracker = Tracker::new(TrackerParams::default());
         let mut g = GoalKeeper::new(GoalSettings::default());
         g.set_prompt("chair");
         for k in 0..3 {
             tracker.update(t(k as f64 * 0.1), &[chair_obj(3.0)], |_| true);
-            g.update(t(k as f64 * 0.1), &tracker, Pose2::default(), &[]);
+            g.update(t(k as f64 * 0.1), &tracker, Pose2::default(), &[], &|_| {
+                true
+            });
         }
         let at = Pose2 {
-            x_m: 2.12,
+            x_m: 1.57,
             y_m: 0.02,
             theta_rad: 0.0,
         };
         tracker.update(t(0.4), &[chair_obj(3.0)], |_| true);
         assert!(matches!(
-            g.update(t(0.4), &tracker, at, &[]),
+            g.update(t(0.4), &tracker, at, &[], &|_| true),
             Some(GoalEvent::Reached { .. })
         ));
     }

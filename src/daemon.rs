@@ -1,0 +1,704 @@
+//! `opennav run`: the daemon that ties the parts into one program.
+//!
+//! Tasks and channels (ARCHITECTURE.md): sensor sources publish their
+//! latest value on `watch` channels; the estimation task fuses wheel
+//! odometry and scan matching into the pose (with a history by stamp);
+//! perception runs on its own OS thread, places each view's objects with
+//! the pose at the frame's stamp and updates the tracker; the 20 Hz control
+//! task runs the goal keeper, the planner and the safety supervisor and
+//! publishes the supervisor's output; the actuator (R-Net writer or Rebus)
+//! runs on its own thread. Prompts arrive on an `mpsc` channel (stdin
+//! lines: a word, `stop`, `quit`). One cancellation token reaches every
+//! task; shutdown stops the chair first (centred frames, then release),
+//! then the sources. The systemd watchdog is fed by the control task only
+//! while it is healthy.
+//!
+//! With `--sim` (or no hardware) the simulator stands in for the devices:
+//! the chair in the living room, its power module and JSM on an in-memory
+//! CAN bus driven by the real R-Net writer, lasers by ray casting, encoders
+//! from the true motion, camera views rendered with the simulator's
+//! detector feeding the real geometry pipeline.
+
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use nalgebra::{Isometry3, Point3, Vector3};
+use serde::Serialize;
+use tokio::sync::{mpsc, watch};
+use tokio_util::sync::CancellationToken;
+
+use crate::actuation::can::MemoryBus;
+use crate::actuation::rnet::TakeoverMode;
+use crate::actuation::writer::RnetActuator;
+use crate::actuation::{spawn_actuator_thread, ActuatorEvent, ActuatorIo, ActuatorStatus};
+use crate::config::Settings;
+use crate::estimation::ekf::{EkfNoise, PoseEkf, PoseHistory};
+use crate::estimation::goal::{GoalEvent, GoalKeeper, GoalState};
+use crate::estimation::odometry::{Odometry, Pose2};
+use crate::estimation::scan_match::KeyframeMatcher;
+use crate::estimation::tracker::{Tracker, TrackerParams};
+use crate::navigation::apf::ApfParams;
+use crate::navigation::mpc::{MpcParams, UnicycleState};
+use crate::navigation::planner::{Planner, PlannerStats};
+use crate::perception::boxes::Object3D;
+use crate::perception::pipeline::lift_detections;
+use crate::perception::segmenter::DepthBoxSegmenter;
+use crate::safety::{
+    FaultReason, SafeCmd, Supervisor, SupervisorInputs, SupervisorState, VelocityCmd,
+};
+use crate::sensors::encoders::WheelTicks;
+use crate::sensors::laser::{merge_scans, Obstacles};
+use crate::sim::rnet::{run_sim_chair, SimChair, SimChairSettings};
+use crate::sim::world::{SimReport, SimWorld};
+use crate::types::{Clock, Frame, Stamp, Stamped, TokioClock};
+
+#[derive(Debug, Clone)]
+pub struct RunOptions {
+    /// Words said at start (as if typed), in order.
+    pub prompts: Vec<String>,
+    /// Read prompts from stdin, one per line.
+    pub stdin_prompts: bool,
+    /// Stop the daemon when the goal is reached (or lost).
+    pub exit_on_arrival: bool,
+    pub max_duration: Option<Duration>,
+}
+
+/// What a user can say or press.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum UserInput {
+    /// Go to an object of this word.
+    Goto(String),
+    /// Stop now (voice "stop", a switch).
+    Stop,
+    /// Quit the daemon.
+    Quit,
+}
+
+impl UserInput {
+    /// A line of text: `stop`/`halt` (also a bare switch press, an empty
+    /// line), `quit`/`exit`, else a word to go to.
+    pub fn parse(line: &str) -> UserInput {
+        let w = line.trim().to_lowercase();
+        match w.as_str() {
+            "" | "stop" | "halt" | "switch" => UserInput::Stop,
+            "quit" | "exit" => UserInput::Quit,
+            _ => UserInput::Goto(w),
+        }
+    }
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct RunReport {
+    /// "arrived", "lost", "not found", "stopped", "quit", "signal", "timeout".
+    pub outcome: String,
+    pub duration_s: f64,
+    pub goal: GoalState,
+    pub supervisor: SupervisorState,
+    pub pose_odom: Pose2,
+    pub planner: PlannerStats,
+    pub actuator: ActuatorStatus,
+    /// What the chair said, in order.
+    pub said: Vec<String>,
+    pub sim: Option<SimSummary>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct SimSummary {
+    pub world: SimReport,
+    /// Distance from the chair to the nearest object of the goal's word, m.
+    pub distance_to_goal_object_m: Option<f64>,
+    pub scan_matches: u64,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum DaemonError {
+    #[error("{0}")]
+    Setup(String),
+}
+
+/// Shared state the tasks publish.
+struct Shared {
+    history: Mutex<PoseHistory>,
+    tracker: Mutex<Tracker>,
+    world: Option<Arc<Mutex<SimWorld>>>,
+    matches: std::sync::atomic::AtomicU64,
+}
+
+/// Whether a point (odom) is in the camera's view with the chair at
+/// `pose`: in front within 0.3–5 m, inside the horizontal (±45°) and
+/// vertical (±29°) field of view of the simulator's camera.
+fn camera_sees(pose: &Pose2, base_from_camera: &Isometry3<f64>, p: &[f64; 3]) -> bool {
+    let odom_from_base = Isometry3::new(
+        Vector3::new(pose.x_m, pose.y_m, 0.0),
+        Vector3::z() * pose.theta_rad,
+    );
+    let q = (odom_from_base * base_from_camera).inverse() * Point3::new(p[0], p[1], p[2]);
+    q.z > 0.3 && q.z < 5.0 && (q.x / q.z).abs() < 1.0 && (q.y / q.z).abs() < 0.56
+}
+
+/// sd_notify for the systemd watchdog (a no-op outside systemd).
+fn sd_notify(msg: &str) {
+    let Ok(path) = std::env::var("NOTIFY_SOCKET") else {
+        return;
+    };
+    if let Ok(sock) = std::os::unix::net::UnixDatagram::unbound() {
+        let _ = sock.send_to(msg.as_bytes(), path);
+    }
+}
+
+/// Runs the daemon on the simulator until the options or `cancel` end it.
+pub async fn run_sim(
+    settings: &Settings,
+    opts: RunOptions,
+    cancel: CancellationToken,
+) -> Result<RunReport, DaemonError> {
+    let clock: Arc<dyn Clock> = Arc::new(TokioClock::new());
+    let start = clock.now();
+    let world = Arc::new(Mutex::new(SimWorld::living_room(settings.drive_params())));
+    let shared = Arc::new(Shared {
+        history: Mutex::new(PoseHistory::new(400)),
+        tracker: Mutex::new(Tracker::new(TrackerParams::default())),
+        world: Some(world.clone()),
+        matches: std::sync::atomic::AtomicU64::new(0),
+    });
+    let sources = CancellationToken::new();
+
+    // the chair's R-Net bus: JSM + power module, and the real writer
+    let bus = MemoryBus::new();
+    let chair = Arc::new(Mutex::new(SimChair::new(
+        SimChairSettings::default(),
+        clock.now(),
+    )));
+    tokio::spawn(run_sim_chair(
+        bus.endpoint(),
+        chair.clone(),
+        clock.clone(),
+        sources.clone(),
+    ));
+    let (cmd_tx, cmd_rx) = watch::channel::<Option<SafeCmd>>(None);
+    let (act_ev_tx, act_ev_rx) = mpsc::channel(64);
+    let (status_tx, status_rx) = watch::channel(ActuatorStatus::default());
+    let writer_cancel = CancellationToken::new();
+    let mut rnet = settings.rnet_settings();
+    rnet.mode = TakeoverMode::JsmError;
+    let endpoint = bus.endpoint();
+    let writer = spawn_actuator_thread(
+        "rnet-writer",
+        50,
+        move || {
+            Ok(RnetActuator {
+                bus: endpoint,
+                settings: rnet,
+            })
+        },
+        ActuatorIo {
+            commands: cmd_rx,
+            events: act_ev_tx,
+            status: status_tx,
+            cancel: writer_cancel.clone(),
+            clock: clock.clone(),
+        },
+    )
+    .map_err(|e| DaemonError::Setup(format!("actuator thread: {e}")))?;
+
+    // the world: 100 Hz, driven by what the power module does
+    let (ticks_tx, ticks_rx) = watch::channel::<Option<Stamped<WheelTicks>>>(None);
+    let (obst_tx, obst_rx) = watch::channel::<Option<Stamped<Obstacles>>>(None);
+    let mapping = settings.joystick_mapping();
+    let lasers = [
+        settings.lasers.left.base_from_laser(),
+        settings.lasers.right.base_from_laser(),
+    ];
+    {
+        let (world, chair, clock, cancel) =
+            (world.clone(), chair.clone(), clock.clone(), sources.clone());
+        tokio::spawn(async move {
+            let mut tick = tokio::time::interval(Duration::from_millis(10));
+            let mut k: u64 = 0;
+            loop {
+                tokio::select! {
+                    _ = cancel.cancelled() => return,
+                    _ = tick.tick() => {}
+                }
+                let now = clock.now();
+                let motor = chair.lock().ok().and_then(|c| c.motor_output(now));
+                let Ok(mut w) = world.lock() else { return };
+                w.step(0.01, motor, &mapping);
+                ticks_tx.send_replace(Some(Stamped::new(now, w.wheel_ticks())));
+                if k.is_multiple_of(10) {
+                    let ms = (now.0.as_millis() & 0xFF_FFFF) as u32;
+                    let l = Stamped::new(now, w.laser_scan(&lasers[0], ms));
+                    let r = Stamped::new(now, w.laser_scan(&lasers[1], ms));
+                    obst_tx.send_replace(merge_scans(&[(&l, &lasers[0]), (&r, &lasers[1])]));
+                }
+                k += 1;
+            }
+        });
+    }
+
+    let (pose_tx, pose_rx) = watch::channel::<Option<Stamped<(Pose2, f64, f64)>>>(None);
+    spawn_estimation(
+        settings,
+        ticks_rx,
+        obst_rx.clone(),
+        pose_tx,
+        shared.clone(),
+        sources.clone(),
+    );
+    let perception =
+        spawn_sim_perception(settings, shared.clone(), clock.clone(), sources.clone())?;
+
+    let report = control_loop(
+        settings,
+        &opts,
+        ControlIo {
+            obstacles: obst_rx,
+            pose: pose_rx,
+            commands: cmd_tx,
+            actuator_events: act_ev_rx,
+            actuator_status: status_rx.clone(),
+            shared: shared.clone(),
+            clock: clock.clone(),
+            cancel: cancel.clone(),
+            start,
+        },
+    )
+    .await;
+
+    // shutdown: the chair first, then the sources
+    writer_cancel.cancel();
+    let actuator = tokio::task::spawn_blocking(move || writer.join())
+        .await
+        .ok()
+        .and_then(|r| r.ok())
+        .and_then(|r| r.ok())
+        .unwrap_or_else(|| status_rx.borrow().clone());
+    sources.cancel();
+    let _ = tokio::task::spawn_blocking(move || perception.join()).await;
+    let mut report = report;
+    report.actuator = actuator;
+    if let Ok(w) = world.lock() {
+        let label = match &report.goal {
+            GoalState::Tracking { label, .. }
+            | GoalState::Holding { label, .. }
+            | GoalState::Reached { label, .. }
+            | GoalState::Searching { label } => Some(label.clone()),
+            GoalState::None => opts.prompts.last().map(|p| p.to_lowercase()),
+        };
+        let dist = label.and_then(|l| w.nearest_object(&l)).and_then(|c| {
+            w.room
+                .objects
+                .iter()
+                .find(|o| {
+                    (o.min_m[0] + o.max_m[0]) / 2.0 == c.x && (o.min_m[1] + o.max_m[1]) / 2.0 == c.y
+                })
+                .map(|o| {
+                    let dx = (o.min_m[0] - w.truth.x_m)
+                        .max(w.truth.x_m - o.max_m[0])
+                        .max(0.0);
+                    let dy = (o.min_m[1] - w.truth.y_m)
+                        .max(w.truth.y_m - o.max_m[1])
+                        .max(0.0);
+                    dx.hypot(dy)
+                })
+        });
+        report.sim = Some(SimSummary {
+            world: w.report,
+            distance_to_goal_object_m: dist,
+            scan_matches: shared.matches.load(std::sync::atomic::Ordering::SeqCst),
+        });
+    }
+    Ok(report)
+}
+
+/// Wheel odometry → EKF predict; merged scans → scan matching → EKF
+/// correct. Publishes (pose, v, ω) and keeps the pose history.
+fn spawn_estimation(
+    settings: &Settings,
+    mut ticks: watch::Receiver<Option<Stamped<WheelTicks>>>,
+    mut obstacles: watch::Receiver<Option<Stamped<Obstacles>>>,
+    pose_tx: watch::Sender<Option<Stamped<(Pose2, f64, f64)>>>,
+    shared: Arc<Shared>,
+    cancel: CancellationToken,
+) {
+    let mut odo = Odometry::new(settings.drive_params());
+    let mut ekf = PoseEkf::new(Pose2::default(), EkfNoise::default());
+    let mut matcher = KeyframeMatcher::default();
+    tokio::spawn(async move {
+        let mut last_odo: Option<Pose2> = None;
+        let mut last_t: Option<u64> = None;
+        loop {
+            tokio::select! {
+                _ = cancel.cancelled() => return,
+                r = ticks.changed() => {
+                    if r.is_err() { return; }
+                    let Some(t) = ticks.borrow_and_update().clone() else { continue };
+                    let u = odo.update(&t.value);
+                    if let (Some(p0), Some(t0)) = (last_odo, last_t) {
+                        let dt = t.value.mcu_time_us.saturating_sub(t0) as f64 * 1e-6;
+                        let ds = (u.pose.x_m - p0.x_m).hypot(u.pose.y_m - p0.y_m)
+                            * if u.v_mps < 0.0 { -1.0 } else { 1.0 };
+                        let dth = crate::estimation::odometry::wrap_angle(u.pose.theta_rad - p0.theta_rad);
+                        ekf.predict(ds, dth, None, dt);
+                    }
+                    last_odo = Some(u.pose);
+                    last_t = Some(t.value.mcu_time_us);
+                    if let Ok(mut h) = shared.history.lock() {
+                        h.push(t.stamp, ekf.pose);
+                    }
+                    pose_tx.send_replace(Some(Stamped::new(t.stamp, (ekf.pose, u.v_mps, u.omega_radps))));
+                }
+                r = obstacles.changed() => {
+                    if r.is_err() { return; }
+                    let Some(o) = obstacles.borrow_and_update().clone() else { continue };
+                    let pts: Vec<[f64; 2]> = o.value.points_base.iter().map(|p| [p[0] as f64, p[1] as f64]).collect();
+                    match matcher.update(&mut ekf, &pts) {
+                        Some(Ok(_)) => {
+                            shared.matches.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+                        }
+                        Some(Err(e)) => tracing::debug!(error = %e, "scan matching"),
+                        None => {}
+                    }
+                }
+            }
+        }
+    });
+}
+
+/// Perception on its own thread (2 Hz): the simulator's camera view, its
+/// ground-truth boxes through the real geometry (depth segmentation,
+/// erosion, z-score, back-projection), objects placed in odom with the
+/// pose at the frame's stamp, into the tracker.
+fn spawn_sim_perception(
+    settings: &Settings,
+    shared: Arc<Shared>,
+    clock: Arc<dyn Clock>,
+    cancel: CancellationToken,
+) -> Result<std::thread::JoinHandle<()>, DaemonError> {
+    let base_from_camera = settings
+        .camera
+        .base_from_camera
+        .to_isometry("camera.base_from_camera")
+        .map_err(|e| DaemonError::Setup(e.to_string()))?;
+    let geometry = settings.geometry_settings();
+    let mut segmenter = DepthBoxSegmenter::new(settings.depth_segmenter_settings());
+    let cam = crate::sim::replica::camera(2);
+    std::thread::Builder::new()
+        .name("perception".into())
+        .spawn(move || {
+            let Some(world) = shared.world.clone() else { return };
+            let room = match world.lock() {
+                Ok(w) => w.room.clone(),
+                Err(_) => return,
+            };
+            let mut detector = crate::sim::replica::SimGtDetector::new(room, cam);
+            let k = cam.intrinsics();
+            while !cancel.is_cancelled() {
+                let t0 = std::time::Instant::now();
+                let stamp = clock.now();
+                let (view, w_from_c) = {
+                    let Ok(w) = world.lock() else { return };
+                    let wfc = w.world_from_camera(&base_from_camera);
+                    (w.render(&k, &base_from_camera), wfc)
+                };
+                let Ok(view) = view else { return };
+                let rv = crate::eval::replica::ReplicaView {
+                    index: 0,
+                    color: view.color.clone(),
+                    depth: view.depth.clone(),
+                    world_from_camera: w_from_c,
+                };
+                use crate::eval::replica::ViewDetector;
+                let dets = detector.detect_view(&rv).unwrap_or_default();
+                let lifted = lift_detections(
+                    &mut segmenter,
+                    &view.color,
+                    &view.depth,
+                    dets,
+                    &k,
+                    &base_from_camera,
+                    Frame::BaseLink,
+                    &geometry,
+                );
+                // the pose at the frame's stamp: odometry a few ms newer
+                // than the frame is needed to interpolate (never guessed)
+                let mut pose = None;
+                for _ in 0..20 {
+                    pose = shared.history.lock().ok().and_then(|h| h.pose_at(stamp));
+                    if pose.is_some() || cancel.is_cancelled() {
+                        break;
+                    }
+                    std::thread::sleep(Duration::from_millis(5));
+                }
+                if pose.is_none() {
+                    tracing::warn!("perception: no pose at the frame's stamp; view skipped");
+                }
+                if let (Ok(v), Some(pose)) = (lifted, pose) {
+                    let odom_from_base = Isometry3::new(
+                        Vector3::new(pose.x_m, pose.y_m, 0.0),
+                        Vector3::z() * pose.theta_rad,
+                    );
+                    let objects: Vec<Object3D> = v
+                        .objects
+                        .into_iter()
+                        .filter_map(|o| {
+                            let pts: Vec<Point3<f32>> = o
+                                .points
+                                .iter()
+                                .map(|p| (odom_from_base * p.cast::<f64>()).cast::<f32>())
+                                .collect();
+                            Object3D::from_points(o.label, o.score, Frame::Odom, pts, o.box_xyxy)
+                        })
+                        .collect();
+                    let visible = |p: &[f64; 3]| camera_sees(&pose, &base_from_camera, p);
+                    if let Ok(mut t) = shared.tracker.lock() {
+                        t.update(stamp, &objects, visible);
+                        tracing::debug!(
+                            objects = ?objects.iter().map(|o| (o.label.as_str(), o.aabb.center_m())).collect::<Vec<_>>(),
+                            tracks = ?t.tracks().iter().map(|k| (k.id, k.label.as_str(), k.center_m, k.confirmed, k.confidence)).collect::<Vec<_>>(),
+                            "perception"
+                        );
+                    }
+                }
+                let spent = t0.elapsed();
+                if spent < Duration::from_millis(500) {
+                    std::thread::sleep(Duration::from_millis(500) - spent);
+                }
+            }
+        })
+        .map_err(|e| DaemonError::Setup(format!("perception thread: {e}")))
+}
+
+/// Turn rate while searching for the prompted object, rad/s.
+const SEARCH_TURN_RADPS: f64 = 0.3;
+
+#[derive(Debug, Default)]
+struct SearchTurn {
+    last_theta: Option<f64>,
+    turned_rad: f64,
+}
+
+struct ControlIo {
+    obstacles: watch::Receiver<Option<Stamped<Obstacles>>>,
+    pose: watch::Receiver<Option<Stamped<(Pose2, f64, f64)>>>,
+    commands: watch::Sender<Option<SafeCmd>>,
+    actuator_events: mpsc::Receiver<ActuatorEvent>,
+    actuator_status: watch::Receiver<ActuatorStatus>,
+    shared: Arc<Shared>,
+    clock: Arc<dyn Clock>,
+    cancel: CancellationToken,
+    start: Stamp,
+}
+
+/// The 20 Hz control task: user input, goal, planner, supervisor.
+async fn control_loop(settings: &Settings, opts: &RunOptions, mut io: ControlIo) -> RunReport {
+    let base_from_camera = settings
+        .camera
+        .base_from_camera
+        .to_isometry("camera.base_from_camera")
+        .unwrap_or_else(|_| Isometry3::identity());
+    let mut supervisor = Supervisor::new(settings.safety_limits());
+    let mut goal = GoalKeeper::new(settings.goal_settings());
+    let mut planner = Planner::new(MpcParams::default(), ApfParams::default());
+    let (input_tx, mut input_rx) = mpsc::channel::<UserInput>(16);
+    for p in &opts.prompts {
+        let _ = input_tx.try_send(UserInput::parse(p));
+    }
+    if opts.stdin_prompts {
+        let tx = input_tx.clone();
+        std::thread::spawn(move || {
+            let stdin = std::io::stdin();
+            let mut line = String::new();
+            while stdin.read_line(&mut line).is_ok_and(|n| n > 0) {
+                if tx.blocking_send(UserInput::parse(&line)).is_err() {
+                    return;
+                }
+                line.clear();
+            }
+        });
+    }
+    let mut said: Vec<String> = Vec::new();
+    let say = |said: &mut Vec<String>, s: String| {
+        tracing::info!(say = %s, "opennav");
+        eprintln!("opennav says: {s}");
+        said.push(s);
+    };
+    let mut tick = tokio::time::interval(Duration::from_millis(50));
+    let mut planner_cmd: Option<Stamped<VelocityCmd>> = None;
+    let mut search = SearchTurn::default();
+    let mut outcome = String::from("signal");
+    sd_notify("READY=1");
+    loop {
+        tokio::select! {
+            biased;
+            _ = io.cancel.cancelled() => break,
+            Some(input) = input_rx.recv() => match input {
+                UserInput::Goto(word) => {
+                    supervisor.resume();
+                    goal.set_prompt(&word);
+                    say(&mut said, format!("Looking for a {word}."));
+                }
+                UserInput::Stop => {
+                    supervisor.user_stop();
+                    goal.clear();
+                    say(&mut said, "Stopped.".into());
+                    if opts.exit_on_arrival {
+                        outcome = "stopped".into();
+                        break;
+                    }
+                }
+                UserInput::Quit => {
+                    outcome = "quit".into();
+                    break;
+                }
+            },
+            Some(ev) = io.actuator_events.recv() => match ev {
+                ActuatorEvent::Fault { reason } => {
+                    supervisor.can_fault(FaultReason::CanBus);
+                    say(&mut said, format!("Motor interface fault: {reason}. Stopped."));
+                }
+                ActuatorEvent::UserDeflection { .. } => {
+                    supervisor.user_takeover();
+                    goal.clear();
+                    say(&mut said, "You have the joystick.".into());
+                }
+                other => tracing::info!(event = ?other, "actuator"),
+            },
+            _ = tick.tick() => {
+                let now = io.clock.now();
+                if opts.max_duration.is_some_and(|m| now.0.saturating_sub(io.start.0) > m) {
+                    outcome = "timeout".into();
+                    break;
+                }
+                let obstacles = io.obstacles.borrow().clone();
+                let pose = io.pose.borrow().clone();
+                if let (Some(o), Some(p)) = (&obstacles, &pose) {
+                    let (pose, v, w) = p.value;
+                    let (c, s) = (pose.theta_rad.cos(), pose.theta_rad.sin());
+                    let obstacles_odom: Vec<[f64; 2]> = o.value.points_base.iter()
+                        .map(|q| {
+                            let (x, y) = (q[0] as f64, q[1] as f64);
+                            [pose.x_m + c * x - s * y, pose.y_m + s * x + c * y]
+                        })
+                        .collect();
+                    let event = match io.shared.tracker.lock() {
+                        Ok(t) => goal.update(now, &t, pose, &obstacles_odom, &|p| {
+                            camera_sees(&pose, &base_from_camera, p)
+                        }),
+                        Err(_) => None,
+                    };
+                    if let Some(e) = &event {
+                        if let Ok(t) = io.shared.tracker.lock() {
+                            tracing::debug!(
+                                goal = ?goal.state(),
+                                tracks = ?t.tracks().iter().map(|k| (k.id, k.last_seen.age_at(now), camera_sees(&pose, &base_from_camera, &k.center_m))).collect::<Vec<_>>(),
+                                "goal event"
+                            );
+                        }
+                        say(&mut said, e.say());
+                    }
+                    // searching: turn slowly on the spot (one full turn at
+                    // most) so the camera sweeps the room
+                    let searching = matches!(goal.state(), GoalState::Searching { .. });
+                    if searching {
+                        if let Some(prev) = search.last_theta {
+                            search.turned_rad += crate::estimation::odometry::wrap_angle(pose.theta_rad - prev).abs();
+                        }
+                        search.last_theta = Some(pose.theta_rad);
+                    } else {
+                        search = SearchTurn::default();
+                    }
+                    if searching && search.turned_rad >= std::f64::consts::TAU {
+                        if let GoalState::Searching { label } = goal.state() {
+                            let label = label.clone();
+                            say(&mut said, format!("I cannot find a {label} here. Stopped."));
+                        }
+                        goal.clear();
+                        search = SearchTurn::default();
+                        if opts.exit_on_arrival {
+                            outcome = "not found".into();
+                        }
+                    }
+                    match goal.state() {
+                        GoalState::Tracking { .. } | GoalState::Searching { .. } => supervisor.goal_active(),
+                        GoalState::Holding { .. } => supervisor.goal_holding(),
+                        GoalState::None | GoalState::Reached { .. } => supervisor.goal_cleared(),
+                    }
+                    if let Some(a) = goal.approach() {
+                        let out = planner.step(
+                            UnicycleState { x_m: pose.x_m, y_m: pose.y_m, theta_rad: pose.theta_rad, v_mps: v, omega_radps: w },
+                            [a.x_m, a.y_m],
+                            &o.value,
+                        );
+                        planner_cmd = Some(Stamped::new(now, out.cmd));
+                    } else if matches!(goal.state(), GoalState::Searching { .. }) {
+                        planner_cmd = Some(Stamped::new(now, VelocityCmd { v_mps: 0.0, omega_radps: SEARCH_TURN_RADPS }));
+                    } else {
+                        planner_cmd = None;
+                    }
+                    if opts.exit_on_arrival {
+                        match event {
+                            Some(GoalEvent::Reached { .. }) => { outcome = "arrived".into(); }
+                            Some(GoalEvent::Lost { .. }) => { outcome = "lost".into(); }
+                            _ => {}
+                        }
+                    }
+                }
+                let out = supervisor.step(now, &SupervisorInputs {
+                    obstacles: obstacles.as_ref(),
+                    odometry_stamp: pose.as_ref().map(|p| p.stamp),
+                    command: planner_cmd.as_ref(),
+                });
+                io.commands.send_replace(Some(out));
+                // fed only while the loop runs and nothing is faulted
+                if !matches!(out.state, SupervisorState::Fault(_)) {
+                    sd_notify("WATCHDOG=1");
+                }
+                if outcome == "arrived" || outcome == "lost" || outcome == "not found" {
+                    // let the centred command reach the chair before leaving
+                    io.commands.send_replace(Some(SafeCmd { cmd: VelocityCmd::default(), state: out.state, stamp: now }));
+                    break;
+                }
+            }
+        }
+    }
+    sd_notify("STOPPING=1");
+    let now = io.clock.now();
+    let pose = io
+        .pose
+        .borrow()
+        .as_ref()
+        .map(|p| p.value.0)
+        .unwrap_or_default();
+    RunReport {
+        outcome,
+        duration_s: now.0.saturating_sub(io.start.0).as_secs_f64(),
+        goal: goal.state().clone(),
+        supervisor: supervisor.state(),
+        pose_odom: pose,
+        planner: planner.stats.clone(),
+        actuator: io.actuator_status.borrow().clone(),
+        said,
+        sim: None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn user_input_words() {
+        assert_eq!(
+            UserInput::parse(" Chair\n"),
+            UserInput::Goto("chair".into())
+        );
+        assert_eq!(UserInput::parse("STOP"), UserInput::Stop);
+        assert_eq!(
+            UserInput::parse("\n"),
+            UserInput::Stop,
+            "a bare switch press stops"
+        );
+        assert_eq!(UserInput::parse("quit"), UserInput::Quit);
+    }
+}
