@@ -1,7 +1,12 @@
 #!/usr/bin/env bash
-# The main job on the bundled default: opennav detect on the bundled RGB-D
-# frame (MRPT bookshelf), prompt "book", 3D objects in the base frame, an
-# overlay PNG and one PLY per object in out/demo/.
+# The main job on the bundled defaults, no hardware needed:
+# 1. opennav detect on the bundled RGB-D frame (MRPT bookshelf), prompt
+#    "book": 3D objects in the base frame, an overlay PNG and one PLY per
+#    object in out/demo/;
+# 2. opennav run — the daemon — with no chair attached, so on the
+#    simulator: the word "chair", the chair finds one in the living room and
+#    drives there through the real R-Net writer; its report goes to
+#    out/demo/run.json.
 #   scripts/demo.sh [extra opennav detect arguments]
 # Models: OPENNAV_MODELS, else ../shared/models beside the checkout, else models/.
 set -euo pipefail
@@ -14,6 +19,19 @@ if [ -z "$models" ]; then
 fi
 fx=tests/fixtures/mrpt_openni2
 cargo build --release --quiet
-exec target/release/opennav detect \
+target/release/opennav detect \
   --rgb $fx/rgb.png --depth $fx/depth_mm.png --calibration $fx/calibration.json \
   --prompt "book" --score-threshold 0.15 --models "$models" --out out/demo --format text "$@"
+echo
+echo "== opennav run: the simulator (no chair attached), word \"chair\" =="
+target/release/opennav run --prompt chair --exit-on-arrival --max-duration 120s --no-stdin > out/demo/run.json
+python3 - out/demo/run.json <<'PY'
+import json, sys
+r = json.load(open(sys.argv[1]))
+w = r["sim"]["world"]
+print(f"outcome: {r['outcome']} after {r['duration_s']:.1f} s; said: {' / '.join(r['said'])}")
+print(f"travelled {w['distance_travelled_m']:.2f} m, collisions {w['collision_steps']}, "
+      f"closest approach to anything {w['min_clearance_m']:.2f} m, "
+      f"{r['sim']['distance_to_goal_object_m']:.2f} m from the chair at the end")
+print(f"R-Net frames sent {r['actuator']['sent']}, period p50 {r['actuator']['period']['p50_us']/1000:.2f} ms")
+PY

@@ -431,7 +431,7 @@ fn spawn_sim_perception(
                     std::thread::sleep(Duration::from_millis(5));
                 }
                 if pose.is_none() {
-                    tracing::warn!("perception: no pose at the frame's stamp; view skipped");
+                    tracing::info!("perception: no pose at the frame's stamp yet (odometry starting?); view skipped");
                 }
                 if let (Ok(v), Some(pose)) = (lifted, pose) {
                     let odom_from_base = Isometry3::new(

@@ -32,6 +32,9 @@ pub struct Footprint {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct SimReport {
     pub truth: Pose2,
+    /// The chair's actual speeds at the end, m/s and rad/s.
+    pub v_mps: f64,
+    pub omega_radps: f64,
     /// Steps in which the footprint overlapped an obstacle.
     pub collision_steps: u64,
     /// Smallest distance from the footprint to an obstacle, m.
@@ -127,6 +130,8 @@ impl SimWorld {
             seq: 0,
             report: SimReport {
                 truth: start,
+                v_mps: 0.0,
+                omega_radps: 0.0,
                 collision_steps: 0,
                 min_clearance_m: f64::INFINITY,
                 distance_travelled_m: 0.0,
@@ -156,6 +161,8 @@ impl SimWorld {
         self.counts.1 += sr / mr;
         self.mcu_us += (dt_s * 1e6) as u64;
         self.report.truth = self.truth;
+        self.report.v_mps = self.v_mps;
+        self.report.omega_radps = self.omega_radps;
         self.report.distance_travelled_m += ds.abs();
         let c = self.clearance();
         self.report.min_clearance_m = self.report.min_clearance_m.min(c);

@@ -1,0 +1,165 @@
+//! The daemon closed loop on the simulator: `opennav run` (no chair
+//! devices on this machine, so the simulated living room) finds the
+//! prompted object and drives there through the real R-Net writer without
+//! touching anything; a stop word and SIGTERM bring the chair to rest.
+
+use std::io::Write;
+use std::process::{Command, Stdio};
+use std::time::Duration;
+
+use serde_json::Value;
+
+fn opennav() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_opennav"));
+    // the simulator, whatever devices this machine has
+    c.args(["run", "--sim"]);
+    c
+}
+
+fn report(stdout: &[u8]) -> Value {
+    let text = String::from_utf8_lossy(stdout);
+    let line = text
+        .lines()
+        .rev()
+        .find(|l| l.trim_start().starts_with('{'))
+        .unwrap_or_else(|| panic!("no report in {text}"));
+    serde_json::from_str(line).expect("report JSON")
+}
+
+fn drive_to(word: &str) -> Value {
+    let out = opennav()
+        .args([
+            "--prompt",
+            word,
+            "--exit-on-arrival",
+            "--max-duration",
+            "120s",
+            "--no-stdin",
+        ])
+        .output()
+        .expect("runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    report(&out.stdout)
+}
+
+fn check_arrival(r: &Value, word: &str) {
+    assert_eq!(r["outcome"], "arrived", "{r}");
+    let said: Vec<&str> = r["said"]
+        .as_array()
+        .expect("said")
+        .iter()
+        .filter_map(|s| s.as_str())
+        .collect();
+    assert!(
+        said.contains(&format!("Arrived at the {word}.").as_str()),
+        "{said:?}"
+    );
+    let w = &r["sim"]["world"];
+    assert_eq!(w["collision_steps"], 0, "{w}");
+    assert!(w["min_clearance_m"].as_f64().unwrap_or(0.0) > 0.1, "{w}");
+    // the chair's front 0.6 m from the object (base_link 0.55 m behind
+    // the front), within the goal tolerance and the odometry's error
+    let d = r["sim"]["distance_to_goal_object_m"]
+        .as_f64()
+        .expect("distance");
+    assert!((0.95..=1.45).contains(&d), "{d} m from the {word}");
+    assert!(
+        w["v_mps"].as_f64().unwrap_or(1.0).abs() < 0.05,
+        "still moving: {w}"
+    );
+    assert!(r["sim"]["scan_matches"].as_u64().unwrap_or(0) > 10, "{r}");
+    assert_eq!(r["actuator"]["state"], "released");
+    assert_eq!(r["actuator"]["dropped"], 0);
+}
+
+#[test]
+fn finds_the_chair_and_drives_there() {
+    check_arrival(&drive_to("chair"), "chair");
+}
+
+#[test]
+fn finds_the_cabinet_after_turning_to_look_for_it() {
+    let r = drive_to("cabinet");
+    check_arrival(&r, "cabinet");
+    // it was out of view at the start: the chair turned to find it
+    assert!(
+        r["sim"]["world"]["distance_travelled_m"]
+            .as_f64()
+            .unwrap_or(0.0)
+            > 0.8,
+        "{r}"
+    );
+}
+
+#[test]
+fn a_word_nothing_answers_ends_in_not_found_after_one_turn() {
+    let out = opennav()
+        .args([
+            "--prompt",
+            "piano",
+            "--exit-on-arrival",
+            "--max-duration",
+            "120s",
+            "--no-stdin",
+        ])
+        .output()
+        .expect("runs");
+    let r = report(&out.stdout);
+    assert_eq!(r["outcome"], "not found", "{r}");
+    assert!(r["said"].to_string().contains("cannot find a piano"), "{r}");
+    assert_eq!(r["sim"]["world"]["collision_steps"], 0);
+}
+
+#[test]
+fn the_stop_word_brings_the_chair_to_rest() {
+    let mut child = opennav()
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("runs");
+    let mut stdin = child.stdin.take().expect("stdin");
+    writeln!(stdin, "cabinet").expect("word");
+    // moving (searching, then driving) for a while
+    std::thread::sleep(Duration::from_secs(4));
+    writeln!(stdin, "stop").expect("stop");
+    std::thread::sleep(Duration::from_millis(1500));
+    writeln!(stdin, "quit").expect("quit");
+    let out = child.wait_with_output().expect("exits");
+    assert!(out.status.success());
+    let r = report(&out.stdout);
+    assert_eq!(r["outcome"], "quit");
+    assert_eq!(r["supervisor"]["Stopped"], "UserStop", "{r}");
+    assert!(r["said"].to_string().contains("Stopped."), "{r}");
+    let w = &r["sim"]["world"];
+    assert!(w["v_mps"].as_f64().unwrap_or(1.0).abs() < 0.01, "{w}");
+    assert!(w["omega_radps"].as_f64().unwrap_or(1.0).abs() < 0.01, "{w}");
+}
+
+#[test]
+fn sigterm_stops_the_chair_and_releases_the_bus() {
+    let mut child = opennav()
+        .args(["--prompt", "cabinet", "--no-stdin"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("runs");
+    std::thread::sleep(Duration::from_secs(4));
+    // SAFETY: kill(2) on our own child
+    let rc = unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGTERM) };
+    assert_eq!(rc, 0);
+    let out = child.wait_with_output().expect("exits");
+    assert!(out.status.success());
+    let r = report(&out.stdout);
+    assert_eq!(r["outcome"], "signal", "{r}");
+    assert_eq!(r["actuator"]["state"], "released", "{r}");
+    assert_eq!(
+        r["actuator"]["last_output"],
+        serde_json::json!([0, 0]),
+        "{r}"
+    );
+}
