@@ -142,7 +142,7 @@ fn the_stop_word_brings_the_chair_to_rest() {
 
 #[test]
 fn sigterm_stops_the_chair_and_releases_the_bus() {
-    let mut child = opennav()
+    let child = opennav()
         .args(["--prompt", "cabinet", "--no-stdin"])
         .stdout(Stdio::piped())
         .stderr(Stdio::null())
