@@ -460,21 +460,25 @@ fn eval_replica(settings: &Settings, a: EvalReplicaArgs) -> Result<(), Failure> 
     Ok(())
 }
 
-fn check_camera(replay: Option<&std::path::Path>, count: u64) -> Result<(), Failure> {
+fn check_camera(
+    config: Option<&std::path::Path>,
+    replay: Option<&std::path::Path>,
+    count: u64,
+) -> Result<(), Failure> {
     use opennav::sensors::camera::{CameraSource, ReplaySource};
     use std::io::Write;
-    let Some(dir) = replay else {
-        return Err(failed(anyhow::anyhow!(
-            "no camera: this build has no RealSense support (see the README); read a recording with --replay DIR"
-        )));
+    let mut src: Box<dyn CameraSource> = match replay {
+        Some(dir) => Box::new(ReplaySource::open(dir).map_err(bad_input)?),
+        None => open_realsense(config)?,
     };
-    let mut src = ReplaySource::open(dir).map_err(bad_input)?;
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
+    let mut frames = 0u64;
     for _ in 0..count {
         let Some(f) = src.next_frame().map_err(failed)? else {
             break;
         };
+        frames += 1;
         let d = f.value.depth.data();
         let valid: Vec<f32> = d.iter().copied().filter(|z| *z > 0.0).collect();
         let line = serde_json::json!({
@@ -491,14 +495,47 @@ fn check_camera(replay: Option<&std::path::Path>, count: u64) -> Result<(), Fail
         });
         writeln!(out, "{line}").map_err(failed)?;
     }
-    eprintln!(
-        "{}: {} paired frames, {} colour and {} depth frames without a partner",
-        dir.display(),
-        src.len(),
-        src.unpaired_color,
-        src.unpaired_depth
-    );
+    match replay {
+        Some(dir) => {
+            let r = ReplaySource::open(dir).map_err(bad_input)?;
+            eprintln!(
+                "{}: {} paired frames, {} colour and {} depth frames without a partner",
+                dir.display(),
+                r.len(),
+                r.unpaired_color,
+                r.unpaired_depth
+            );
+        }
+        None => eprintln!("RealSense: {frames} frames"),
+    }
     Ok(())
+}
+
+#[cfg(feature = "realsense")]
+fn open_realsense(
+    config: Option<&std::path::Path>,
+) -> Result<Box<dyn opennav::sensors::camera::CameraSource>, Failure> {
+    use opennav::sensors::camera::realsense::{RealSenseSettings, RealSenseSource};
+    let settings = Settings::load(config).map_err(bad_input)?;
+    let base_from_camera = settings
+        .camera
+        .base_from_camera
+        .to_isometry("camera.base_from_camera")
+        .map_err(bad_input)?;
+    let clock = std::sync::Arc::new(opennav::types::MonotonicClock::new());
+    Ok(Box::new(
+        RealSenseSource::open(RealSenseSettings::default(), base_from_camera, clock)
+            .map_err(failed)?,
+    ))
+}
+
+#[cfg(not(feature = "realsense"))]
+fn open_realsense(
+    _config: Option<&std::path::Path>,
+) -> Result<Box<dyn opennav::sensors::camera::CameraSource>, Failure> {
+    Err(failed(anyhow::anyhow!(
+        "no camera: this build has no RealSense support (build with --features realsense; see the README); read a recording with --replay DIR"
+    )))
 }
 
 fn check_encoders(port: &str, count: u64) -> Result<(), Failure> {
@@ -785,7 +822,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
         ),
         Command::Check(CheckCommand::Encoders { port, count }) => check_encoders(&port, count),
         Command::Check(CheckCommand::Camera { replay, count }) => {
-            check_camera(replay.as_deref(), count)
+            check_camera(cli.config.as_deref(), replay.as_deref(), count)
         }
         Command::Sim(SimCommand::ReplicaScene {
             out,

@@ -1,7 +1,9 @@
-//! RGB-D cameras: a trait, a replay source (TUM RGB-D layout), and colour /
-//! depth pairing by timestamp. A RealSense source links librealsense2 and
-//! is not part of this build (see the README).
+//! RGB-D cameras: a trait, a replay source (TUM RGB-D layout), colour /
+//! depth pairing by timestamp, and the RealSense source behind the
+//! `realsense` cargo feature (it links librealsense2; see the README).
 
+#[cfg(feature = "realsense")]
+pub mod realsense;
 pub mod replay;
 
 use thiserror::Error;
