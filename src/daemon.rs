@@ -248,10 +248,12 @@ pub async fn run_sim(
     let perception =
         spawn_sim_perception(settings, shared.clone(), clock.clone(), sources.clone())?;
 
+    let (prompts_tx, _prompts_rx) = watch::channel(Vec::new());
     let report = control_loop(
         settings,
         &opts,
         ControlIo {
+            prompts: prompts_tx,
             obstacles: obst_rx,
             pose: pose_rx,
             commands: cmd_tx,
@@ -386,7 +388,9 @@ fn spawn_sim_perception(
     std::thread::Builder::new()
         .name("perception".into())
         .spawn(move || {
-            let Some(world) = shared.world.clone() else { return };
+            let Some(world) = shared.world.clone() else {
+                return;
+            };
             let room = match world.lock() {
                 Ok(w) => w.room.clone(),
                 Err(_) => return,
@@ -420,45 +424,8 @@ fn spawn_sim_perception(
                     Frame::BaseLink,
                     &geometry,
                 );
-                // the pose at the frame's stamp: odometry a few ms newer
-                // than the frame is needed to interpolate (never guessed)
-                let mut pose = None;
-                for _ in 0..20 {
-                    pose = shared.history.lock().ok().and_then(|h| h.pose_at(stamp));
-                    if pose.is_some() || cancel.is_cancelled() {
-                        break;
-                    }
-                    std::thread::sleep(Duration::from_millis(5));
-                }
-                if pose.is_none() {
-                    tracing::info!("perception: no pose at the frame's stamp yet (odometry starting?); view skipped");
-                }
-                if let (Ok(v), Some(pose)) = (lifted, pose) {
-                    let odom_from_base = Isometry3::new(
-                        Vector3::new(pose.x_m, pose.y_m, 0.0),
-                        Vector3::z() * pose.theta_rad,
-                    );
-                    let objects: Vec<Object3D> = v
-                        .objects
-                        .into_iter()
-                        .filter_map(|o| {
-                            let pts: Vec<Point3<f32>> = o
-                                .points
-                                .iter()
-                                .map(|p| (odom_from_base * p.cast::<f64>()).cast::<f32>())
-                                .collect();
-                            Object3D::from_points(o.label, o.score, Frame::Odom, pts, o.box_xyxy)
-                        })
-                        .collect();
-                    let visible = |p: &[f64; 3]| camera_sees(&pose, &base_from_camera, p);
-                    if let Ok(mut t) = shared.tracker.lock() {
-                        t.update(stamp, &objects, visible);
-                        tracing::debug!(
-                            objects = ?objects.iter().map(|o| (o.label.as_str(), o.aabb.center_m())).collect::<Vec<_>>(),
-                            tracks = ?t.tracks().iter().map(|k| (k.id, k.label.as_str(), k.center_m, k.confirmed, k.confidence)).collect::<Vec<_>>(),
-                            "perception"
-                        );
-                    }
+                if let Ok(v) = lifted {
+                    place_objects(&shared, stamp, v.objects, &base_from_camera, &cancel);
                 }
                 let spent = t0.elapsed();
                 if spent < Duration::from_millis(500) {
@@ -479,6 +446,8 @@ struct SearchTurn {
 }
 
 struct ControlIo {
+    /// The words perception should look for (the goal's).
+    prompts: watch::Sender<Vec<String>>,
     obstacles: watch::Receiver<Option<Stamped<Obstacles>>>,
     pose: watch::Receiver<Option<Stamped<(Pose2, f64, f64)>>>,
     commands: watch::Sender<Option<SafeCmd>>,
@@ -597,6 +566,20 @@ async fn control_loop(settings: &Settings, opts: &RunOptions, mut io: ControlIo)
                         }
                         say(&mut said, e.say());
                     }
+                    let wanted: Vec<String> = match goal.state() {
+                        GoalState::Searching { label }
+                        | GoalState::Tracking { label, .. }
+                        | GoalState::Holding { label, .. } => vec![label.clone()],
+                        _ => Vec::new(),
+                    };
+                    io.prompts.send_if_modified(|p| {
+                        if *p != wanted {
+                            *p = wanted;
+                            true
+                        } else {
+                            false
+                        }
+                    });
                     // searching: turn slowly on the spot (one full turn at
                     // most) so the camera sweeps the room
                     let searching = matches!(goal.state(), GoalState::Searching { .. });
@@ -701,4 +684,414 @@ mod tests {
         );
         assert_eq!(UserInput::parse("quit"), UserInput::Quit);
     }
+}
+
+/// Where the hardware daemon's camera frames come from.
+#[derive(Debug, Clone)]
+pub enum CameraChoice {
+    /// A recording in the TUM RGB-D layout, replayed in a loop and stamped
+    /// on arrival (for bench tests without a camera).
+    Replay(std::path::PathBuf),
+    /// The RealSense (cargo feature `realsense`).
+    RealSense,
+    /// No camera: the chair can be stopped and driven by nothing else;
+    /// prompts are never answered.
+    None,
+}
+
+/// Runs the daemon on the chair's devices from config: the two Hokuyos,
+/// the encoder board, the camera and the configured motor interface.
+pub async fn run_hardware(
+    settings: &Settings,
+    opts: RunOptions,
+    camera: CameraChoice,
+    perception: crate::perception::setup::PerceptionChoice,
+    cancel: CancellationToken,
+) -> Result<RunReport, DaemonError> {
+    use crate::sensors::encoders::EncoderDriver;
+    use crate::sensors::hokuyo::{HokuyoDriver, HokuyoSettings};
+    use crate::sensors::task::{spawn_source, Step};
+
+    let clock: Arc<dyn Clock> = Arc::new(TokioClock::new());
+    let start = clock.now();
+    let shared = Arc::new(Shared {
+        history: Mutex::new(PoseHistory::new(400)),
+        tracker: Mutex::new(Tracker::new(TrackerParams::default())),
+        world: None,
+        matches: std::sync::atomic::AtomicU64::new(0),
+    });
+    let sources = CancellationToken::new();
+
+    // lasers: one reader thread each (reconnecting with back-off), merged
+    // in the base frame whenever either delivers
+    let mut laser_rx = Vec::new();
+    let mut laser_tasks = Vec::new();
+    for (side, l) in [
+        ("left", &settings.lasers.left),
+        ("right", &settings.lasers.right),
+    ] {
+        let mut driver = HokuyoDriver::new(HokuyoSettings::new(l.port.clone()), clock.clone());
+        let port = l.port.clone();
+        let mut backoff = Duration::from_millis(100);
+        let task = spawn_source(
+            &format!("laser-{side}"),
+            sources.clone(),
+            move || match driver.next_scan() {
+                Ok(scan) => {
+                    backoff = Duration::from_millis(100);
+                    Step::Value(scan)
+                }
+                Err(e) => {
+                    tracing::warn!(port = %port, error = %e, "laser: retrying in {backoff:?}");
+                    std::thread::sleep(backoff);
+                    backoff = (backoff * 2).min(Duration::from_secs(2));
+                    Step::Retry
+                }
+            },
+        )
+        .map_err(|e| DaemonError::Setup(format!("laser {side}: {e}")))?;
+        laser_rx.push(task.latest.clone());
+        laser_tasks.push(task);
+    }
+    let (obst_tx, obst_rx) = watch::channel::<Option<Stamped<Obstacles>>>(None);
+    {
+        let poses = [
+            settings.lasers.left.base_from_laser(),
+            settings.lasers.right.base_from_laser(),
+        ];
+        let (mut left, mut right) = (laser_rx[0].clone(), laser_rx[1].clone());
+        let cancel = sources.clone();
+        tokio::spawn(async move {
+            loop {
+                tokio::select! {
+                    _ = cancel.cancelled() => return,
+                    r = left.changed() => if r.is_err() { return },
+                    r = right.changed() => if r.is_err() { return },
+                }
+                let (l, r) = (left.borrow().clone(), right.borrow().clone());
+                // both scanners or none: the merged stamp is the older one,
+                // so a dead scanner makes the set stale and the chair stops
+                if let (Some(l), Some(r)) = (l, r) {
+                    obst_tx.send_replace(merge_scans(&[(&l, &poses[0]), (&r, &poses[1])]));
+                }
+            }
+        });
+    }
+
+    // the encoder board
+    let enc_port = settings.encoders.port.clone();
+    let mut enc = EncoderDriver::new(enc_port.clone(), clock.clone())
+        .with_timeout(Duration::from_millis(200));
+    let enc_task = spawn_source("encoders", sources.clone(), move || {
+        match enc.next_ticks() {
+            Ok(t) => Step::Value(t),
+            Err(e) => {
+                tracing::warn!(port = %enc_port, error = %e, "encoders: retrying");
+                std::thread::sleep(Duration::from_millis(100));
+                Step::Retry
+            }
+        }
+    })
+    .map_err(|e| DaemonError::Setup(format!("encoders: {e}")))?;
+    let (ticks_tx, ticks_rx) = watch::channel::<Option<Stamped<WheelTicks>>>(None);
+    {
+        let mut rx = enc_task.latest.clone();
+        let cancel = sources.clone();
+        tokio::spawn(async move {
+            loop {
+                tokio::select! {
+                    _ = cancel.cancelled() => return,
+                    r = rx.changed() => if r.is_err() { return },
+                }
+                let v = rx.borrow_and_update().clone();
+                ticks_tx.send_replace(v);
+            }
+        });
+    }
+
+    // the motor interface
+    let (cmd_tx, cmd_rx) = watch::channel::<Option<SafeCmd>>(None);
+    let (act_ev_tx, act_ev_rx) = mpsc::channel(64);
+    let (status_tx, status_rx) = watch::channel(ActuatorStatus::default());
+    let writer_cancel = CancellationToken::new();
+    let io = ActuatorIo {
+        commands: cmd_rx,
+        events: act_ev_tx,
+        status: status_tx,
+        cancel: writer_cancel.clone(),
+        clock: clock.clone(),
+    };
+    let writer = match settings.actuation.backend {
+        crate::config::ActuationBackend::Rnet => {
+            let iface = settings.actuation.rnet.iface.clone();
+            let rnet = settings.rnet_settings();
+            spawn_actuator_thread(
+                "rnet-writer",
+                50,
+                move || {
+                    Ok(RnetActuator {
+                        bus: crate::actuation::can::SocketCanBus::open(&iface)?,
+                        settings: rnet,
+                    })
+                },
+                io,
+            )
+        }
+        crate::config::ActuationBackend::Rebus => {
+            let port = settings.actuation.rebus.port.clone();
+            let mut rebus =
+                crate::actuation::rebus_link::RebusSettings::new(settings.joystick_mapping());
+            rebus.ack_timeout = Duration::from_secs_f64(settings.actuation.rebus.ack_timeout_s);
+            rebus.command_max_age = Duration::from_secs_f64(settings.actuation.command_max_age_s);
+            rebus.release_after = Duration::from_secs_f64(settings.actuation.release_s);
+            spawn_actuator_thread(
+                "rebus",
+                50,
+                move || {
+                    Ok(crate::actuation::rebus_link::RebusActuator {
+                        port,
+                        settings: rebus,
+                    })
+                },
+                io,
+            )
+        }
+    }
+    .map_err(|e| DaemonError::Setup(format!("actuator thread: {e}")))?;
+
+    let (pose_tx, pose_rx) = watch::channel::<Option<Stamped<(Pose2, f64, f64)>>>(None);
+    spawn_estimation(
+        settings,
+        ticks_rx,
+        obst_rx.clone(),
+        pose_tx,
+        shared.clone(),
+        sources.clone(),
+    );
+    let (prompts_tx, prompts_rx) = watch::channel(Vec::new());
+    let perception_thread = spawn_camera_perception(
+        settings,
+        camera,
+        perception,
+        prompts_rx,
+        shared.clone(),
+        clock.clone(),
+        sources.clone(),
+    )?;
+
+    let mut report = control_loop(
+        settings,
+        &opts,
+        ControlIo {
+            prompts: prompts_tx,
+            obstacles: obst_rx,
+            pose: pose_rx,
+            commands: cmd_tx,
+            actuator_events: act_ev_rx,
+            actuator_status: status_rx.clone(),
+            shared: shared.clone(),
+            clock: clock.clone(),
+            cancel: cancel.clone(),
+            start,
+        },
+    )
+    .await;
+
+    // shutdown: the chair first (centred, then released), then the devices
+    writer_cancel.cancel();
+    report.actuator = tokio::task::spawn_blocking(move || writer.join())
+        .await
+        .ok()
+        .and_then(|r| r.ok())
+        .and_then(|r| r.ok())
+        .unwrap_or_else(|| status_rx.borrow().clone());
+    sources.cancel();
+    let _ = tokio::task::spawn_blocking(move || {
+        if let Some(t) = perception_thread {
+            let _ = t.join();
+        }
+        for t in laser_tasks {
+            t.join();
+        }
+        enc_task.join();
+    })
+    .await;
+    Ok(report)
+}
+
+/// Perception on its own thread over a real camera source and the
+/// configured detector and segmenter; the goal's word comes from the
+/// control task.
+fn spawn_camera_perception(
+    settings: &Settings,
+    camera: CameraChoice,
+    choice: crate::perception::setup::PerceptionChoice,
+    mut prompts: watch::Receiver<Vec<String>>,
+    shared: Arc<Shared>,
+    clock: Arc<dyn Clock>,
+    cancel: CancellationToken,
+) -> Result<Option<std::thread::JoinHandle<()>>, DaemonError> {
+    use crate::perception::pipeline::Pipeline;
+    use crate::sensors::camera::{CameraSource, ReplaySource};
+    let base_from_camera = settings
+        .camera
+        .base_from_camera
+        .to_isometry("camera.base_from_camera")
+        .map_err(|e| DaemonError::Setup(e.to_string()))?;
+    let restamp = matches!(camera, CameraChoice::Replay(_));
+    let stamp_clock = clock.clone();
+    let replay_dir = match camera {
+        CameraChoice::None => return Ok(None),
+        CameraChoice::Replay(d) => Some(d),
+        CameraChoice::RealSense => None,
+    };
+    let open_camera = move || -> Result<Box<dyn CameraSource>, DaemonError> {
+        match &replay_dir {
+            Some(d) => Ok(Box::new(
+                ReplaySource::open(d).map_err(|e| DaemonError::Setup(e.to_string()))?,
+            )),
+            None => open_realsense(base_from_camera, clock.clone()),
+        }
+    };
+    let mut source = open_camera()?;
+    let mut calibration = source.calibration().clone();
+    calibration.base_from_camera = base_from_camera;
+    let detector = crate::perception::setup::open_configured_detector(settings, &choice)
+        .map_err(|e| DaemonError::Setup(e.to_string()))?;
+    let segmenter = crate::perception::setup::open_configured_segmenter(settings, &choice)
+        .map_err(|e| DaemonError::Setup(e.to_string()))?;
+    let mut pipeline = Pipeline::new(
+        detector,
+        segmenter,
+        calibration,
+        settings.geometry_settings(),
+    );
+    let handle = std::thread::Builder::new()
+        .name("perception".into())
+        .spawn(move || {
+            let mut words: Vec<String> = Vec::new();
+            while !cancel.is_cancelled() {
+                if prompts.has_changed().unwrap_or(false) {
+                    words = prompts.borrow_and_update().clone();
+                    if !words.is_empty() {
+                        if let Err(e) = pipeline.set_prompts(&words) {
+                            tracing::warn!(error = %e, "perception: prompts not usable");
+                        }
+                    }
+                }
+                if words.is_empty() {
+                    std::thread::sleep(Duration::from_millis(50));
+                    continue;
+                }
+                let frame = match source.next_frame() {
+                    Ok(Some(f)) => f,
+                    Ok(None) => {
+                        // end of a recording: start it again
+                        match open_camera() {
+                            Ok(s) => source = s,
+                            Err(e) => {
+                                tracing::error!(error = %e, "camera: cannot reopen");
+                                return;
+                            }
+                        }
+                        continue;
+                    }
+                    Err(e) => {
+                        tracing::warn!(error = %e, "camera");
+                        std::thread::sleep(Duration::from_millis(100));
+                        continue;
+                    }
+                };
+                // a replayed frame is stamped on arrival; a live one keeps
+                // its acquisition stamp
+                let stamp = if restamp {
+                    stamp_clock.now()
+                } else {
+                    frame.stamp
+                };
+                let view = match pipeline.process(&frame.value.color, Some(&frame.value.depth)) {
+                    Ok(v) => v,
+                    Err(e) => {
+                        tracing::warn!(error = %e, "perception");
+                        continue;
+                    }
+                };
+                place_objects(&shared, stamp, view.objects, &base_from_camera, &cancel);
+            }
+        })
+        .map_err(|e| DaemonError::Setup(format!("perception thread: {e}")))?;
+    Ok(Some(handle))
+}
+
+/// Objects in base_link at `stamp` → odom with the pose at that stamp →
+/// the tracker.
+fn place_objects(
+    shared: &Shared,
+    stamp: Stamp,
+    objects: Vec<Object3D>,
+    base_from_camera: &Isometry3<f64>,
+    cancel: &CancellationToken,
+) {
+    let mut pose = None;
+    for _ in 0..20 {
+        pose = shared.history.lock().ok().and_then(|h| h.pose_at(stamp));
+        if pose.is_some() || cancel.is_cancelled() {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let Some(pose) = pose else {
+        tracing::info!(
+            "perception: no pose at the frame's stamp yet (odometry starting?); view skipped"
+        );
+        return;
+    };
+    let odom_from_base = Isometry3::new(
+        Vector3::new(pose.x_m, pose.y_m, 0.0),
+        Vector3::z() * pose.theta_rad,
+    );
+    let objects: Vec<Object3D> = objects
+        .into_iter()
+        .filter_map(|o| {
+            let pts: Vec<Point3<f32>> = o
+                .points
+                .iter()
+                .map(|p| (odom_from_base * p.cast::<f64>()).cast::<f32>())
+                .collect();
+            Object3D::from_points(o.label, o.score, Frame::Odom, pts, o.box_xyxy)
+        })
+        .collect();
+    let visible = |p: &[f64; 3]| camera_sees(&pose, base_from_camera, p);
+    if let Ok(mut t) = shared.tracker.lock() {
+        t.update(stamp, &objects, visible);
+        tracing::debug!(
+            objects = ?objects.iter().map(|o| (o.label.as_str(), o.aabb.center_m())).collect::<Vec<_>>(),
+            tracks = ?t.tracks().iter().map(|k| (k.id, k.label.as_str(), k.center_m, k.confirmed, k.confidence)).collect::<Vec<_>>(),
+            "perception"
+        );
+    }
+}
+
+#[cfg(feature = "realsense")]
+fn open_realsense(
+    base_from_camera: Isometry3<f64>,
+    clock: Arc<dyn Clock>,
+) -> Result<Box<dyn crate::sensors::camera::CameraSource>, DaemonError> {
+    use crate::sensors::camera::realsense::{RealSenseSettings, RealSenseSource};
+    Ok(Box::new(
+        RealSenseSource::open(RealSenseSettings::default(), base_from_camera, clock)
+            .map_err(|e| DaemonError::Setup(e.to_string()))?,
+    ))
+}
+
+#[cfg(not(feature = "realsense"))]
+fn open_realsense(
+    _base_from_camera: Isometry3<f64>,
+    _clock: Arc<dyn Clock>,
+) -> Result<Box<dyn crate::sensors::camera::CameraSource>, DaemonError> {
+    Err(DaemonError::Setup(
+        "no camera: this build has no RealSense support (build with --features realsense), \
+         and no --camera-replay DIR was given (or run with --no-camera)"
+            .into(),
+    ))
 }

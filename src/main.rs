@@ -228,6 +228,13 @@ enum Command {
         /// Do not read words from stdin.
         #[arg(long)]
         no_stdin: bool,
+        /// On the chair's devices: camera frames from a recording (TUM
+        /// RGB-D layout) instead of the RealSense.
+        #[arg(long, conflicts_with = "no_camera")]
+        camera_replay: Option<PathBuf>,
+        /// On the chair's devices: no camera (stop and safety only).
+        #[arg(long)]
+        no_camera: bool,
     },
     /// Detect prompted objects in one RGB(-D) image: 2D boxes, and 3D objects with depth.
     Detect {
@@ -575,31 +582,32 @@ fn check_encoders(port: &str, count: u64) -> Result<(), Failure> {
 fn run_daemon(
     config: Option<&std::path::Path>,
     sim: bool,
+    camera: opennav::daemon::CameraChoice,
     opts: opennav::daemon::RunOptions,
 ) -> Result<(), Failure> {
     let settings = Settings::load(config).map_err(bad_input)?;
+    let mut hardware = false;
     if !sim {
         let devices = [
             settings.lasers.left.port.clone(),
             settings.lasers.right.port.clone(),
             settings.encoders.port.clone(),
-            format!("/sys/class/net/{}", settings.actuation.rnet.iface),
+            match settings.actuation.backend {
+                opennav::config::ActuationBackend::Rnet => {
+                    format!("/sys/class/net/{}", settings.actuation.rnet.iface)
+                }
+                opennav::config::ActuationBackend::Rebus => settings.actuation.rebus.port.clone(),
+            },
         ];
-        let present: Vec<&String> = devices
+        hardware = devices
             .iter()
-            .filter(|d| std::path::Path::new(d.as_str()).exists())
-            .collect();
-        if !present.is_empty() {
-            return Err(failed(anyhow::anyhow!(
-                "devices present ({}) but this build's daemon drives the simulator only; \
-                 the hardware wiring is not built yet (run with --sim, or use `opennav check …` on the devices)",
-                present.iter().map(|s| s.as_str()).collect::<Vec<_>>().join(", ")
-            )));
+            .any(|d| std::path::Path::new(d.as_str()).exists());
+        if !hardware {
+            eprintln!(
+                "opennav: no chair devices found ({}): running the simulator",
+                devices.join(", ")
+            );
         }
-        eprintln!(
-            "opennav: no chair devices found ({}): running the simulator",
-            devices.join(", ")
-        );
     }
     let rt = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
@@ -619,9 +627,21 @@ fn run_daemon(
             tracing::warn!("signal: stopping the chair and shutting down");
             c.cancel();
         });
-        opennav::daemon::run_sim(&settings, opts, cancel)
+        if hardware {
+            opennav::daemon::run_hardware(
+                &settings,
+                opts,
+                camera,
+                PerceptionChoice::default(),
+                cancel,
+            )
             .await
             .map_err(failed)
+        } else {
+            opennav::daemon::run_sim(&settings, opts, cancel)
+                .await
+                .map_err(failed)
+        }
     })?;
     println!("{}", serde_json::to_string(&report).map_err(failed)?);
     // the process exits even while the stdin reader waits for a line
@@ -795,9 +815,16 @@ fn run(cli: Cli) -> Result<(), Failure> {
             exit_on_arrival,
             max_duration,
             no_stdin,
+            camera_replay,
+            no_camera,
         } => run_daemon(
             cli.config.as_deref(),
             sim,
+            match (camera_replay, no_camera) {
+                (Some(d), _) => opennav::daemon::CameraChoice::Replay(d),
+                (None, true) => opennav::daemon::CameraChoice::None,
+                (None, false) => opennav::daemon::CameraChoice::RealSense,
+            },
             opennav::daemon::RunOptions {
                 prompts: prompt,
                 stdin_prompts: !no_stdin,
