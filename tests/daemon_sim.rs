@@ -163,3 +163,40 @@ fn sigterm_stops_the_chair_and_releases_the_bus() {
         "{r}"
     );
 }
+
+#[test]
+fn notifies_systemd_ready_and_feeds_the_watchdog() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let path = dir.path().join("notify");
+    let sock = std::os::unix::net::UnixDatagram::bind(&path).expect("bind");
+    sock.set_read_timeout(Some(Duration::from_secs(10)))
+        .expect("timeout");
+    let child = opennav()
+        .args(["--no-stdin", "--max-duration", "2s"])
+        .env("NOTIFY_SOCKET", &path)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("runs");
+    let mut msgs = Vec::new();
+    let mut buf = [0u8; 256];
+    while let Ok(n) = sock.recv(&mut buf) {
+        let m = String::from_utf8_lossy(&buf[..n]).to_string();
+        let done = m == "STOPPING=1";
+        msgs.push(m);
+        if done {
+            break;
+        }
+    }
+    let out = child.wait_with_output().expect("exits");
+    assert!(out.status.success());
+    assert_eq!(
+        msgs.first().map(|s| s.as_str()),
+        Some("READY=1"),
+        "{msgs:?}"
+    );
+    let feeds = msgs.iter().filter(|m| *m == "WATCHDOG=1").count();
+    // 20 Hz for about 2 s
+    assert!(feeds > 20, "{feeds} watchdog messages");
+    assert_eq!(msgs.last().map(|s| s.as_str()), Some("STOPPING=1"));
+}
