@@ -32,10 +32,10 @@ use crate::actuation::rnet::TakeoverMode;
 use crate::actuation::writer::RnetActuator;
 use crate::actuation::{spawn_actuator_thread, ActuatorEvent, ActuatorIo, ActuatorStatus};
 use crate::config::Settings;
-use crate::estimation::ekf::{EkfNoise, PoseEkf, PoseHistory};
+use crate::estimation::ekf::PoseHistory;
+use crate::estimation::fusion::Estimator;
 use crate::estimation::goal::{GoalEvent, GoalKeeper, GoalState};
-use crate::estimation::odometry::{Odometry, Pose2};
-use crate::estimation::scan_match::KeyframeMatcher;
+use crate::estimation::odometry::Pose2;
 use crate::estimation::tracker::{Tracker, TrackerParams};
 use crate::navigation::apf::ApfParams;
 use crate::navigation::mpc::{MpcParams, UnicycleState};
@@ -108,6 +108,8 @@ pub struct SimSummary {
     /// Distance from the chair to the nearest object of the goal's word, m.
     pub distance_to_goal_object_m: Option<f64>,
     pub scan_matches: u64,
+    /// Odometry steps whose heading used the gyro.
+    pub gyro_fused: u64,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -122,6 +124,7 @@ struct Shared {
     tracker: Mutex<Tracker>,
     world: Option<Arc<Mutex<SimWorld>>>,
     matches: std::sync::atomic::AtomicU64,
+    gyro_fused: std::sync::atomic::AtomicU64,
 }
 
 /// Whether a point (odom) is in the camera's view with the chair at
@@ -160,6 +163,7 @@ pub async fn run_sim(
         tracker: Mutex::new(Tracker::new(TrackerParams::default())),
         world: Some(world.clone()),
         matches: std::sync::atomic::AtomicU64::new(0),
+        gyro_fused: std::sync::atomic::AtomicU64::new(0),
     });
     let sources = CancellationToken::new();
 
@@ -204,6 +208,7 @@ pub async fn run_sim(
     // the world: 100 Hz, driven by what the power module does
     let (ticks_tx, ticks_rx) = watch::channel::<Option<Stamped<WheelTicks>>>(None);
     let (obst_tx, obst_rx) = watch::channel::<Option<Stamped<Obstacles>>>(None);
+    let (gyro_tx, gyro_rx) = watch::channel::<Option<Stamped<f64>>>(None);
     let mapping = settings.joystick_mapping();
     let lasers = [
         settings.lasers.left.base_from_laser(),
@@ -224,6 +229,8 @@ pub async fn run_sim(
                 let motor = chair.lock().ok().and_then(|c| c.motor_output(now));
                 let Ok(mut w) = world.lock() else { return };
                 w.step(0.01, motor, &mapping);
+                // the camera's IMU: the true yaw rate
+                gyro_tx.send_replace(Some(Stamped::new(now, w.omega_radps)));
                 ticks_tx.send_replace(Some(Stamped::new(now, w.wheel_ticks())));
                 if k.is_multiple_of(10) {
                     let ms = (now.0.as_millis() & 0xFF_FFFF) as u32;
@@ -241,6 +248,7 @@ pub async fn run_sim(
         settings,
         ticks_rx,
         obst_rx.clone(),
+        gyro_rx,
         pose_tx,
         shared.clone(),
         sources.clone(),
@@ -308,6 +316,7 @@ pub async fn run_sim(
             world: w.report,
             distance_to_goal_object_m: dist,
             scan_matches: shared.matches.load(std::sync::atomic::Ordering::SeqCst),
+            gyro_fused: shared.gyro_fused.load(std::sync::atomic::Ordering::SeqCst),
         });
     }
     Ok(report)
@@ -319,48 +328,48 @@ fn spawn_estimation(
     settings: &Settings,
     mut ticks: watch::Receiver<Option<Stamped<WheelTicks>>>,
     mut obstacles: watch::Receiver<Option<Stamped<Obstacles>>>,
+    mut gyro: watch::Receiver<Option<Stamped<f64>>>,
     pose_tx: watch::Sender<Option<Stamped<(Pose2, f64, f64)>>>,
     shared: Arc<Shared>,
     cancel: CancellationToken,
 ) {
-    let mut odo = Odometry::new(settings.drive_params());
-    let mut ekf = PoseEkf::new(Pose2::default(), EkfNoise::default());
-    let mut matcher = KeyframeMatcher::default();
+    let mut est = Estimator::new(settings.drive_params());
     tokio::spawn(async move {
-        let mut last_odo: Option<Pose2> = None;
-        let mut last_t: Option<u64> = None;
+        // no camera, or one without an IMU: its sender goes away
+        let mut gyro_open = true;
         loop {
             tokio::select! {
                 _ = cancel.cancelled() => return,
+                r = gyro.changed(), if gyro_open => {
+                    if r.is_err() {
+                        gyro_open = false;
+                        continue;
+                    }
+                    if let Some(g) = gyro.borrow_and_update().clone() {
+                        est.on_gyro(g);
+                    }
+                }
                 r = ticks.changed() => {
                     if r.is_err() { return; }
                     let Some(t) = ticks.borrow_and_update().clone() else { continue };
-                    let u = odo.update(&t.value);
-                    if let (Some(p0), Some(t0)) = (last_odo, last_t) {
-                        let dt = t.value.mcu_time_us.saturating_sub(t0) as f64 * 1e-6;
-                        let ds = (u.pose.x_m - p0.x_m).hypot(u.pose.y_m - p0.y_m)
-                            * if u.v_mps < 0.0 { -1.0 } else { 1.0 };
-                        let dth = crate::estimation::odometry::wrap_angle(u.pose.theta_rad - p0.theta_rad);
-                        ekf.predict(ds, dth, None, dt);
-                    }
-                    last_odo = Some(u.pose);
-                    last_t = Some(t.value.mcu_time_us);
+                    let e = est.on_ticks(&t);
                     if let Ok(mut h) = shared.history.lock() {
-                        h.push(t.stamp, ekf.pose);
+                        h.push(t.stamp, e.pose);
                     }
-                    pose_tx.send_replace(Some(Stamped::new(t.stamp, (ekf.pose, u.v_mps, u.omega_radps))));
+                    pose_tx.send_replace(Some(Stamped::new(t.stamp, (e.pose, e.v_mps, e.omega_radps))));
                 }
                 r = obstacles.changed() => {
                     if r.is_err() { return; }
                     let Some(o) = obstacles.borrow_and_update().clone() else { continue };
                     let pts: Vec<[f64; 2]> = o.value.points_base.iter().map(|p| [p[0] as f64, p[1] as f64]).collect();
-                    match matcher.update(&mut ekf, &pts) {
+                    match est.on_scan(&pts) {
                         Some(Ok(_)) => {
                             shared.matches.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
                         }
                         Some(Err(e)) => tracing::debug!(error = %e, "scan matching"),
                         None => {}
                     }
+                    shared.gyro_fused.store(est.gyro_fused, std::sync::atomic::Ordering::SeqCst);
                 }
             }
         }
@@ -719,6 +728,7 @@ pub async fn run_hardware(
         tracker: Mutex::new(Tracker::new(TrackerParams::default())),
         world: None,
         matches: std::sync::atomic::AtomicU64::new(0),
+        gyro_fused: std::sync::atomic::AtomicU64::new(0),
     });
     let sources = CancellationToken::new();
 
@@ -860,10 +870,12 @@ pub async fn run_hardware(
     .map_err(|e| DaemonError::Setup(format!("actuator thread: {e}")))?;
 
     let (pose_tx, pose_rx) = watch::channel::<Option<Stamped<(Pose2, f64, f64)>>>(None);
+    let (gyro_tx, gyro_rx) = watch::channel::<Option<Stamped<f64>>>(None);
     spawn_estimation(
         settings,
         ticks_rx,
         obst_rx.clone(),
+        gyro_rx,
         pose_tx,
         shared.clone(),
         sources.clone(),
@@ -873,10 +885,13 @@ pub async fn run_hardware(
         settings,
         camera,
         perception,
-        prompts_rx,
-        shared.clone(),
-        clock.clone(),
-        sources.clone(),
+        PerceptionIo {
+            prompts: prompts_rx,
+            gyro: gyro_tx,
+            shared: shared.clone(),
+            clock: clock.clone(),
+            cancel: sources.clone(),
+        },
     )?;
 
     let mut report = control_loop(
@@ -922,15 +937,30 @@ pub async fn run_hardware(
 /// Perception on its own thread over a real camera source and the
 /// configured detector and segmenter; the goal's word comes from the
 /// control task.
+/// The perception thread's channels.
+struct PerceptionIo {
+    /// The goal's words, from the control task.
+    prompts: watch::Receiver<Vec<String>>,
+    /// The camera IMU's yaw rate about base z, to the estimation task.
+    gyro: watch::Sender<Option<Stamped<f64>>>,
+    shared: Arc<Shared>,
+    clock: Arc<dyn Clock>,
+    cancel: CancellationToken,
+}
+
 fn spawn_camera_perception(
     settings: &Settings,
     camera: CameraChoice,
     choice: crate::perception::setup::PerceptionChoice,
-    mut prompts: watch::Receiver<Vec<String>>,
-    shared: Arc<Shared>,
-    clock: Arc<dyn Clock>,
-    cancel: CancellationToken,
+    io: PerceptionIo,
 ) -> Result<Option<std::thread::JoinHandle<()>>, DaemonError> {
+    let PerceptionIo {
+        mut prompts,
+        gyro: gyro_tx,
+        shared,
+        clock,
+        cancel,
+    } = io;
     use crate::perception::pipeline::Pipeline;
     use crate::sensors::camera::{CameraSource, ReplaySource};
     let base_from_camera = settings
@@ -1002,6 +1032,12 @@ fn spawn_camera_perception(
                         continue;
                     }
                 };
+                // the camera's gyro: the yaw rate about base_link's z
+                if let Some(g) = source.gyro() {
+                    let r = base_from_camera.rotation
+                        * Vector3::new(g.value[0], g.value[1], g.value[2]);
+                    gyro_tx.send_replace(Some(Stamped::new(g.stamp, r.z)));
+                }
                 // a replayed frame is stamped on arrival; a live one keeps
                 // its acquisition stamp
                 let stamp = if restamp {

@@ -72,6 +72,8 @@ fn check_arrival(r: &Value, word: &str) {
         "still moving: {w}"
     );
     assert!(r["sim"]["scan_matches"].as_u64().unwrap_or(0) > 10, "{r}");
+    // the camera IMU's yaw rate went into the heading
+    assert!(r["sim"]["gyro_fused"].as_u64().unwrap_or(0) > 100, "{r}");
     assert_eq!(r["actuator"]["state"], "released");
     assert_eq!(r["actuator"]["dropped"], 0);
 }

@@ -42,6 +42,12 @@ pub trait CameraSource: Send {
     /// The next frame (stamped with the colour frame's acquisition time);
     /// None at the end of a recording.
     fn next_frame(&mut self) -> Result<Option<Stamped<RgbdFrame>>, CameraError>;
+    /// The newest gyro reading, rad/s about the camera's optical axes
+    /// (x right, y down, z forward; librealsense reports the D435i/D455
+    /// IMU in that orientation), for cameras with an IMU.
+    fn gyro(&self) -> Option<Stamped<[f64; 3]>> {
+        None
+    }
 }
 
 /// Pairs colour and depth frames by timestamp as TUM's `associate.py`:

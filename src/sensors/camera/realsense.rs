@@ -247,4 +247,10 @@ impl CameraSource for RealSenseSource {
         }
         self.read().map(Some)
     }
+
+    fn gyro(&self) -> Option<Stamped<[f64; 3]>> {
+        self.gyro
+            .as_ref()
+            .map(|g| Stamped::new(g.stamp, g.value.rate_radps))
+    }
 }
