@@ -61,6 +61,100 @@ pub struct RunOptions {
     /// Stop the daemon when the goal is reached (or lost).
     pub exit_on_arrival: bool,
     pub max_duration: Option<Duration>,
+    /// Record the sensors and perception's output to this MCAP file.
+    pub record: Option<std::path::PathBuf>,
+}
+
+/// What the recorder thread writes.
+enum RecordItem {
+    Scan(bool, Stamped<crate::sensors::hokuyo::LaserScan>),
+    Ticks(Stamped<WheelTicks>),
+    View {
+        frame: Stamped<crate::sensors::camera::RgbdFrame>,
+        detections: Vec<crate::perception::detector::Detection>,
+        objects: Vec<Object3D>,
+    },
+}
+
+/// The recorder's side of the tasks: never blocks them; what it cannot
+/// take is counted and logged.
+struct RecordSink {
+    tx: std::sync::mpsc::SyncSender<RecordItem>,
+    dropped: std::sync::atomic::AtomicU64,
+}
+
+impl RecordSink {
+    fn put(&self, item: RecordItem) {
+        if self.tx.try_send(item).is_err() {
+            let n = self
+                .dropped
+                .fetch_add(1, std::sync::atomic::Ordering::SeqCst)
+                + 1;
+            if n.is_power_of_two() {
+                tracing::warn!(
+                    dropped = n,
+                    "recording: the writer falls behind; items dropped"
+                );
+            }
+        }
+    }
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct RecordReport {
+    pub path: String,
+    pub written: u64,
+    pub dropped: u64,
+    pub error: Option<String>,
+}
+
+/// Starts the recorder thread.
+fn start_recorder(
+    path: &std::path::Path,
+) -> Result<(RecordSink, std::thread::JoinHandle<(u64, Option<String>)>), DaemonError> {
+    let mut rec =
+        crate::record::Recorder::create(path).map_err(|e| DaemonError::Setup(e.to_string()))?;
+    let (tx, rx) = std::sync::mpsc::sync_channel::<RecordItem>(512);
+    let handle = std::thread::Builder::new()
+        .name("recorder".into())
+        .spawn(move || {
+            let mut written = 0u64;
+            let mut error = None;
+            for item in rx {
+                let r = match item {
+                    RecordItem::Scan(left, s) => rec.scan(left, &s),
+                    RecordItem::Ticks(t) => rec.ticks(&t),
+                    RecordItem::View {
+                        frame,
+                        detections,
+                        objects,
+                    } => rec
+                        .rgbd(&frame)
+                        .and_then(|_| rec.detections(frame.stamp, &detections))
+                        .and_then(|_| rec.objects(frame.stamp, &objects)),
+                };
+                match r {
+                    Ok(()) => written += 1,
+                    Err(e) => {
+                        tracing::error!(error = %e, "recording stopped");
+                        error = Some(e.to_string());
+                        break;
+                    }
+                }
+            }
+            if let Err(e) = rec.finish() {
+                error.get_or_insert(e.to_string());
+            }
+            (written, error)
+        })
+        .map_err(|e| DaemonError::Setup(format!("recorder thread: {e}")))?;
+    Ok((
+        RecordSink {
+            tx,
+            dropped: std::sync::atomic::AtomicU64::new(0),
+        },
+        handle,
+    ))
 }
 
 /// What a user can say or press.
@@ -100,6 +194,7 @@ pub struct RunReport {
     /// What the chair said, in order.
     pub said: Vec<String>,
     pub sim: Option<SimSummary>,
+    pub record: Option<RecordReport>,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -125,6 +220,27 @@ struct Shared {
     world: Option<Arc<Mutex<SimWorld>>>,
     matches: std::sync::atomic::AtomicU64,
     gyro_fused: std::sync::atomic::AtomicU64,
+    record: Mutex<Option<RecordSink>>,
+}
+
+impl Shared {
+    fn record(&self, item: RecordItem) {
+        if let Ok(r) = self.record.lock() {
+            if let Some(sink) = r.as_ref() {
+                sink.put(item);
+            }
+        }
+    }
+
+    /// Closes the sink (the recorder thread then finishes the file).
+    fn close_record(&self) -> u64 {
+        self.record
+            .lock()
+            .ok()
+            .and_then(|mut r| r.take())
+            .map(|s| s.dropped.load(std::sync::atomic::Ordering::SeqCst))
+            .unwrap_or(0)
+    }
 }
 
 /// Whether a point (odom) is in the camera's view with the chair at
@@ -164,7 +280,18 @@ pub async fn run_sim(
         world: Some(world.clone()),
         matches: std::sync::atomic::AtomicU64::new(0),
         gyro_fused: std::sync::atomic::AtomicU64::new(0),
+        record: Mutex::new(None),
     });
+    let recorder = match &opts.record {
+        Some(p) => {
+            let (sink, handle) = start_recorder(p)?;
+            if let Ok(mut r) = shared.record.lock() {
+                *r = Some(sink);
+            }
+            Some((p.display().to_string(), handle))
+        }
+        None => None,
+    };
     let sources = CancellationToken::new();
 
     // the chair's R-Net bus: JSM + power module, and the real writer
@@ -217,6 +344,7 @@ pub async fn run_sim(
     {
         let (world, chair, clock, cancel) =
             (world.clone(), chair.clone(), clock.clone(), sources.clone());
+        let shared_w = shared.clone();
         tokio::spawn(async move {
             let mut tick = tokio::time::interval(Duration::from_millis(10));
             let mut k: u64 = 0;
@@ -231,12 +359,16 @@ pub async fn run_sim(
                 w.step(0.01, motor, &mapping);
                 // the camera's IMU: the true yaw rate
                 gyro_tx.send_replace(Some(Stamped::new(now, w.omega_radps)));
-                ticks_tx.send_replace(Some(Stamped::new(now, w.wheel_ticks())));
+                let t = Stamped::new(now, w.wheel_ticks());
+                shared_w.record(RecordItem::Ticks(t.clone()));
+                ticks_tx.send_replace(Some(t));
                 if k.is_multiple_of(10) {
                     let ms = (now.0.as_millis() & 0xFF_FFFF) as u32;
                     let l = Stamped::new(now, w.laser_scan(&lasers[0], ms));
                     let r = Stamped::new(now, w.laser_scan(&lasers[1], ms));
                     obst_tx.send_replace(merge_scans(&[(&l, &lasers[0]), (&r, &lasers[1])]));
+                    shared_w.record(RecordItem::Scan(true, l));
+                    shared_w.record(RecordItem::Scan(false, r));
                 }
                 k += 1;
             }
@@ -286,6 +418,7 @@ pub async fn run_sim(
     sources.cancel();
     let _ = tokio::task::spawn_blocking(move || perception.join()).await;
     let mut report = report;
+    report.record = finish_recording(&shared, recorder).await;
     report.actuator = actuator;
     if let Ok(w) = world.lock() {
         let label = match &report.goal {
@@ -320,6 +453,26 @@ pub async fn run_sim(
         });
     }
     Ok(report)
+}
+
+/// Last in the shutdown order: the recording is flushed and closed.
+async fn finish_recording(
+    shared: &Shared,
+    recorder: Option<(String, std::thread::JoinHandle<(u64, Option<String>)>)>,
+) -> Option<RecordReport> {
+    let (path, handle) = recorder?;
+    let dropped = shared.close_record();
+    let (written, error) = tokio::task::spawn_blocking(move || handle.join())
+        .await
+        .ok()
+        .and_then(|r| r.ok())
+        .unwrap_or((0, Some("recorder thread failed".into())));
+    Some(RecordReport {
+        path,
+        written,
+        dropped,
+        error,
+    })
 }
 
 /// Wheel odometry → EKF predict; merged scans → scan matching → EKF
@@ -427,13 +580,26 @@ fn spawn_sim_perception(
                     &mut segmenter,
                     &view.color,
                     &view.depth,
-                    dets,
+                    dets.clone(),
                     &k,
                     &base_from_camera,
                     Frame::BaseLink,
                     &geometry,
                 );
                 if let Ok(v) = lifted {
+                    shared.record(RecordItem::View {
+                        frame: Stamped::new(
+                            stamp,
+                            crate::sensors::camera::RgbdFrame {
+                                color: view.color.clone(),
+                                depth: view.depth.clone(),
+                                color_stamp: stamp,
+                                depth_stamp: stamp,
+                            },
+                        ),
+                        detections: dets,
+                        objects: v.objects.clone(),
+                    });
                     place_objects(&shared, stamp, v.objects, &base_from_camera, &cancel);
                 }
                 let spent = t0.elapsed();
@@ -672,6 +838,7 @@ async fn control_loop(settings: &Settings, opts: &RunOptions, mut io: ControlIo)
         actuator: io.actuator_status.borrow().clone(),
         said,
         sim: None,
+        record: None,
     }
 }
 
@@ -729,7 +896,18 @@ pub async fn run_hardware(
         world: None,
         matches: std::sync::atomic::AtomicU64::new(0),
         gyro_fused: std::sync::atomic::AtomicU64::new(0),
+        record: Mutex::new(None),
     });
+    let recorder = match &opts.record {
+        Some(p) => {
+            let (sink, handle) = start_recorder(p)?;
+            if let Ok(mut r) = shared.record.lock() {
+                *r = Some(sink);
+            }
+            Some((p.display().to_string(), handle))
+        }
+        None => None,
+    };
     let sources = CancellationToken::new();
 
     // lasers: one reader thread each (reconnecting with back-off), merged
@@ -770,15 +948,24 @@ pub async fn run_hardware(
             settings.lasers.right.base_from_laser(),
         ];
         let (mut left, mut right) = (laser_rx[0].clone(), laser_rx[1].clone());
+        let shared_l = shared.clone();
         let cancel = sources.clone();
         tokio::spawn(async move {
             loop {
-                tokio::select! {
+                let changed_left = tokio::select! {
                     _ = cancel.cancelled() => return,
-                    r = left.changed() => if r.is_err() { return },
-                    r = right.changed() => if r.is_err() { return },
+                    r = left.changed() => if r.is_err() { return } else { true },
+                    r = right.changed() => if r.is_err() { return } else { false },
+                };
+                let (l, r) = (
+                    left.borrow_and_update().clone(),
+                    right.borrow_and_update().clone(),
+                );
+                match (changed_left, &l, &r) {
+                    (true, Some(s), _) => shared_l.record(RecordItem::Scan(true, s.clone())),
+                    (false, _, Some(s)) => shared_l.record(RecordItem::Scan(false, s.clone())),
+                    _ => {}
                 }
-                let (l, r) = (left.borrow().clone(), right.borrow().clone());
                 // both scanners or none: the merged stamp is the older one,
                 // so a dead scanner makes the set stale and the chair stops
                 if let (Some(l), Some(r)) = (l, r) {
@@ -806,6 +993,7 @@ pub async fn run_hardware(
     let (ticks_tx, ticks_rx) = watch::channel::<Option<Stamped<WheelTicks>>>(None);
     {
         let mut rx = enc_task.latest.clone();
+        let shared_t = shared.clone();
         let cancel = sources.clone();
         tokio::spawn(async move {
             loop {
@@ -814,6 +1002,9 @@ pub async fn run_hardware(
                     r = rx.changed() => if r.is_err() { return },
                 }
                 let v = rx.borrow_and_update().clone();
+                if let Some(t) = &v {
+                    shared_t.record(RecordItem::Ticks(t.clone()));
+                }
                 ticks_tx.send_replace(v);
             }
         });
@@ -931,6 +1122,7 @@ pub async fn run_hardware(
         enc_task.join();
     })
     .await;
+    report.record = finish_recording(&shared, recorder).await;
     Ok(report)
 }
 
@@ -1052,6 +1244,11 @@ fn spawn_camera_perception(
                         continue;
                     }
                 };
+                shared.record(RecordItem::View {
+                    frame: Stamped::new(stamp, frame.value.clone()),
+                    detections: view.detections.clone(),
+                    objects: view.objects.clone(),
+                });
                 place_objects(&shared, stamp, view.objects, &base_from_camera, &cancel);
             }
         })

@@ -13,6 +13,7 @@ pub mod eval;
 pub mod navigation;
 pub mod output;
 pub mod perception;
+pub mod record;
 pub mod safety;
 pub mod sensors;
 pub mod sim;

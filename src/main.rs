@@ -235,6 +235,9 @@ enum Command {
         /// On the chair's devices: no camera (stop and safety only).
         #[arg(long)]
         no_camera: bool,
+        /// Record the sensors and perception's output to this MCAP file.
+        #[arg(long)]
+        record: Option<PathBuf>,
     },
     /// Detect prompted objects in one RGB(-D) image: 2D boxes, and 3D objects with depth.
     Detect {
@@ -817,6 +820,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
             no_stdin,
             camera_replay,
             no_camera,
+            record,
         } => run_daemon(
             cli.config.as_deref(),
             sim,
@@ -830,6 +834,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
                 stdin_prompts: !no_stdin,
                 exit_on_arrival,
                 max_duration,
+                record,
             },
         ),
         Command::Check(CheckCommand::Hokuyo { port, count }) => check_hokuyo(&port, count),

@@ -202,3 +202,77 @@ fn notifies_systemd_ready_and_feeds_the_watchdog() {
     assert!(feeds > 20, "{feeds} watchdog messages");
     assert_eq!(msgs.last().map(|s| s.as_str()), Some("STOPPING=1"));
 }
+
+#[test]
+fn records_a_run_that_replays_through_the_pipeline_to_the_same_objects() {
+    use opennav::perception::pipeline::lift_detections;
+    use opennav::record::{object_record, read_all, Recorded};
+    let dir = tempfile::tempdir().expect("tmp");
+    let file = dir.path().join("run.mcap");
+    let out = opennav()
+        .args([
+            "--prompt",
+            "chair",
+            "--exit-on-arrival",
+            "--max-duration",
+            "120s",
+            "--no-stdin",
+        ])
+        .arg("--record")
+        .arg(&file)
+        .output()
+        .expect("runs");
+    assert!(out.status.success());
+    let r = report(&out.stdout);
+    assert_eq!(r["outcome"], "arrived", "{r}");
+    assert_eq!(r["record"]["dropped"], 0, "{r}");
+    assert_eq!(r["record"]["error"], Value::Null, "{r}");
+    let all = read_all(&file).expect("reads");
+    let ticks = all
+        .iter()
+        .filter(|m| matches!(m, Recorded::Ticks(_)))
+        .count();
+    let scans = all
+        .iter()
+        .filter(|m| matches!(m, Recorded::Scan { .. }))
+        .count();
+    assert!(ticks > 200 && scans > 40, "{ticks} ticks, {scans} scans");
+    // the recorded views through the geometry again: the same objects
+    let settings = opennav::config::Settings::load(None).expect("defaults");
+    let base_from_camera = settings
+        .camera
+        .base_from_camera
+        .to_isometry("camera.base_from_camera")
+        .expect("valid");
+    let k = opennav::sim::replica::camera(2).intrinsics();
+    let mut seg =
+        opennav::perception::segmenter::DepthBoxSegmenter::new(settings.depth_segmenter_settings());
+    let mut frames = Vec::new();
+    let mut dets = Vec::new();
+    let mut objects = Vec::new();
+    for m in all {
+        match m {
+            Recorded::Rgbd(f) => frames.push(f),
+            Recorded::Detections(_, d) => dets.push(d),
+            Recorded::Objects(_, o) => objects.push(o),
+            _ => {}
+        }
+    }
+    assert!(frames.len() >= 3, "{} views", frames.len());
+    assert_eq!(frames.len(), objects.len());
+    for ((f, d), o) in frames.iter().zip(dets).zip(&objects) {
+        let again = lift_detections(
+            &mut seg,
+            &f.value.color,
+            &f.value.depth,
+            d,
+            &k,
+            &base_from_camera,
+            opennav::types::Frame::BaseLink,
+            &settings.geometry_settings(),
+        )
+        .expect("replayed");
+        let again: Vec<_> = again.objects.iter().map(object_record).collect();
+        assert_eq!(&again, o);
+    }
+}

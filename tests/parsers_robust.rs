@@ -177,3 +177,27 @@ proptest! {
         }
     }
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(200))]
+
+    /// A recording of any bytes (or a valid one with a byte changed) is read
+    /// or refused with an error, never a panic.
+    #[test]
+    fn recordings_of_any_bytes_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..400), pos in any::<proptest::sample::Index>(), flip in 1u8..=255) {
+        let dir = tempfile::tempdir().expect("tmp");
+        let p = dir.path().join("x.mcap");
+        std::fs::write(&p, &bytes).expect("write");
+        let _ = opennav::record::read_all(&p);
+        // a small valid recording, one byte changed
+        let q = dir.path().join("y.mcap");
+        let mut r = opennav::record::Recorder::create(&q).expect("create");
+        r.ticks(&opennav::types::Stamped::new(opennav::types::Stamp::ZERO, opennav::sensors::encoders::WheelTicks { seq: 1, mcu_time_us: 2, left: 3, right: 4, left_illegal: 0, right_illegal: 0, gap: 0 })).expect("ticks");
+        r.finish().expect("finish");
+        let mut good = std::fs::read(&q).expect("read");
+        let i = pos.index(good.len());
+        good[i] ^= flip;
+        std::fs::write(&q, &good).expect("write");
+        let _ = opennav::record::read_all(&q);
+    }
+}
