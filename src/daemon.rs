@@ -108,10 +108,11 @@ pub struct RecordReport {
     pub error: Option<String>,
 }
 
+/// The recorder thread: messages written, and the error that stopped it.
+type RecorderThread = std::thread::JoinHandle<(u64, Option<String>)>;
+
 /// Starts the recorder thread.
-fn start_recorder(
-    path: &std::path::Path,
-) -> Result<(RecordSink, std::thread::JoinHandle<(u64, Option<String>)>), DaemonError> {
+fn start_recorder(path: &std::path::Path) -> Result<(RecordSink, RecorderThread), DaemonError> {
     let mut rec =
         crate::record::Recorder::create(path).map_err(|e| DaemonError::Setup(e.to_string()))?;
     let (tx, rx) = std::sync::mpsc::sync_channel::<RecordItem>(512);
@@ -458,7 +459,7 @@ pub async fn run_sim(
 /// Last in the shutdown order: the recording is flushed and closed.
 async fn finish_recording(
     shared: &Shared,
-    recorder: Option<(String, std::thread::JoinHandle<(u64, Option<String>)>)>,
+    recorder: Option<(String, RecorderThread)>,
 ) -> Option<RecordReport> {
     let (path, handle) = recorder?;
     let dropped = shared.close_record();
