@@ -275,24 +275,7 @@ pub async fn run_sim(
     let clock: Arc<dyn Clock> = Arc::new(TokioClock::new());
     let start = clock.now();
     let world = Arc::new(Mutex::new(SimWorld::living_room(settings.drive_params())));
-    let shared = Arc::new(Shared {
-        history: Mutex::new(PoseHistory::new(400)),
-        tracker: Mutex::new(Tracker::new(TrackerParams::default())),
-        world: Some(world.clone()),
-        matches: std::sync::atomic::AtomicU64::new(0),
-        gyro_fused: std::sync::atomic::AtomicU64::new(0),
-        record: Mutex::new(None),
-    });
-    let recorder = match &opts.record {
-        Some(p) => {
-            let (sink, handle) = start_recorder(p)?;
-            if let Ok(mut r) = shared.record.lock() {
-                *r = Some(sink);
-            }
-            Some((p.display().to_string(), handle))
-        }
-        None => None,
-    };
+    let (shared, recorder) = new_shared(Some(world.clone()), opts.record.as_deref())?;
     let sources = CancellationToken::new();
 
     // the chair's R-Net bus: JSM + power module, and the real writer
@@ -410,12 +393,7 @@ pub async fn run_sim(
 
     // shutdown: the chair first, then the sources
     writer_cancel.cancel();
-    let actuator = tokio::task::spawn_blocking(move || writer.join())
-        .await
-        .ok()
-        .and_then(|r| r.ok())
-        .and_then(|r| r.ok())
-        .unwrap_or_else(|| status_rx.borrow().clone());
+    let actuator = join_actuator(writer, &status_rx).await;
     sources.cancel();
     let _ = tokio::task::spawn_blocking(move || perception.join()).await;
     let mut report = report;
@@ -456,11 +434,51 @@ pub async fn run_sim(
     Ok(report)
 }
 
+/// A recording in progress: its path and its writer thread.
+type Recording = Option<(String, RecorderThread)>;
+
+/// The tasks' shared state, and the recorder thread when recording.
+fn new_shared(
+    world: Option<Arc<Mutex<SimWorld>>>,
+    record: Option<&std::path::Path>,
+) -> Result<(Arc<Shared>, Recording), DaemonError> {
+    let shared = Arc::new(Shared {
+        history: Mutex::new(PoseHistory::new(400)),
+        tracker: Mutex::new(Tracker::new(TrackerParams::default())),
+        world,
+        matches: std::sync::atomic::AtomicU64::new(0),
+        gyro_fused: std::sync::atomic::AtomicU64::new(0),
+        record: Mutex::new(None),
+    });
+    let recorder = match record {
+        Some(p) => {
+            let (sink, handle) = start_recorder(p)?;
+            if let Ok(mut r) = shared.record.lock() {
+                *r = Some(sink);
+            }
+            Some((p.display().to_string(), handle))
+        }
+        None => None,
+    };
+    Ok((shared, recorder))
+}
+
+/// Waits for the actuator thread (after its cancellation): its final
+/// status, or the last one it published if it failed.
+async fn join_actuator(
+    writer: std::thread::JoinHandle<Result<ActuatorStatus, crate::actuation::ActuatorError>>,
+    status: &watch::Receiver<ActuatorStatus>,
+) -> ActuatorStatus {
+    tokio::task::spawn_blocking(move || writer.join())
+        .await
+        .ok()
+        .and_then(|r| r.ok())
+        .and_then(|r| r.ok())
+        .unwrap_or_else(|| status.borrow().clone())
+}
+
 /// Last in the shutdown order: the recording is flushed and closed.
-async fn finish_recording(
-    shared: &Shared,
-    recorder: Option<(String, RecorderThread)>,
-) -> Option<RecordReport> {
+async fn finish_recording(shared: &Shared, recorder: Recording) -> Option<RecordReport> {
     let (path, handle) = recorder?;
     let dropped = shared.close_record();
     let (written, error) = tokio::task::spawn_blocking(move || handle.join())
@@ -891,24 +909,7 @@ pub async fn run_hardware(
 
     let clock: Arc<dyn Clock> = Arc::new(TokioClock::new());
     let start = clock.now();
-    let shared = Arc::new(Shared {
-        history: Mutex::new(PoseHistory::new(400)),
-        tracker: Mutex::new(Tracker::new(TrackerParams::default())),
-        world: None,
-        matches: std::sync::atomic::AtomicU64::new(0),
-        gyro_fused: std::sync::atomic::AtomicU64::new(0),
-        record: Mutex::new(None),
-    });
-    let recorder = match &opts.record {
-        Some(p) => {
-            let (sink, handle) = start_recorder(p)?;
-            if let Ok(mut r) = shared.record.lock() {
-                *r = Some(sink);
-            }
-            Some((p.display().to_string(), handle))
-        }
-        None => None,
-    };
+    let (shared, recorder) = new_shared(None, opts.record.as_deref())?;
     let sources = CancellationToken::new();
 
     // lasers: one reader thread each (reconnecting with back-off), merged
@@ -1106,12 +1107,7 @@ pub async fn run_hardware(
 
     // shutdown: the chair first (centred, then released), then the devices
     writer_cancel.cancel();
-    report.actuator = tokio::task::spawn_blocking(move || writer.join())
-        .await
-        .ok()
-        .and_then(|r| r.ok())
-        .and_then(|r| r.ok())
-        .unwrap_or_else(|| status_rx.borrow().clone());
+    report.actuator = join_actuator(writer, &status_rx).await;
     sources.cancel();
     let _ = tokio::task::spawn_blocking(move || {
         if let Some(t) = perception_thread {

@@ -12,8 +12,6 @@ use std::sync::mpsc::{channel, Receiver, Sender};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use serialport::{SerialPort, TTYPort};
-
 use crate::sensors::scip::{build_reply, checksum, encode_value, SensorParams};
 
 /// A fault to inject into the stream.
@@ -99,25 +97,10 @@ pub struct HokuyoEmulator {
     thread: Option<std::thread::JoinHandle<()>>,
 }
 
-struct Device {
-    master: TTYPort,
-    _slave: TTYPort,
-}
+use super::pty::PtyDevice as Device;
 
 fn plug(link: &Path) -> std::io::Result<Device> {
-    let (mut master, slave) = TTYPort::pair().map_err(std::io::Error::other)?;
-    master
-        .set_timeout(Duration::from_millis(2))
-        .map_err(std::io::Error::other)?;
-    let name = slave
-        .name()
-        .ok_or_else(|| std::io::Error::other("pty without a name"))?;
-    let _ = std::fs::remove_file(link);
-    std::os::unix::fs::symlink(&name, link)?;
-    Ok(Device {
-        master,
-        _slave: slave,
-    })
+    super::pty::plug(link, Duration::from_millis(2))
 }
 
 impl HokuyoEmulator {

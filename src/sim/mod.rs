@@ -2,6 +2,7 @@
 //! for hardware behind the same traits as the real drivers.
 
 pub mod hokuyo;
+pub mod pty;
 pub mod rebus;
 pub mod replica;
 pub mod rnet;

@@ -11,7 +11,7 @@ use std::sync::mpsc::{channel, Receiver, Sender};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use serialport::{SerialPort, TTYPort};
+use serialport::TTYPort;
 
 use crate::actuation::rebus::{Decoder, Kind, Packet};
 
@@ -58,15 +58,9 @@ pub struct RebusChipset {
 impl RebusChipset {
     /// Starts the chipset on a new pty whose slave is linked at `link`.
     pub fn spawn(link: &Path) -> std::io::Result<RebusChipset> {
-        let (mut master, slave) = TTYPort::pair().map_err(std::io::Error::other)?;
-        master
-            .set_timeout(Duration::from_millis(1))
-            .map_err(std::io::Error::other)?;
-        let name = slave
-            .name()
-            .ok_or_else(|| std::io::Error::other("pty without a name"))?;
-        let _ = std::fs::remove_file(link);
-        std::os::unix::fs::symlink(&name, link)?;
+        let super::pty::PtyDevice {
+            mut master, slave, ..
+        } = super::pty::plug(link, Duration::from_millis(1))?;
         let (tx, rx) = channel();
         let log = Arc::new(Mutex::new(ChipsetLog::default()));
         let stop = Arc::new(AtomicBool::new(false));
