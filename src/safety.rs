@@ -181,6 +181,22 @@ impl Supervisor {
         self.fault = None;
     }
 
+    /// Turning on the spot (|v| below 5 cm/s, |ω| above 0.05 rad/s): true
+    /// when an obstacle point lies inside the circle the footprint's
+    /// corners sweep, plus the corridor margin.
+    pub fn turn_blocked(&self, obstacles: &Obstacles, v_mps: f64, omega_radps: f64) -> bool {
+        if v_mps.abs() >= 0.05 || omega_radps.abs() <= 0.05 {
+            return false;
+        }
+        let l = &self.limits;
+        let reach = l.front_offset_m.max(l.rear_offset_m);
+        let r = reach.hypot(l.chair_width_m / 2.0) + l.corridor_margin_m;
+        obstacles
+            .points_base
+            .iter()
+            .any(|p| (p[0] as f64).hypot(p[1] as f64) < r)
+    }
+
     /// True when an obstacle point lies in the corridor ahead (v > 0) or
     /// behind (v < 0).
     pub fn corridor_blocked(&self, obstacles: &Obstacles, v_mps: f64) -> bool {
@@ -237,7 +253,7 @@ impl Supervisor {
                 } else {
                     0.0
                 };
-                if self.corridor_blocked(&obs.value, v) {
+                if self.corridor_blocked(&obs.value, v) || self.turn_blocked(&obs.value, v, w) {
                     state = SupervisorState::Stopped(StopReason::Obstacle);
                 } else {
                     // acceleration limits from the last output
@@ -323,6 +339,33 @@ mod tests {
         assert_eq!(c.state, SupervisorState::Navigating);
         assert!((c.cmd.v_mps - v).abs() < 1e-12);
         s
+    }
+
+    #[test]
+    fn turning_on_the_spot_stops_when_something_is_inside_the_swept_circle() {
+        let mut s = moving(0.0);
+        // beside the chair, 0.7 m from its centre: inside the corners'
+        // circle (hypot(0.55, 0.35) + 0.10 = 0.75 m), outside the corridor
+        let mut w = World::new(20, 0.0, 0.5);
+        w.obstacles.value.points_base = vec![[0.0, 0.7]];
+        let c = s.step(ms(20), &w.inputs());
+        assert_eq!(c.state, SupervisorState::Stopped(StopReason::Obstacle));
+        assert_eq!(c.cmd, VelocityCmd::default());
+        // 0.8 m away: free to turn
+        let mut s = moving(0.0);
+        let mut w = World::new(20, 0.0, 0.5);
+        w.obstacles.value.points_base = vec![[0.0, 0.8]];
+        let c = s.step(ms(20), &w.inputs());
+        assert_eq!(c.state, SupervisorState::Navigating);
+        assert!(c.cmd.omega_radps > 0.0);
+        // driving forward past it is the corridor's business, not this check
+        let mut s = moving(0.2);
+        let mut w = World::new(20, 0.2, 0.5);
+        w.obstacles.value.points_base = vec![[0.0, 0.7]];
+        assert_eq!(
+            s.step(ms(20), &w.inputs()).state,
+            SupervisorState::Navigating
+        );
     }
 
     #[test]
