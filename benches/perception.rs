@@ -15,12 +15,12 @@ use std::path::PathBuf;
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use nalgebra::Isometry3;
+use opennav::msg::Frame;
 use opennav::perception::calibration::{Intrinsics, RgbdCalibration};
 use opennav::perception::detector::{open_detector, Detection, DetectorSettings};
 use opennav::perception::image::{letterbox_chw, DepthImage, RgbImage};
 use opennav::perception::pipeline::{objects_from_masks, GeometrySettings, Pipeline};
 use opennav::perception::segmenter::DepthBoxSegmenter;
-use opennav::types::Frame;
 
 /// A 640×480 scene: a wall at 3.5 m and 10 box-shaped objects in front.
 fn scene() -> (DepthImage, Vec<Detection>) {

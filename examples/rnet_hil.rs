@@ -18,13 +18,12 @@ use opennav::actuation::writer::{RnetActuator, RnetSettings};
 use opennav::actuation::{
     spawn_actuator_thread, ActuatorEvent, ActuatorIo, ActuatorStatus, PeriodStats,
 };
-use opennav::safety::{
-    FaultReason, SafetyLimits, StopReason, Supervisor, SupervisorState, VelocityCmd,
-};
+use opennav::msg::{Clock, Stamp, TokioClock};
+use opennav::msg::{FaultReason, StopReason, SupervisorState, VelocityCmd};
+use opennav::safety::{SafetyLimits, Supervisor};
 use opennav::sim::rnet::{
     run_control_stand_in, run_sim_chair, ControlStandIn, SimChair, SimChairSettings,
 };
-use opennav::types::{Clock, Stamp, TokioClock};
 use serde_json::{json, Value};
 use tokio::sync::{mpsc, watch};
 use tokio_util::sync::CancellationToken;

@@ -35,22 +35,22 @@ use crate::config::Settings;
 use crate::estimation::ekf::PoseHistory;
 use crate::estimation::fusion::Estimator;
 use crate::estimation::goal::{GoalEvent, GoalKeeper, GoalState};
-use crate::estimation::odometry::Pose2;
 use crate::estimation::tracker::{Tracker, TrackerParams};
+use crate::msg::Obstacles;
+use crate::msg::Pose2;
+use crate::msg::WheelTicks;
+use crate::msg::{Clock, Frame, Stamp, Stamped, TokioClock};
+use crate::msg::{FaultReason, SafeCmd, SupervisorState, VelocityCmd};
 use crate::navigation::apf::ApfParams;
 use crate::navigation::mpc::{MpcParams, UnicycleState};
 use crate::navigation::planner::{Planner, PlannerStats};
 use crate::perception::boxes::Object3D;
 use crate::perception::pipeline::lift_detections;
 use crate::perception::segmenter::DepthBoxSegmenter;
-use crate::safety::{
-    FaultReason, SafeCmd, Supervisor, SupervisorInputs, SupervisorState, VelocityCmd,
-};
-use crate::sensors::encoders::WheelTicks;
-use crate::sensors::laser::{merge_scans, Obstacles};
+use crate::safety::{Supervisor, SupervisorInputs};
+use crate::sensors::laser::merge_scans;
 use crate::sim::rnet::{run_sim_chair, SimChair, SimChairSettings};
 use crate::sim::world::{SimReport, SimWorld};
-use crate::types::{Clock, Frame, Stamp, Stamped, TokioClock};
 
 #[derive(Debug, Clone)]
 pub struct RunOptions {
@@ -67,10 +67,10 @@ pub struct RunOptions {
 
 /// What the recorder thread writes.
 enum RecordItem {
-    Scan(bool, Stamped<crate::sensors::hokuyo::LaserScan>),
+    Scan(bool, Stamped<crate::msg::LaserScan>),
     Ticks(Stamped<WheelTicks>),
     View {
-        frame: Stamped<crate::sensors::camera::RgbdFrame>,
+        frame: Stamped<crate::msg::RgbdFrame>,
         detections: Vec<crate::perception::detector::Detection>,
         objects: Vec<Object3D>,
     },
@@ -609,7 +609,7 @@ fn spawn_sim_perception(
                     shared.record(RecordItem::View {
                         frame: Stamped::new(
                             stamp,
-                            crate::sensors::camera::RgbdFrame {
+                            crate::msg::RgbdFrame {
                                 color: view.color.clone(),
                                 depth: view.depth.clone(),
                                 color_stamp: stamp,
@@ -779,7 +779,7 @@ async fn control_loop(settings: &Settings, opts: &RunOptions, mut io: ControlIo)
                     let searching = matches!(goal.state(), GoalState::Searching { .. });
                     if searching {
                         if let Some(prev) = search.last_theta {
-                            search.turned_rad += crate::estimation::odometry::wrap_angle(pose.theta_rad - prev).abs();
+                            search.turned_rad += crate::msg::wrap_angle(pose.theta_rad - prev).abs();
                         }
                         search.last_theta = Some(pose.theta_rad);
                     } else {

@@ -532,7 +532,7 @@ fn open_realsense(
         .base_from_camera
         .to_isometry("camera.base_from_camera")
         .map_err(bad_input)?;
-    let clock = std::sync::Arc::new(opennav::types::MonotonicClock::new());
+    let clock = std::sync::Arc::new(opennav::msg::MonotonicClock::new());
     Ok(Box::new(
         RealSenseSource::open(RealSenseSettings::default(), base_from_camera, clock)
             .map_err(failed)?,
@@ -551,7 +551,7 @@ fn open_realsense(
 fn check_encoders(port: &str, count: u64) -> Result<(), Failure> {
     use opennav::sensors::encoders::EncoderDriver;
     use std::io::Write;
-    let clock = std::sync::Arc::new(opennav::types::MonotonicClock::new());
+    let clock = std::sync::Arc::new(opennav::msg::MonotonicClock::new());
     let mut driver =
         EncoderDriver::new(port, clock).with_timeout(std::time::Duration::from_secs(1));
     let stdout = std::io::stdout();
@@ -742,7 +742,7 @@ fn check_rnet(
 fn check_hokuyo(port: &str, count: u64) -> Result<(), Failure> {
     use opennav::sensors::hokuyo::{HokuyoDriver, HokuyoSettings, ScanJson};
     use std::io::Write;
-    let clock = std::sync::Arc::new(opennav::types::MonotonicClock::new());
+    let clock = std::sync::Arc::new(opennav::msg::MonotonicClock::new());
     let mut driver = HokuyoDriver::new(HokuyoSettings::new(port), clock);
     let params = driver.connect().map_err(failed)?;
     tracing::info!(?params, "connected");

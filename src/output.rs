@@ -190,7 +190,7 @@ pub fn slug(label: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::types::Frame;
+    use crate::msg::Frame;
     use nalgebra::Point3;
 
     #[test]

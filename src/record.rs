@@ -24,13 +24,13 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
+use crate::msg::LaserScan;
+use crate::msg::RgbdFrame;
+use crate::msg::WheelTicks;
+use crate::msg::{NoReturn, Reading};
+use crate::msg::{Stamp, Stamped};
 use crate::perception::detector::Detection;
 use crate::perception::image::{DepthImage, RgbImage};
-use crate::sensors::camera::RgbdFrame;
-use crate::sensors::encoders::WheelTicks;
-use crate::sensors::hokuyo::LaserScan;
-use crate::sensors::scip::{NoReturn, Reading};
-use crate::types::{Stamp, Stamped};
 
 #[derive(Debug, thiserror::Error)]
 pub enum RecordError {

@@ -268,7 +268,7 @@ fn records_a_run_that_replays_through_the_pipeline_to_the_same_objects() {
             d,
             &k,
             &base_from_camera,
-            opennav::types::Frame::BaseLink,
+            opennav::msg::Frame::BaseLink,
             &settings.geometry_settings(),
         )
         .expect("replayed");

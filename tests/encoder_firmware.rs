@@ -11,10 +11,11 @@ use std::process::{Command, Stdio};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use opennav::msg::WheelTicks;
+use opennav::msg::{MonotonicClock, Stamped};
 use opennav::sensors::encoders::{
-    encode_message, CountsFrame, EncoderDriver, EncoderError, Hello, Message, WheelTicks,
+    encode_message, CountsFrame, EncoderDriver, EncoderError, Hello, Message,
 };
-use opennav::types::{MonotonicClock, Stamped};
 
 fn build() -> PathBuf {
     let out = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("encoder_bridge");

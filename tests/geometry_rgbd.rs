@@ -4,13 +4,13 @@
 mod common;
 
 use nalgebra::Isometry3;
+use opennav::msg::Frame;
 use opennav::perception::calibration::RgbdCalibration;
 use opennav::perception::cloud::{back_project, DepthSample};
 use opennav::perception::detector::{open_detector, DetectorSettings};
 use opennav::perception::image::{DepthImage, RgbImage};
 use opennav::perception::pipeline::{GeometrySettings, Pipeline};
 use opennav::perception::segmenter::DepthBoxSegmenter;
-use opennav::types::Frame;
 
 struct RefCloud {
     u: Vec<u16>,

@@ -7,10 +7,12 @@ mod common;
 use std::sync::Arc;
 use std::time::Duration;
 
-use opennav::sensors::hokuyo::{HokuyoDriver, HokuyoError, HokuyoSettings, LaserScan};
-use opennav::sensors::scip::{Reading, SensorParams};
+use opennav::msg::LaserScan;
+use opennav::msg::Reading;
+use opennav::msg::{MonotonicClock, Stamped};
+use opennav::sensors::hokuyo::{HokuyoDriver, HokuyoError, HokuyoSettings};
+use opennav::sensors::scip::SensorParams;
 use opennav::sim::hokuyo::{load_sena_csv, resample_to_urg, Fault, HokuyoEmulator};
-use opennav::types::{MonotonicClock, Stamped};
 
 const PERIOD_MS: u32 = 5;
 const CLOCK_START: u32 = 0xFF_FF00;

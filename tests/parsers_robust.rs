@@ -123,7 +123,7 @@ proptest! {
     #[test]
     fn takeover_survives_any_bus_traffic(frames in proptest::collection::vec((any::<u32>(), any::<bool>(), 0u8..=8, any::<[u8; 8]>(), 0u64..30), 0..200), follow in any::<bool>()) {
         use opennav::actuation::rnet::{CanFrame, Takeover, TakeoverMode};
-        use opennav::types::Stamp;
+        use opennav::msg::Stamp;
         use std::time::Duration;
         let mode = if follow { TakeoverMode::FollowJsm } else { TakeoverMode::JsmError };
         let mut tk = Takeover::new(mode);
@@ -154,7 +154,7 @@ proptest! {
         use opennav::actuation::rebus::{Kind, Packet};
         use opennav::actuation::rebus_link::{RebusLink, RebusSettings};
         use opennav::actuation::rnet::JoystickMapping;
-        use opennav::types::Stamp;
+        use opennav::msg::Stamp;
         use std::time::Duration;
         let mut l = RebusLink::new(RebusSettings::new(JoystickMapping { forward_full_mps: 1.0, reverse_full_mps: 0.5, turn_full_radps: 1.5, deadband: 3 }));
         l.set_command(5, -9, Stamp::ZERO);
@@ -192,7 +192,7 @@ proptest! {
         // a small valid recording, one byte changed
         let q = dir.path().join("y.mcap");
         let mut r = opennav::record::Recorder::create(&q).expect("create");
-        r.ticks(&opennav::types::Stamped::new(opennav::types::Stamp::ZERO, opennav::sensors::encoders::WheelTicks { seq: 1, mcu_time_us: 2, left: 3, right: 4, left_illegal: 0, right_illegal: 0, gap: 0 })).expect("ticks");
+        r.ticks(&opennav::msg::Stamped::new(opennav::msg::Stamp::ZERO, opennav::msg::WheelTicks { seq: 1, mcu_time_us: 2, left: 3, right: 4, left_illegal: 0, right_illegal: 0, gap: 0 })).expect("ticks");
         r.finish().expect("finish");
         let mut good = std::fs::read(&q).expect("read");
         let i = pos.index(good.len());

@@ -13,9 +13,9 @@ use opennav::actuation::rnet::JoystickMapping;
 use opennav::actuation::{
     spawn_actuator_thread, ActuatorError, ActuatorEvent, ActuatorIo, ActuatorStatus,
 };
-use opennav::safety::{SafeCmd, SupervisorState, VelocityCmd};
+use opennav::msg::{Clock, TokioClock};
+use opennav::msg::{SafeCmd, SupervisorState, VelocityCmd};
 use opennav::sim::rebus::{ChipsetFault, RebusChipset};
-use opennav::types::{Clock, TokioClock};
 use tokio::sync::{mpsc, watch};
 use tokio_util::sync::CancellationToken;
 

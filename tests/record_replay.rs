@@ -8,13 +8,13 @@ use std::sync::Arc;
 
 use opennav::config::Settings;
 use opennav::eval::replica::{ReplicaView, ViewDetector};
+use opennav::msg::RgbdFrame;
+use opennav::msg::{Frame, Stamp, Stamped};
 use opennav::perception::pipeline::lift_detections;
 use opennav::perception::segmenter::DepthBoxSegmenter;
 use opennav::record::{object_record, read_all, Recorded, Recorder, TOPIC_RGBD};
-use opennav::sensors::camera::RgbdFrame;
 use opennav::sim::replica::{camera, SimGtDetector};
 use opennav::sim::world::SimWorld;
-use opennav::types::{Frame, Stamp, Stamped};
 
 #[test]
 fn a_recording_reads_back_exactly_and_replays_to_the_same_objects() {

@@ -12,13 +12,12 @@ use opennav::actuation::can::{BusError, MemoryBus};
 use opennav::actuation::rnet::{JoystickMapping, TakeoverMode};
 use opennav::actuation::writer::{RnetActuator, RnetSettings};
 use opennav::actuation::{Actuator, ActuatorEvent, ActuatorIo, ActuatorStatus};
-use opennav::safety::{
-    FaultReason, SafetyLimits, StopReason, Supervisor, SupervisorState, VelocityCmd,
-};
+use opennav::msg::{Clock, Stamp, TokioClock};
+use opennav::msg::{FaultReason, StopReason, SupervisorState, VelocityCmd};
+use opennav::safety::{SafetyLimits, Supervisor};
 use opennav::sim::rnet::{
     run_control_stand_in, run_sim_chair, ControlStandIn, DriveFrame, SimChair, SimChairSettings,
 };
-use opennav::types::{Clock, Stamp, TokioClock};
 use tokio::sync::{mpsc, watch};
 use tokio::task::JoinHandle;
 use tokio_util::sync::CancellationToken;

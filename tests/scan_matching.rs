@@ -6,8 +6,9 @@
 mod common;
 
 use opennav::estimation::ekf::{EkfNoise, PoseEkf};
-use opennav::estimation::odometry::{wrap_angle, Pose2};
 use opennav::estimation::scan_match::{compose, icp, inverse, IcpParams, KeyframeMatcher};
+use opennav::msg::wrap_angle;
+use opennav::msg::Pose2;
 use opennav::sim::hokuyo::load_sena_csv;
 
 /// Every SENA scan as points in the scanner's frame (valid rays within 30 m).

@@ -4,9 +4,9 @@
 
 mod common;
 
+use opennav::msg::{NoReturn, Reading};
 use opennav::sensors::scip::{
-    build_reply, classify, decode_ranges, encode_value, parse_reply, NoReturn, Reading,
-    ReplyFramer, SensorParams,
+    build_reply, classify, decode_ranges, encode_value, parse_reply, ReplyFramer, SensorParams,
 };
 use opennav::sim::hokuyo::{load_sena_csv, resample_to_urg};
 use proptest::prelude::*;

@@ -16,8 +16,8 @@ use super::can::{BusEvent, CanBus, CanBusError};
 use super::rnet::{decode, RnetMessage};
 use super::writer::{RnetActuator, RnetSettings};
 use super::{spawn_actuator_thread, ActuatorError, ActuatorEvent, ActuatorIo, ActuatorStatus};
-use crate::safety::{SafeCmd, SupervisorState, VelocityCmd};
-use crate::types::{Clock, TokioClock};
+use crate::msg::{Clock, TokioClock};
+use crate::msg::{SafeCmd, SupervisorState, VelocityCmd};
 
 #[derive(Debug, Clone, Default, Serialize)]
 pub struct IdReport {

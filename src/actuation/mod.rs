@@ -12,8 +12,8 @@ use serde::Serialize;
 use tokio::sync::{mpsc, watch};
 use tokio_util::sync::CancellationToken;
 
-use crate::safety::SafeCmd;
-use crate::types::Clock;
+use crate::msg::Clock;
+use crate::msg::SafeCmd;
 
 pub mod can;
 pub mod check;

@@ -20,7 +20,7 @@ use tokio::sync::mpsc::error::TrySendError;
 use super::rebus::{Decoder, Kind, Packet};
 use super::rnet::JoystickMapping;
 use super::{Actuator, ActuatorError, ActuatorEvent, ActuatorIo, ActuatorStatus};
-use crate::types::Stamp;
+use crate::msg::Stamp;
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RebusSettings {

@@ -11,7 +11,7 @@ use std::time::Duration;
 
 use serde::Serialize;
 
-use crate::types::Stamp;
+use crate::msg::Stamp;
 
 /// A CAN frame as the codec sees it (the SocketCAN adapter converts).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

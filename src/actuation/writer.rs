@@ -27,8 +27,8 @@ use super::rnet::{
     CanFrame, JoystickMapping, Takeover, TakeoverEvent, TakeoverMode, TakeoverState,
 };
 use super::{Actuator, ActuatorError, ActuatorEvent, ActuatorIo, ActuatorStatus, PeriodStats};
-use crate::safety::SupervisorState;
-use crate::types::Stamp;
+use crate::msg::Stamp;
+use crate::msg::SupervisorState;
 
 /// R-Net writer settings (config `[actuation.rnet]`).
 #[derive(Debug, Clone, Copy, PartialEq)]

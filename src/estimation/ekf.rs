@@ -8,8 +8,8 @@ use std::collections::VecDeque;
 
 use nalgebra::{Matrix3, Vector3};
 
-use super::odometry::{wrap_angle, Pose2};
-use crate::types::Stamp;
+use crate::msg::Stamp;
+use crate::msg::{wrap_angle, Pose2};
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct EkfNoise {

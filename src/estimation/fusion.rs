@@ -6,10 +6,11 @@
 use std::time::Duration;
 
 use super::ekf::{EkfNoise, PoseEkf};
-use super::odometry::{wrap_angle, DiffDriveParams, Odometry, Pose2};
+use super::odometry::{DiffDriveParams, WheelOdometry};
 use super::scan_match::{IcpResult, KeyframeMatcher, ScanMatchError};
-use crate::sensors::encoders::WheelTicks;
-use crate::types::{Stamp, Stamped};
+use crate::msg::WheelTicks;
+use crate::msg::{wrap_angle, Pose2};
+use crate::msg::{Stamp, Stamped};
 
 /// The latest pose with the chair's measured speeds.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -21,7 +22,7 @@ pub struct PoseEstimate {
 
 #[derive(Debug, Clone)]
 pub struct Estimator {
-    odo: Odometry,
+    odo: WheelOdometry,
     pub ekf: PoseEkf,
     pub matcher: KeyframeMatcher,
     last: Option<(Pose2, u64, Stamp)>,
@@ -35,7 +36,7 @@ pub struct Estimator {
 impl Estimator {
     pub fn new(drive: DiffDriveParams) -> Estimator {
         Estimator {
-            odo: Odometry::new(drive),
+            odo: WheelOdometry::new(drive),
             ekf: PoseEkf::new(Pose2::default(), EkfNoise::default()),
             matcher: KeyframeMatcher::default(),
             last: None,

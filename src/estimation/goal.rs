@@ -7,9 +7,9 @@ use std::time::Duration;
 
 use serde::Serialize;
 
-use super::odometry::Pose2;
 use super::tracker::{approach_pose, ApproachPose, Tracker};
-use crate::types::Stamp;
+use crate::msg::Pose2;
+use crate::msg::Stamp;
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GoalSettings {
@@ -305,8 +305,8 @@ impl GoalKeeper {
 mod tests {
     use super::*;
     use crate::estimation::tracker::TrackerParams;
+    use crate::msg::Frame;
     use crate::perception::boxes::Object3D;
-    use crate::types::Frame;
     use nalgebra::Point3;
 
     fn chair_obj(x: f32) -> Object3D {

@@ -6,7 +6,7 @@ use std::collections::VecDeque;
 
 use serde::Serialize;
 
-use crate::sensors::encoders::WheelTicks;
+use crate::msg::{Pose2, WheelTicks};
 
 /// The chair's drive geometry (config `[odometry]`, read directly).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Deserialize)]
@@ -54,47 +54,6 @@ impl DiffDriveParams {
     }
 }
 
-/// A planar pose in the odometry frame: metres and radians.
-#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
-pub struct Pose2 {
-    pub x_m: f64,
-    pub y_m: f64,
-    pub theta_rad: f64,
-}
-
-impl Pose2 {
-    /// Moves by `ds` along an arc turning by `dtheta` (exact when
-    /// |dθ| is not tiny, the midpoint rule otherwise).
-    pub fn advanced(&self, ds: f64, dtheta: f64) -> Pose2 {
-        let (x, y, th) = (self.x_m, self.y_m, self.theta_rad);
-        let (nx, ny) = if dtheta.abs() < 1e-9 {
-            let mid = th + dtheta / 2.0;
-            (x + ds * mid.cos(), y + ds * mid.sin())
-        } else {
-            let r = ds / dtheta;
-            (
-                x + r * ((th + dtheta).sin() - th.sin()),
-                y - r * ((th + dtheta).cos() - th.cos()),
-            )
-        };
-        Pose2 {
-            x_m: nx,
-            y_m: ny,
-            theta_rad: wrap_angle(th + dtheta),
-        }
-    }
-}
-
-/// Angle in (−π, π].
-pub fn wrap_angle(a: f64) -> f64 {
-    let t = a.rem_euclid(std::f64::consts::TAU);
-    if t > std::f64::consts::PI {
-        t - std::f64::consts::TAU
-    } else {
-        t
-    }
-}
-
 /// What one frame did.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct OdomUpdate {
@@ -106,7 +65,7 @@ pub struct OdomUpdate {
 }
 
 #[derive(Debug, Clone)]
-pub struct Odometry {
+pub struct WheelOdometry {
     params: DiffDriveParams,
     pose: Pose2,
     last: Option<(i32, i32, u64)>,
@@ -117,9 +76,9 @@ pub struct Odometry {
     pub glitches: u64,
 }
 
-impl Odometry {
+impl WheelOdometry {
     pub fn new(params: DiffDriveParams) -> Self {
-        Odometry {
+        WheelOdometry {
             params,
             pose: Pose2::default(),
             last: None,
@@ -202,6 +161,7 @@ impl Odometry {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::msg::wrap_angle;
 
     fn params() -> DiffDriveParams {
         // 1 mm per count on both sides, track 0.5 m
@@ -231,7 +191,7 @@ mod tests {
 
     #[test]
     fn straight_line() {
-        let mut o = Odometry::new(params());
+        let mut o = WheelOdometry::new(params());
         for k in 0..=100 {
             o.update(&ticks(10 * k, 5 * k as i32, 5 * k as i32));
         }
@@ -245,7 +205,7 @@ mod tests {
     #[test]
     fn quarter_circle_arc_is_exact() {
         // radius 1 m to the left: inner (left) wheel on r = 0.75, outer on 1.25
-        let mut o = Odometry::new(params());
+        let mut o = WheelOdometry::new(params());
         let quarter = std::f64::consts::FRAC_PI_2;
         let (sl, sr) = (0.75 * quarter, 1.25 * quarter); // metres
         o.update(&ticks(0, 0, 0));
@@ -262,7 +222,7 @@ mod tests {
 
     #[test]
     fn spin_in_place_and_angle_wrap() {
-        let mut o = Odometry::new(params());
+        let mut o = WheelOdometry::new(params());
         // one full turn: each wheel travels π·track = 1.5708 m, opposite ways
         let n = (std::f64::consts::PI * 0.5 * 1000.0).round() as i32;
         o.update(&ticks(0, 0, 0));
@@ -277,7 +237,7 @@ mod tests {
 
     #[test]
     fn a_glitch_is_flagged_and_not_integrated() {
-        let mut o = Odometry::new(params());
+        let mut o = WheelOdometry::new(params());
         o.update(&ticks(0, 0, 0));
         o.update(&ticks(10, 5, 5));
         // 10 m in 10 ms
@@ -293,7 +253,7 @@ mod tests {
 
     #[test]
     fn counter_wrap_is_a_small_step() {
-        let mut o = Odometry::new(params());
+        let mut o = WheelOdometry::new(params());
         o.update(&ticks(0, i32::MAX - 2, i32::MAX - 2));
         let u = o.update(&ticks(10, i32::MIN + 2, i32::MIN + 2));
         assert!(!u.glitch);

@@ -12,7 +12,7 @@ use nalgebra::Matrix3;
 use serde::Serialize;
 
 use super::ekf::PoseEkf;
-use super::odometry::{wrap_angle, Pose2};
+use crate::msg::{wrap_angle, Pose2};
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct IcpParams {

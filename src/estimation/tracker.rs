@@ -8,8 +8,8 @@
 
 use serde::Serialize;
 
+use crate::msg::Stamp;
 use crate::perception::boxes::{Aabb, Object3D};
-use crate::types::Stamp;
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TrackerParams {
@@ -283,7 +283,7 @@ pub fn approach_pose(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::types::Frame;
+    use crate::msg::Frame;
     use nalgebra::Point3;
 
     fn obj(label: &str, c: [f32; 3], half: f32) -> Object3D {

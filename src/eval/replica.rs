@@ -28,13 +28,13 @@ use thiserror::Error;
 use super::instances::{
     evaluate, EvalCase, EvalError, EvalResult, Prediction, Rle, Scene, ScoreMode, REPLICA_CLASSES,
 };
+use crate::msg::Frame;
 use crate::perception::boxes::{merge_objects_by, MergeRule, Object3D};
 use crate::perception::calibration::Intrinsics;
 use crate::perception::detector::{Detection, Detector, DetectorError};
 use crate::perception::image::{DepthImage, ImageError, RgbImage};
 use crate::perception::pipeline::{lift_detections, GeometrySettings, PipelineError};
 use crate::perception::segmenter::Segmenter;
-use crate::types::Frame;
 
 /// How a fused object becomes a point mask on the ground-truth cloud.
 pub const MASK_RULE: &str = "ground-truth points whose voxel (edge mask_voxel_m) or one of its 26 neighbours holds a point of the fused object";

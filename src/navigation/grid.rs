@@ -1,7 +1,7 @@
 //! Proximity grid (the paper group's `proximity_grid`): polar sectors over
 //! the merged scan in `base_link`, each holding the nearest range in it.
 
-use crate::sensors::laser::Obstacles;
+use crate::msg::Obstacles;
 
 #[derive(Debug, Clone, PartialEq)]
 pub struct ProximityGrid {

@@ -12,7 +12,7 @@ use clarabel::solver::{
 use serde::Serialize;
 use thiserror::Error;
 
-use crate::safety::VelocityCmd;
+use crate::msg::VelocityCmd;
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MpcParams {

@@ -9,8 +9,8 @@ use serde::Serialize;
 use super::apf::{apf, ApfParams};
 use super::grid::ProximityGrid;
 use super::mpc::{solve, MpcParams, MpcProblem, UnicycleState};
-use crate::safety::VelocityCmd;
-use crate::sensors::laser::Obstacles;
+use crate::msg::Obstacles;
+use crate::msg::VelocityCmd;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 pub enum CommandSource {

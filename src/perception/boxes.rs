@@ -4,7 +4,7 @@
 use nalgebra::Point3;
 use serde::Serialize;
 
-use crate::types::Frame;
+use crate::msg::Frame;
 
 /// Axis-aligned box, metres.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]

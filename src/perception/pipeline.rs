@@ -14,7 +14,7 @@ use super::detector::{Detection, Detector, DetectorError, PromptReport};
 use super::image::{DepthImage, ImageError, RgbImage};
 use super::masks::Mask;
 use super::segmenter::{Segmenter, SegmenterError};
-use crate::types::Frame;
+use crate::msg::Frame;
 
 #[derive(Debug, Error)]
 pub enum PipelineError {

@@ -4,7 +4,7 @@
 
 use std::collections::VecDeque;
 
-use crate::types::Stamp;
+use crate::msg::Stamp;
 
 #[derive(Debug, Clone)]
 pub struct DeviceClock {

@@ -14,7 +14,7 @@ use serde::Serialize;
 use thiserror::Error;
 
 use super::clock::DeviceClock;
-use crate::types::{Clock, Stamped};
+use crate::msg::{Clock, Stamped, WheelTicks};
 
 pub const TYPE_COUNTS: u8 = 0x01;
 pub const TYPE_HELLO: u8 = 0x02;
@@ -232,20 +232,6 @@ impl FrameSplitter {
     }
 }
 
-/// Counts from the board, with the unwrapped MCU time.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct WheelTicks {
-    pub seq: u16,
-    /// MCU microseconds since boot, unwrapped.
-    pub mcu_time_us: u64,
-    pub left: i32,
-    pub right: i32,
-    pub left_illegal: u16,
-    pub right_illegal: u16,
-    /// Frames missing before this one (sequence gap).
-    pub gap: u16,
-}
-
 #[derive(Debug, Clone, Default, PartialEq, Eq, Serialize)]
 pub struct EncoderStats {
     pub frames: u64,
@@ -284,7 +270,7 @@ impl Default for EncoderDecoder {
 
 impl EncoderDecoder {
     /// Bytes received at host time `now` → ticks stamped in host time.
-    pub fn push(&mut self, bytes: &[u8], now: crate::types::Stamp) -> Vec<Stamped<WheelTicks>> {
+    pub fn push(&mut self, bytes: &[u8], now: crate::msg::Stamp) -> Vec<Stamped<WheelTicks>> {
         let mut out = Vec::new();
         for frame in self.splitter.push(bytes) {
             let msg = frame.and_then(|f| decode_frame(&f));
@@ -451,7 +437,7 @@ impl EncoderDriver {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::types::Stamp;
+    use crate::msg::Stamp;
 
     fn counts(seq: u16, t: u32, l: i32, r: i32) -> Message {
         Message::Counts(CountsFrame {

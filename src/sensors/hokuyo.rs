@@ -18,22 +18,10 @@ use thiserror::Error;
 
 use super::clock::DeviceClock;
 use super::scip::{
-    classify, decode_ranges, parse_pp, parse_reply, Command, Reading, Reply, ReplyFramer,
-    ScanRequest, ScipError, SensorParams,
+    classify, decode_ranges, parse_pp, parse_reply, Command, Reply, ReplyFramer, ScanRequest,
+    ScipError, SensorParams,
 };
-use crate::types::{Clock, Stamped};
-
-/// One scan in the sensor's frame: step angles counter-clockwise, 0 ahead.
-#[derive(Debug, Clone, PartialEq)]
-pub struct LaserScan {
-    /// Sensor clock of the scan (24-bit ms, as sent).
-    pub sensor_ms: u32,
-    pub angle_min_rad: f64,
-    pub angle_increment_rad: f64,
-    /// Per step: metres, or None with the reason in `no_return`.
-    pub ranges_m: Vec<Option<f32>>,
-    pub readings: Vec<Reading>,
-}
+use crate::msg::{Clock, LaserScan, Reading, Stamped};
 
 impl LaserScan {
     pub fn from_values(

@@ -3,15 +3,7 @@
 
 use nalgebra::{Isometry3, Point3};
 
-use super::hokuyo::LaserScan;
-use crate::types::{Stamp, Stamped};
-
-/// Obstacle points on the ground plane of `base_link` (x forward, y left),
-/// metres.
-#[derive(Debug, Clone, PartialEq, Default)]
-pub struct Obstacles {
-    pub points_base: Vec<[f32; 2]>,
-}
+use crate::msg::{LaserScan, Obstacles, Stamp, Stamped};
 
 /// The scan's returns as points in `base_link` (x, y).
 pub fn scan_to_base(scan: &LaserScan, base_from_laser: &Isometry3<f64>) -> Vec<[f32; 2]> {

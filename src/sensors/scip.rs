@@ -9,6 +9,8 @@ use std::collections::HashMap;
 
 use thiserror::Error;
 
+use crate::msg::{NoReturn, Reading};
+
 #[derive(Debug, Clone, PartialEq, Eq, Error)]
 pub enum ScipError {
     #[error("line {line}: checksum {got:?} but the line sums to {want:?}")]
@@ -359,28 +361,6 @@ impl ReplyFramer {
     pub fn pending(&self) -> usize {
         self.buf.len()
     }
-}
-
-/// Why a step has no range.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum NoReturn {
-    /// Code 0: nothing within range.
-    NoObject,
-    /// Codes 1–2: reflected light too weak.
-    LowIntensity,
-    /// Code 18: strong reflector saturated the receiver.
-    StrongReflector,
-    /// Code 19: step not measurable.
-    NonMeasurable,
-    /// Other codes below 20 mm.
-    Other(u8),
-}
-
-/// A step's reading.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Reading {
-    RangeMm(u32),
-    NoReturn(NoReturn),
 }
 
 /// Values below this are error codes, not distances.

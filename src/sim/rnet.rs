@@ -23,10 +23,11 @@ use crate::actuation::rnet::{
     decode, joystick_frame, CanFrame, RnetMessage, JSM_HEARTBEAT_ID, JSM_SILENCE_ID,
 };
 use crate::actuation::ActuatorEvent;
-use crate::safety::{FaultReason, SafeCmd, Supervisor, SupervisorInputs, VelocityCmd};
-use crate::sensors::laser::Obstacles;
-use crate::types::Stamped;
-use crate::types::{Clock, Stamp};
+use crate::msg::Obstacles;
+use crate::msg::Stamped;
+use crate::msg::{Clock, Stamp};
+use crate::msg::{FaultReason, SafeCmd, VelocityCmd};
+use crate::safety::{Supervisor, SupervisorInputs};
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SimChairSettings {

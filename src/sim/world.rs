@@ -14,11 +14,12 @@ use serde::Serialize;
 
 use super::room::{Rendered, Room};
 use crate::actuation::rnet::JoystickMapping;
-use crate::estimation::odometry::{DiffDriveParams, Pose2};
+use crate::estimation::odometry::DiffDriveParams;
+use crate::msg::LaserScan;
+use crate::msg::Pose2;
+use crate::msg::WheelTicks;
 use crate::perception::calibration::Intrinsics;
 use crate::perception::image::ImageError;
-use crate::sensors::encoders::WheelTicks;
-use crate::sensors::hokuyo::LaserScan;
 use crate::sensors::scip::SensorParams;
 
 /// The chair's footprint about base_link, metres.
@@ -336,7 +337,7 @@ mod tests {
             turn_full_radps: 1.5,
             deadband: 3,
         };
-        let mut odo = crate::estimation::odometry::Odometry::new(w.drive);
+        let mut odo = crate::estimation::odometry::WheelOdometry::new(w.drive);
         odo.update(&w.wheel_ticks());
         for _ in 0..200 {
             w.step(0.01, Some((0, 30)), &mapping);

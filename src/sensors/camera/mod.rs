@@ -8,21 +8,11 @@ pub mod replay;
 
 use thiserror::Error;
 
+use crate::msg::{RgbdFrame, Stamped};
 use crate::perception::calibration::{CalibrationError, RgbdCalibration};
-use crate::perception::image::{DepthImage, ImageError, RgbImage};
-use crate::types::{Stamp, Stamped};
+use crate::perception::image::ImageError;
 
 pub use replay::ReplaySource;
-
-/// A colour frame and the depth frame paired with it.
-#[derive(Debug, Clone)]
-pub struct RgbdFrame {
-    pub color: RgbImage,
-    /// Depth in metres, in the depth camera's geometry (see the calibration).
-    pub depth: DepthImage,
-    pub color_stamp: Stamp,
-    pub depth_stamp: Stamp,
-}
 
 #[derive(Debug, Error)]
 pub enum CameraError {

@@ -25,10 +25,10 @@ use realsense_rust::pipeline::{ActivePipeline, InactivePipeline};
 use realsense_rust::processing_blocks::align::Align;
 
 use super::{CameraError, CameraSource, RgbdFrame};
+use crate::msg::{Clock, Stamp, Stamped};
 use crate::perception::calibration::{Intrinsics, RgbdCalibration};
 use crate::perception::image::{DepthImage, RgbImage};
 use crate::sensors::clock::DeviceClock;
-use crate::types::{Clock, Stamp, Stamped};
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RealSenseSettings {

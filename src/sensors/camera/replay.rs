@@ -11,10 +11,11 @@
 
 use std::path::{Path, PathBuf};
 
-use super::{associate, CameraError, CameraSource, RgbdFrame};
+use super::{associate, CameraError, CameraSource};
+use crate::msg::RgbdFrame;
+use crate::msg::{Stamp, Stamped};
 use crate::perception::calibration::RgbdCalibration;
 use crate::perception::image::{DepthImage, RgbImage};
-use crate::types::{Stamp, Stamped};
 
 /// Largest colour/depth time difference accepted as a pair, seconds.
 pub const MAX_PAIR_DT_S: f64 = 0.02;

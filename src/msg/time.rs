@@ -1,4 +1,4 @@
-//! Shared message types: stamps, frames and the values that flow between tasks.
+//! Time: monotonic stamps, stamped values and the clock handle every task reads.
 
 use std::time::Duration;
 
@@ -74,28 +74,6 @@ pub struct Stamped<T> {
 impl<T> Stamped<T> {
     pub fn new(stamp: Stamp, value: T) -> Self {
         Stamped { stamp, value }
-    }
-}
-
-/// Coordinate frames (REP-103/REP-105).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Frame {
-    /// The chair: x forward, y left, z up, metres.
-    BaseLink,
-    /// Fixed odometry frame.
-    Odom,
-    /// The colour camera's optical frame: z forward, x right, y down.
-    CameraOptical,
-}
-
-impl Frame {
-    pub fn name(self) -> &'static str {
-        match self {
-            Frame::BaseLink => "base_link",
-            Frame::Odom => "odom",
-            Frame::CameraOptical => "camera_optical",
-        }
     }
 }
 

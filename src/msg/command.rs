@@ -1,0 +1,55 @@
+//! Commands on their way to the motors: the planner's velocity request,
+//! and the supervisor's checked output with its state.
+
+use serde::Serialize;
+
+use super::Stamp;
+
+/// A velocity command in `base_link`: m/s forward, rad/s counter-clockwise.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+pub struct VelocityCmd {
+    pub v_mps: f64,
+    pub omega_radps: f64,
+}
+
+/// Why the chair is stopped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub enum StopReason {
+    LaserStale,
+    OdometryStale,
+    CommandStale,
+    /// Something inside the stop corridor.
+    Obstacle,
+    /// A stop from any input (socket, switch, voice).
+    UserStop,
+    /// The user deflected the real joystick.
+    UserTakeover,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub enum FaultReason {
+    /// Bus-off, error-passive or controller problems on CAN.
+    CanBus,
+    /// The motor interface's link (Rebus: packets not acknowledged).
+    MotorLink,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub enum SupervisorState {
+    /// No goal: nothing to do.
+    Idle,
+    Navigating,
+    /// A goal is held (e.g. lost from view): standing still.
+    Holding,
+    Stopped(StopReason),
+    /// Latched until cleared by a person.
+    Fault(FaultReason),
+}
+
+/// What the supervisor hands the actuator.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct SafeCmd {
+    pub cmd: VelocityCmd,
+    pub state: SupervisorState,
+    pub stamp: Stamp,
+}

@@ -1,0 +1,73 @@
+//! What the sensors deliver: laser scans, obstacle points, wheel counts,
+//! RGB-D frames. Each travels as a [`Stamped`](super::Stamped) value with its
+//! acquisition stamp.
+
+use serde::Serialize;
+
+use super::Stamp;
+use crate::perception::image::{DepthImage, RgbImage};
+
+/// One scan in the sensor's frame: step angles counter-clockwise, 0 ahead.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LaserScan {
+    /// Sensor clock of the scan (24-bit ms, as sent).
+    pub sensor_ms: u32,
+    pub angle_min_rad: f64,
+    pub angle_increment_rad: f64,
+    /// Per step: metres, or None with the reason in `no_return`.
+    pub ranges_m: Vec<Option<f32>>,
+    pub readings: Vec<Reading>,
+}
+
+/// Why a step has no range.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum NoReturn {
+    /// Code 0: nothing within range.
+    NoObject,
+    /// Codes 1–2: reflected light too weak.
+    LowIntensity,
+    /// Code 18: strong reflector saturated the receiver.
+    StrongReflector,
+    /// Code 19: step not measurable.
+    NonMeasurable,
+    /// Other codes below 20 mm.
+    Other(u8),
+}
+
+/// A step's reading.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Reading {
+    RangeMm(u32),
+    NoReturn(NoReturn),
+}
+
+/// Obstacle points on the ground plane of `base_link` (x forward, y left),
+/// metres.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Obstacles {
+    pub points_base: Vec<[f32; 2]>,
+}
+
+/// Counts from the board, with the unwrapped MCU time.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct WheelTicks {
+    pub seq: u16,
+    /// MCU microseconds since boot, unwrapped.
+    pub mcu_time_us: u64,
+    pub left: i32,
+    pub right: i32,
+    pub left_illegal: u16,
+    pub right_illegal: u16,
+    /// Frames missing before this one (sequence gap).
+    pub gap: u16,
+}
+
+/// A colour frame and the depth frame paired with it.
+#[derive(Debug, Clone)]
+pub struct RgbdFrame {
+    pub color: RgbImage,
+    /// Depth in metres, in the depth camera's geometry (see the calibration).
+    pub depth: DepthImage,
+    pub color_stamp: Stamp,
+    pub depth_stamp: Stamp,
+}
