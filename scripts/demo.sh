@@ -3,10 +3,10 @@
 # 1. opennav detect on the bundled RGB-D frame (MRPT bookshelf), prompt
 #    "book": 3D objects in the base frame, an overlay PNG and one PLY per
 #    object in out/demo/;
-# 2. opennav run — the daemon — with no chair attached, so on the
-#    simulator: the word "chair", the chair finds one in the living room and
-#    drives there through the real R-Net writer; its report goes to
-#    out/demo/run.json.
+# 2. opennav run --sim — the daemon on the simulator's devices (the same
+#    code as on the chair), on the virtual clock: the word "chair", the
+#    chair finds one in the living room and drives there through the real
+#    R-Net writer; its report goes to out/demo/run.json.
 #   scripts/demo.sh [extra opennav detect arguments]
 # Models: OPENNAV_MODELS, else ../shared/models beside the checkout, else models/.
 set -euo pipefail
@@ -23,8 +23,8 @@ target/release/opennav detect \
   --rgb $fx/rgb.png --depth $fx/depth_mm.png --calibration $fx/calibration.json \
   --prompt "book" --score-threshold 0.15 --models "$models" --out out/demo --format text "$@"
 echo
-echo "== opennav run: the simulator (no chair attached), word \"chair\" =="
-target/release/opennav run --prompt chair --exit-on-arrival --max-duration 120s --no-stdin > out/demo/run.json
+echo "== opennav run --sim: the simulated living room on the virtual clock, word \"chair\" =="
+target/release/opennav run --sim --prompt chair --exit-on-arrival --max-duration 120s --no-stdin > out/demo/run.json
 python3 - out/demo/run.json <<'PY'
 import json, sys
 r = json.load(open(sys.argv[1]))

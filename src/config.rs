@@ -54,6 +54,7 @@ pub struct GoalSection {
     pub unseen_after_s: f64,
     pub hold_s: f64,
     pub reached_within_m: f64,
+    pub search_turn_radps: f64,
 }
 
 /// Which motor interface drives the chair.
@@ -399,6 +400,7 @@ impl Settings {
         finite_range("goal.unseen_after_s", g.unseen_after_s, 0.1, 10.0)?;
         finite_range("goal.hold_s", g.hold_s, 0.0, 120.0)?;
         finite_range("goal.reached_within_m", g.reached_within_m, 0.02, 1.0)?;
+        finite_range("goal.search_turn_radps", g.search_turn_radps, 0.05, 1.0)?;
         let a = &self.actuation;
         finite_range("actuation.forward_full_mps", a.forward_full_mps, 0.1, 5.0)?;
         finite_range("actuation.reverse_full_mps", a.reverse_full_mps, 0.05, 5.0)?;
@@ -503,6 +505,7 @@ impl Settings {
             unseen_after: std::time::Duration::from_secs_f64(g.unseen_after_s),
             hold_for: std::time::Duration::from_secs_f64(g.hold_s),
             reached_within_m: g.reached_within_m,
+            search_turn_radps: g.search_turn_radps,
         }
     }
 

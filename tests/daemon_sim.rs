@@ -1,17 +1,26 @@
-//! The daemon closed loop on the simulator: `opennav run` (no chair
-//! devices on this machine, so the simulated living room) finds the
-//! prompted object and drives there through the real R-Net writer without
-//! touching anything; a stop word and SIGTERM bring the chair to rest.
+//! The daemon on the simulator: the same `daemon::run` as on the chair,
+//! with the simulator's devices behind the device traits, on the virtual
+//! clock (tokio's paused clock: deterministic, as fast as the computation
+//! allows). The chair finds the prompted object and drives there through
+//! the real R-Net writer without touching anything; the stop word and a
+//! failing task bring it to rest; two runs of one trip are identical; a
+//! real-time run reaches the same outcome.
 
-use std::io::Write;
 use std::process::{Command, Stdio};
+use std::sync::Arc;
 use std::time::Duration;
 
+use opennav::config::Settings;
+use opennav::daemon::{Devices, Outcome, RunOptions, RunReport};
+use opennav::msg::{Clock, TokioClock, UserInput};
+use opennav::sim::devices::{SimHandle, SimSummary};
+use opennav::sim::world::SimWorld;
 use serde_json::Value;
+use tokio::sync::mpsc;
+use tokio_util::sync::CancellationToken;
 
 fn opennav() -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_opennav"));
-    // the simulator, whatever devices this machine has
     c.args(["run", "--sim"]);
     c
 }
@@ -26,126 +35,220 @@ fn report(stdout: &[u8]) -> Value {
     serde_json::from_str(line).expect("report JSON")
 }
 
-fn drive_to(word: &str) -> Value {
-    let out = opennav()
-        .args([
-            "--prompt",
-            word,
-            "--exit-on-arrival",
-            "--max-duration",
-            "120s",
-            "--no-stdin",
-        ])
-        .output()
-        .expect("runs");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    report(&out.stdout)
+/// One simulated trip through `daemon::run` on the caller's (paused)
+/// runtime: `words` are said at their times; `adapt` may replace devices.
+async fn trip(
+    words: Vec<(Duration, UserInput)>,
+    opts: RunOptions,
+    adapt: impl FnOnce(&mut Devices, &SimHandle),
+) -> (RunReport, SimSummary) {
+    let settings = Settings::load(None).expect("defaults");
+    let clock: Arc<dyn Clock> = Arc::new(TokioClock::new());
+    let world = SimWorld::living_room(settings.drive_params());
+    let (mut devices, sim) =
+        opennav::sim::devices::devices(&settings, world, clock.clone()).expect("devices");
+    adapt(&mut devices, &sim);
+    let (tx, rx) = mpsc::channel(16);
+    tokio::spawn(async move {
+        for (at, w) in words {
+            tokio::time::sleep(at).await;
+            if tx.send(w).await.is_err() {
+                return;
+            }
+        }
+        // keep the channel open: the user may still speak
+        std::future::pending::<()>().await;
+    });
+    let r = opennav::daemon::run(
+        devices,
+        &settings,
+        opts,
+        rx,
+        clock,
+        CancellationToken::new(),
+    )
+    .await
+    .expect("runs");
+    let label = r.goal.label().map(str::to_string);
+    let s = sim.summary(label.as_deref()).expect("summary");
+    (r, s)
 }
 
-fn check_arrival(r: &Value, word: &str) {
-    assert_eq!(r["outcome"], "arrived", "{r}");
-    let said: Vec<&str> = r["said"]
-        .as_array()
-        .expect("said")
-        .iter()
-        .filter_map(|s| s.as_str())
-        .collect();
+fn go(word: &str) -> Vec<(Duration, UserInput)> {
+    vec![(Duration::ZERO, UserInput::Goto(word.into()))]
+}
+
+fn to_arrival() -> RunOptions {
+    RunOptions {
+        exit_on_arrival: true,
+        max_duration: Some(Duration::from_secs(120)),
+        ..Default::default()
+    }
+}
+
+fn check_arrival(r: &RunReport, s: &SimSummary, word: &str) {
+    assert_eq!(r.outcome, Outcome::Arrived, "{r:?}");
     assert!(
-        said.contains(&format!("Arrived at the {word}.").as_str()),
-        "{said:?}"
+        r.said.contains(&format!("Arrived at the {word}.")),
+        "{:?}",
+        r.said
     );
-    let w = &r["sim"]["world"];
-    assert_eq!(w["collision_steps"], 0, "{w}");
-    assert!(w["min_clearance_m"].as_f64().unwrap_or(0.0) > 0.1, "{w}");
+    assert_eq!(s.world.collision_steps, 0, "{s:?}");
+    assert!(s.world.min_clearance_m > 0.1, "{s:?}");
     // the chair's front 0.6 m from the object (base_link 0.55 m behind
     // the front), within the goal tolerance and the odometry's error
-    let d = r["sim"]["distance_to_goal_object_m"]
-        .as_f64()
-        .expect("distance");
+    let d = s.distance_to_goal_object_m.expect("distance");
     assert!((0.95..=1.45).contains(&d), "{d} m from the {word}");
-    assert!(
-        w["v_mps"].as_f64().unwrap_or(1.0).abs() < 0.05,
-        "still moving: {w}"
-    );
-    assert!(r["sim"]["scan_matches"].as_u64().unwrap_or(0) > 10, "{r}");
-    // the camera IMU's yaw rate went into the heading
-    assert!(r["sim"]["gyro_fused"].as_u64().unwrap_or(0) > 100, "{r}");
-    assert_eq!(r["actuator"]["state"], "released");
-    assert_eq!(r["actuator"]["dropped"], 0);
+    assert!(s.world.v_mps.abs() < 0.05, "still moving: {s:?}");
+    assert!(r.estimation.scan_matches > 10, "{r:?}");
+    // the IMU's yaw rate went into the heading
+    assert!(r.estimation.gyro_fused > 100, "{r:?}");
+    assert!(r.estimation.views_placed >= 3, "{r:?}");
+    assert_eq!(r.actuator.state, "released");
+    assert_eq!(r.actuator.dropped, 0);
 }
 
-#[test]
-fn finds_the_chair_and_drives_there() {
-    check_arrival(&drive_to("chair"), "chair");
+#[tokio::test(start_paused = true)]
+async fn finds_the_chair_and_drives_there() {
+    let (r, s) = trip(go("chair"), to_arrival(), |_, _| {}).await;
+    check_arrival(&r, &s, "chair");
 }
 
-#[test]
-fn finds_the_cabinet_after_turning_to_look_for_it() {
-    let r = drive_to("cabinet");
-    check_arrival(&r, "cabinet");
+#[tokio::test(start_paused = true)]
+async fn finds_the_cabinet_after_turning_to_look_for_it() {
+    let (r, s) = trip(go("cabinet"), to_arrival(), |_, _| {}).await;
+    check_arrival(&r, &s, "cabinet");
     // it was out of view at the start: the chair turned to find it
+    assert!(s.world.distance_travelled_m > 0.8, "{s:?}");
+}
+
+#[tokio::test(start_paused = true)]
+async fn a_word_nothing_answers_ends_in_not_found_after_one_turn() {
+    let (r, s) = trip(go("piano"), to_arrival(), |_, _| {}).await;
+    assert_eq!(r.outcome, Outcome::NotFound, "{r:?}");
     assert!(
-        r["sim"]["world"]["distance_travelled_m"]
-            .as_f64()
-            .unwrap_or(0.0)
-            > 0.8,
-        "{r}"
+        r.said.iter().any(|l| l.contains("cannot find a piano")),
+        "{:?}",
+        r.said
     );
+    assert_eq!(s.world.collision_steps, 0);
+    // one full turn on the spot: ~21 s at 0.3 rad/s
+    assert!((18.0..40.0).contains(&r.duration_s), "{}", r.duration_s);
+}
+
+#[tokio::test(start_paused = true)]
+async fn the_stop_word_brings_the_chair_to_rest() {
+    let words = vec![
+        (Duration::ZERO, UserInput::Goto("cabinet".into())),
+        // moving (searching, then driving) for a while
+        (Duration::from_secs(4), UserInput::Stop),
+        (Duration::from_millis(1500), UserInput::Quit),
+    ];
+    let (r, s) = trip(words, RunOptions::default(), |_, _| {}).await;
+    assert_eq!(r.outcome, Outcome::Quit);
+    assert_eq!(
+        serde_json::to_value(r.supervisor).expect("json"),
+        serde_json::json!({"Stopped": "UserStop"}),
+        "{r:?}"
+    );
+    assert!(r.said.contains(&"Stopped.".to_string()), "{:?}", r.said);
+    assert!(s.world.v_mps.abs() < 0.01, "{s:?}");
+    assert!(s.world.omega_radps.abs() < 0.01, "{s:?}");
+}
+
+#[tokio::test(start_paused = true)]
+async fn two_runs_of_one_trip_on_the_virtual_clock_are_identical() {
+    let a = trip(go("cabinet"), to_arrival(), |_, _| {}).await;
+    let b = trip(go("cabinet"), to_arrival(), |_, _| {}).await;
+    let json = |(r, s): &(RunReport, SimSummary)| {
+        serde_json::to_string(&serde_json::json!({"report": r, "sim": s})).expect("json")
+    };
+    assert_eq!(a.0.outcome, Outcome::Arrived);
+    assert_eq!(json(&a), json(&b));
 }
 
 #[test]
-fn a_word_nothing_answers_ends_in_not_found_after_one_turn() {
-    let out = opennav()
-        .args([
-            "--prompt",
-            "piano",
-            "--exit-on-arrival",
-            "--max-duration",
-            "120s",
-            "--no-stdin",
-        ])
+fn the_cli_runs_the_trip_and_a_real_time_run_reaches_the_same_outcome() {
+    let run = |clock: &str| {
+        let out = opennav()
+            .args([
+                "--clock",
+                clock,
+                "--prompt",
+                "chair",
+                "--exit-on-arrival",
+                "--max-duration",
+                "60s",
+                "--no-stdin",
+            ])
+            .output()
+            .expect("runs");
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        report(&out.stdout)
+    };
+    let v = run("virtual");
+    let rt = run("realtime");
+    for r in [&v, &rt] {
+        assert_eq!(r["outcome"], "arrived", "{r}");
+        assert_eq!(r["sim"]["world"]["collision_steps"], 0, "{r}");
+        let d = r["sim"]["distance_to_goal_object_m"].as_f64().expect("d");
+        assert!((0.95..=1.45).contains(&d), "{d}");
+    }
+    // same trip within the real-time run's scheduling noise
+    let dv = v["sim"]["distance_to_goal_object_m"]
+        .as_f64()
+        .unwrap_or(0.0);
+    let dr = rt["sim"]["distance_to_goal_object_m"]
+        .as_f64()
+        .unwrap_or(9.0);
+    assert!((dv - dr).abs() < 0.1, "{dv} vs {dr}");
+}
+
+#[test]
+fn without_sim_and_without_devices_it_exits_1_naming_them() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let cfg = dir.path().join("c.toml");
+    std::fs::write(
+        &cfg,
+        format!(
+            "[lasers.left]\nport = \"{0}/l\"\n[lasers.right]\nport = \"{0}/r\"\n[encoders]\nport = \"{0}/e\"\n[actuation]\nbackend = \"rebus\"\n[actuation.rebus]\nport = \"{0}/m\"\n",
+            dir.path().display()
+        ),
+    )
+    .expect("config");
+    let notify = dir.path().join("notify");
+    let sock = std::os::unix::net::UnixDatagram::bind(&notify).expect("bind");
+    sock.set_nonblocking(true).expect("nonblocking");
+    let out = Command::new(env!("CARGO_BIN_EXE_opennav"))
+        .args(["--config"])
+        .arg(&cfg)
+        .args(["run", "--no-stdin", "--no-camera"])
+        .env("NOTIFY_SOCKET", &notify)
         .output()
         .expect("runs");
-    let r = report(&out.stdout);
-    assert_eq!(r["outcome"], "not found", "{r}");
-    assert!(r["said"].to_string().contains("cannot find a piano"), "{r}");
-    assert_eq!(r["sim"]["world"]["collision_steps"], 0);
-}
-
-#[test]
-fn the_stop_word_brings_the_chair_to_rest() {
-    let mut child = opennav()
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("runs");
-    let mut stdin = child.stdin.take().expect("stdin");
-    writeln!(stdin, "cabinet").expect("word");
-    // moving (searching, then driving) for a while
-    std::thread::sleep(Duration::from_secs(4));
-    writeln!(stdin, "stop").expect("stop");
-    std::thread::sleep(Duration::from_millis(1500));
-    writeln!(stdin, "quit").expect("quit");
-    let out = child.wait_with_output().expect("exits");
-    assert!(out.status.success());
-    let r = report(&out.stdout);
-    assert_eq!(r["outcome"], "quit");
-    assert_eq!(r["supervisor"]["Stopped"], "UserStop", "{r}");
-    assert!(r["said"].to_string().contains("Stopped."), "{r}");
-    let w = &r["sim"]["world"];
-    assert!(w["v_mps"].as_f64().unwrap_or(1.0).abs() < 0.01, "{w}");
-    assert!(w["omega_radps"].as_f64().unwrap_or(1.0).abs() < 0.01, "{w}");
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    for what in [
+        "left laser",
+        "right laser",
+        "encoder board",
+        "Rebus motor interface",
+    ] {
+        assert!(err.contains(what), "{err}");
+    }
+    assert_eq!(err.trim().lines().count(), 1, "one line: {err}");
+    let mut buf = [0u8; 256];
+    assert!(sock.recv(&mut buf).is_err(), "no notify message (no READY)");
 }
 
 #[test]
 fn sigterm_stops_the_chair_and_releases_the_bus() {
     let child = opennav()
-        .args(["--prompt", "cabinet", "--no-stdin"])
+        .args(["--clock", "realtime", "--prompt", "cabinet", "--no-stdin"])
         .stdout(Stdio::piped())
         .stderr(Stdio::null())
         .spawn()
@@ -167,11 +270,11 @@ fn sigterm_stops_the_chair_and_releases_the_bus() {
 }
 
 #[test]
-fn notifies_systemd_ready_and_feeds_the_watchdog() {
+fn notifies_systemd_ready_after_first_readings_and_feeds_the_watchdog() {
     let dir = tempfile::tempdir().expect("tmp");
     let path = dir.path().join("notify");
     let sock = std::os::unix::net::UnixDatagram::bind(&path).expect("bind");
-    sock.set_read_timeout(Some(Duration::from_secs(10)))
+    sock.set_read_timeout(Some(Duration::from_secs(20)))
         .expect("timeout");
     let child = opennav()
         .args(["--no-stdin", "--max-duration", "2s"])
@@ -181,7 +284,7 @@ fn notifies_systemd_ready_and_feeds_the_watchdog() {
         .spawn()
         .expect("runs");
     let mut msgs = Vec::new();
-    let mut buf = [0u8; 256];
+    let mut buf = [0u8; 512];
     while let Ok(n) = sock.recv(&mut buf) {
         let m = String::from_utf8_lossy(&buf[..n]).to_string();
         let done = m == "STOPPING=1";
@@ -192,12 +295,20 @@ fn notifies_systemd_ready_and_feeds_the_watchdog() {
     }
     let out = child.wait_with_output().expect("exits");
     assert!(out.status.success());
-    assert_eq!(
-        msgs.first().map(|s| s.as_str()),
-        Some("READY=1"),
+    let ready = msgs
+        .iter()
+        .position(|m| m == "READY=1")
+        .unwrap_or_else(|| panic!("no READY: {msgs:?}"));
+    // before READY: what it waits for (the motors answer last: the writer
+    // learns the joystick id from the chair's JSM)
+    assert!(
+        msgs[..ready].iter().any(
+            |m| m.starts_with("STATUS=waiting for a first reading from:") && m.contains("motors")
+        ),
         "{msgs:?}"
     );
-    let feeds = msgs.iter().filter(|m| *m == "WATCHDOG=1").count();
+    assert_eq!(msgs.iter().filter(|m| *m == "READY=1").count(), 1);
+    let feeds = msgs[ready..].iter().filter(|m| *m == "WATCHDOG=1").count();
     // 20 Hz for about 2 s
     assert!(feeds > 20, "{feeds} watchdog messages");
     assert_eq!(msgs.last().map(|s| s.as_str()), Some("STOPPING=1"));
@@ -238,7 +349,7 @@ fn records_a_run_that_replays_through_the_pipeline_to_the_same_objects() {
         .count();
     assert!(ticks > 200 && scans > 40, "{ticks} ticks, {scans} scans");
     // the recorded views through the geometry again: the same objects
-    let settings = opennav::config::Settings::load(None).expect("defaults");
+    let settings = Settings::load(None).expect("defaults");
     let base_from_camera = settings
         .camera
         .base_from_camera

@@ -152,6 +152,34 @@ where
         })
 }
 
+/// The end of an actuator thread (its result, or its panic as an error) as
+/// a future, without blocking an async worker: a small thread joins it.
+pub fn thread_result(
+    h: std::thread::JoinHandle<Result<ActuatorStatus, ActuatorError>>,
+) -> impl Future<Output = Result<ActuatorStatus, ActuatorError>> + Send + 'static {
+    let (tx, rx) = tokio::sync::oneshot::channel();
+    let spawned = std::thread::Builder::new()
+        .name("actuator-join".into())
+        .spawn(move || {
+            let r = h.join().unwrap_or_else(|p| {
+                Err(ActuatorError::Task(format!(
+                    "panicked: {}",
+                    crate::daemon::panic_message(p)
+                )))
+            });
+            // the daemon may be gone already: nobody left to tell
+            tx.send(r).ok();
+        });
+    async move {
+        spawned.map_err(|e| ActuatorError::Task(format!("joiner thread: {e}")))?;
+        rx.await.unwrap_or_else(|_| {
+            Err(ActuatorError::Task(
+                "the actuator thread's result was lost".into(),
+            ))
+        })
+    }
+}
+
 /// Best effort: SCHED_FIFO for the calling thread.
 pub(crate) fn set_realtime(priority: i32) {
     let param = libc::sched_param {

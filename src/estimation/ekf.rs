@@ -151,6 +151,11 @@ impl PoseHistory {
         true
     }
 
+    /// The newest stamp in the history.
+    pub fn newest(&self) -> Option<Stamp> {
+        self.poses.back().map(|(t, _)| *t)
+    }
+
     /// The pose at `stamp`, interpolated between the poses around it (the
     /// heading along the shorter arc). None outside the history: a
     /// detection is never placed with a guessed pose.

@@ -8,17 +8,7 @@ use std::time::Duration;
 use super::ekf::{EkfNoise, PoseEkf};
 use super::odometry::{DiffDriveParams, WheelOdometry};
 use super::scan_match::{IcpResult, KeyframeMatcher, ScanMatchError};
-use crate::msg::WheelTicks;
-use crate::msg::{wrap_angle, Pose2};
-use crate::msg::{Stamp, Stamped};
-
-/// The latest pose with the chair's measured speeds.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct PoseEstimate {
-    pub pose: Pose2,
-    pub v_mps: f64,
-    pub omega_radps: f64,
-}
+use crate::msg::{wrap_angle, Odometry, Pose2, Stamp, Stamped, WheelTicks};
 
 #[derive(Debug, Clone)]
 pub struct Estimator {
@@ -54,7 +44,7 @@ impl Estimator {
     }
 
     /// A frame of the encoder board (stamped on the host).
-    pub fn on_ticks(&mut self, t: &Stamped<WheelTicks>) -> PoseEstimate {
+    pub fn on_ticks(&mut self, t: &Stamped<WheelTicks>) -> Odometry {
         let u = self.odo.update(&t.value);
         if let Some((p0, t0_us, _)) = self.last {
             let dt = t.value.mcu_time_us.saturating_sub(t0_us) as f64 * 1e-6;
@@ -63,7 +53,6 @@ impl Estimator {
             let dth = wrap_angle(u.pose.theta_rad - p0.theta_rad);
             let gyro = self
                 .gyro
-                .clone()
                 .filter(|g| g.stamp.age_at(t.stamp) <= self.gyro_max_age)
                 .map(|g| g.value * dt);
             if gyro.is_some() {
@@ -72,12 +61,11 @@ impl Estimator {
             self.ekf.predict(ds, dth, gyro, dt);
         }
         self.last = Some((u.pose, t.value.mcu_time_us, t.stamp));
-        PoseEstimate {
+        Odometry {
             pose: self.ekf.pose,
             v_mps: u.v_mps,
             omega_radps: self
                 .gyro
-                .clone()
                 .filter(|g| g.stamp.age_at(t.stamp) <= self.gyro_max_age)
                 .map_or(u.omega_radps, |g| g.value),
         }

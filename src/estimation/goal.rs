@@ -8,8 +8,7 @@ use std::time::Duration;
 use serde::Serialize;
 
 use super::tracker::{approach_pose, ApproachPose, Tracker};
-use crate::msg::Pose2;
-use crate::msg::Stamp;
+use crate::msg::{wrap_angle, Pose2, Stamp, VelocityCmd};
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GoalSettings {
@@ -28,6 +27,9 @@ pub struct GoalSettings {
     pub hold_for: Duration,
     /// Within this of the approach pose: reached, m.
     pub reached_within_m: f64,
+    /// While searching, the chair turns on the spot at this rate so the
+    /// camera sweeps the room, rad/s (one full turn, then "not found").
+    pub search_turn_radps: f64,
 }
 
 impl Default for GoalSettings {
@@ -39,6 +41,7 @@ impl Default for GoalSettings {
             unseen_after: Duration::from_secs(3),
             hold_for: Duration::from_secs(5),
             reached_within_m: 0.1,
+            search_turn_radps: 0.3,
         }
     }
 }
@@ -70,6 +73,19 @@ pub enum GoalState {
     },
 }
 
+impl GoalState {
+    /// The goal's word, if there is a goal.
+    pub fn label(&self) -> Option<&str> {
+        match self {
+            GoalState::None => None,
+            GoalState::Searching { label }
+            | GoalState::Tracking { label, .. }
+            | GoalState::Holding { label, .. }
+            | GoalState::Reached { label, .. } => Some(label),
+        }
+    }
+}
+
 /// What the user hears (and the log records).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub enum GoalEvent {
@@ -96,6 +112,10 @@ pub enum GoalEvent {
     Reached {
         label: String,
     },
+    /// A full search turn without seeing the word: the goal is dropped.
+    NotFound {
+        label: String,
+    },
 }
 
 impl GoalEvent {
@@ -112,6 +132,7 @@ impl GoalEvent {
                 format!("I could not find the {label} again after {held_s:.0} seconds. Stopped.")
             }
             GoalEvent::Reached { label } => format!("Arrived at the {label}."),
+            GoalEvent::NotFound { label } => format!("I cannot find a {label} here. Stopped."),
         }
     }
 }
@@ -123,6 +144,10 @@ pub struct GoalKeeper {
     /// Where the goal's object was last seen (odom), to pick up its track
     /// again when the tracker re-identifies it.
     last_center: Option<[f64; 3]>,
+    /// The search turn: the heading last seen and how far the chair has
+    /// turned since the search began, rad.
+    search_heading: Option<f64>,
+    search_turned_rad: f64,
 }
 
 /// A track of the same word this close to where the goal was last seen is
@@ -135,6 +160,8 @@ impl GoalKeeper {
             settings,
             state: GoalState::None,
             last_center: None,
+            search_heading: None,
+            search_turned_rad: 0.0,
         }
     }
 
@@ -144,6 +171,8 @@ impl GoalKeeper {
 
     /// The user said a word.
     pub fn set_prompt(&mut self, label: &str) {
+        self.search_heading = None;
+        self.search_turned_rad = 0.0;
         self.state = GoalState::Searching {
             label: label.trim().to_lowercase(),
         };
@@ -151,6 +180,25 @@ impl GoalKeeper {
 
     pub fn clear(&mut self) {
         self.state = GoalState::None;
+    }
+
+    /// While searching: turn on the spot, counter-clockwise.
+    pub fn search_command(&self) -> Option<VelocityCmd> {
+        matches!(self.state, GoalState::Searching { .. }).then_some(VelocityCmd {
+            v_mps: 0.0,
+            omega_radps: self.settings.search_turn_radps,
+        })
+    }
+
+    /// The words perception should look for now (the goal's, while it is
+    /// being searched for, driven to or held).
+    pub fn wanted(&self) -> Vec<String> {
+        match &self.state {
+            GoalState::Searching { label }
+            | GoalState::Tracking { label, .. }
+            | GoalState::Holding { label, .. } => vec![label.clone()],
+            GoalState::None | GoalState::Reached { .. } => Vec::new(),
+        }
     }
 
     /// Where to drive now (only while tracking).
@@ -200,10 +248,20 @@ impl GoalKeeper {
         match self.state.clone() {
             GoalState::None | GoalState::Reached { .. } => None,
             GoalState::Searching { label } => {
-                let t = tracker.goal(&label, from)?;
-                if t.last_seen.age_at(now) > s.unseen_after {
-                    return None;
+                if let Some(prev) = self.search_heading {
+                    self.search_turned_rad += wrap_angle(chair.theta_rad - prev).abs();
                 }
+                self.search_heading = Some(chair.theta_rad);
+                let fresh = tracker
+                    .goal(&label, from)
+                    .filter(|t| t.last_seen.age_at(now) <= s.unseen_after);
+                let Some(t) = fresh else {
+                    if self.search_turned_rad >= std::f64::consts::TAU {
+                        self.state = GoalState::None;
+                        return Some(GoalEvent::NotFound { label });
+                    }
+                    return None;
+                };
                 let id = t.id;
                 self.last_center = Some(t.center_m);
                 match approach_pose(

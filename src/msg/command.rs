@@ -32,6 +32,8 @@ pub enum FaultReason {
     CanBus,
     /// The motor interface's link (Rebus: packets not acknowledged).
     MotorLink,
+    /// A task or thread of the daemon died.
+    Task,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]

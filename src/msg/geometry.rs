@@ -64,3 +64,14 @@ pub fn wrap_angle(a: f64) -> f64 {
         t
     }
 }
+
+impl Pose2 {
+    /// This planar pose as a 3D transform (`odom_from_base` for the
+    /// chair's pose in `odom`).
+    pub fn to_isometry3(&self) -> nalgebra::Isometry3<f64> {
+        nalgebra::Isometry3::new(
+            nalgebra::Vector3::new(self.x_m, self.y_m, 0.0),
+            nalgebra::Vector3::z() * self.theta_rad,
+        )
+    }
+}

@@ -65,7 +65,7 @@ impl Clock for MonotonicClock {
 }
 
 /// A value with the monotonic stamp of its acquisition.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Stamped<T> {
     pub stamp: Stamp,
     pub value: T,

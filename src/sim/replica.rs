@@ -140,14 +140,22 @@ impl ViewDetector for SimGtDetector {
             .room
             .render(&k, &view.world_from_camera)
             .map_err(|e| DetectorError::Prompt(format!("simulator: {e}")))?;
+        Ok(self.detect_instances(&r.instance, k.width))
+    }
+}
+
+impl SimGtDetector {
+    /// Boxes of the objects' visible pixels in a rendered instance map
+    /// (row-major, `width` pixels a row).
+    pub fn detect_instances(&self, instance: &[i32], width: usize) -> Vec<Detection> {
+        let width = width.max(1);
         let n = self.room.objects.len();
         let mut bounds = vec![(usize::MAX, usize::MAX, 0usize, 0usize, 0usize); n];
-        for (i, &id) in r.instance.iter().enumerate() {
-            if id < 0 {
+        for (i, &id) in instance.iter().enumerate() {
+            let Some(b) = usize::try_from(id).ok().and_then(|id| bounds.get_mut(id)) else {
                 continue;
-            }
-            let (u, v) = (i % k.width, i / k.width);
-            let b = &mut bounds[id as usize];
+            };
+            let (u, v) = (i % width, i / width);
             b.0 = b.0.min(u);
             b.1 = b.1.min(v);
             b.2 = b.2.max(u + 1);
@@ -177,6 +185,6 @@ impl ViewDetector for SimGtDetector {
                 box_xyxy: bx,
             });
         }
-        Ok(out)
+        out
     }
 }

@@ -59,6 +59,8 @@ pub struct SimWorld {
     mcu_us: u64,
     seq: u16,
     pub report: SimReport,
+    /// The stamp of the last step (the daemon's clock).
+    pub now: crate::msg::Stamp,
 }
 
 /// 2D segments of everything a laser at `height_m` sees: the walls and the
@@ -137,6 +139,7 @@ impl SimWorld {
                 min_clearance_m: f64::INFINITY,
                 distance_travelled_m: 0.0,
             },
+            now: crate::msg::Stamp::ZERO,
         }
     }
 

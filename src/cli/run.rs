@@ -1,0 +1,186 @@
+//! `opennav run`: the daemon, on the chair's devices or (with `--sim`) on
+//! the simulator — the same `daemon::run` either way. Prints the run's
+//! report as one JSON line at the end; a task that failed exits 1 naming
+//! it, missing devices exit 1 naming them.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use clap::{Args, ValueEnum};
+use serde::Serialize;
+use tokio::sync::mpsc;
+use tokio_util::sync::CancellationToken;
+
+use opennav::config::Settings;
+use opennav::daemon::chair::CameraChoice;
+use opennav::daemon::{Outcome, RunOptions, RunReport};
+use opennav::msg::{Clock, TokioClock, UserInput};
+use opennav::perception::setup::PerceptionChoice;
+use opennav::sim::devices::SimSummary;
+
+use super::{bad_input, failed, parse_duration, Failure};
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ClockArg {
+    /// Simulated time, as fast as the computation allows, deterministic.
+    Virtual,
+    /// The host's monotonic clock (for a person watching).
+    Realtime,
+}
+
+#[derive(Args, Debug)]
+pub struct RunArgs {
+    /// Run on the simulator (the living room) instead of the chair's devices.
+    #[arg(long)]
+    pub sim: bool,
+    /// With --sim: the simulator's clock (default virtual).
+    #[arg(long, value_enum, requires = "sim")]
+    pub clock: Option<ClockArg>,
+    /// A word to go to at start (repeatable: said in order).
+    #[arg(long)]
+    pub prompt: Vec<String>,
+    /// Exit when the goal is reached, lost or not found (prints the report).
+    #[arg(long)]
+    pub exit_on_arrival: bool,
+    /// Stop after this long (on the run's clock), e.g. 90s.
+    #[arg(long, value_parser = parse_duration)]
+    pub max_duration: Option<std::time::Duration>,
+    /// Do not read words from stdin.
+    #[arg(long)]
+    pub no_stdin: bool,
+    /// On the chair's devices: camera frames from a recording (TUM RGB-D
+    /// layout) instead of the RealSense.
+    #[arg(long, conflicts_with_all = ["no_camera", "sim"])]
+    pub camera_replay: Option<PathBuf>,
+    /// On the chair's devices: no camera (stop and safety only).
+    #[arg(long, conflicts_with = "sim")]
+    pub no_camera: bool,
+    /// Record the sensors and perception's output to this MCAP file.
+    #[arg(long)]
+    pub record: Option<PathBuf>,
+    /// Fault-injection tests: the named task panics after this long
+    /// (TASK@DURATION, e.g. perception@2s).
+    #[arg(long, hide = true)]
+    pub inject_panic: Option<String>,
+}
+
+/// The report printed at the end.
+#[derive(Serialize)]
+struct Printed<'a> {
+    #[serde(flatten)]
+    report: &'a RunReport,
+    sim: Option<SimSummary>,
+}
+
+pub fn run(config: Option<&std::path::Path>, args: RunArgs) -> Result<(), Failure> {
+    let settings = Settings::load(config).map_err(bad_input)?;
+    let virtual_clock = args.sim && args.clock.unwrap_or(ClockArg::Virtual) == ClockArg::Virtual;
+    let inject_panic = match &args.inject_panic {
+        Some(s) => {
+            let (task, after) = s.split_once('@').ok_or_else(|| {
+                bad_input(anyhow::anyhow!(
+                    "--inject-panic {s:?}: expected TASK@DURATION"
+                ))
+            })?;
+            let after = parse_duration(after)
+                .map_err(|e| bad_input(anyhow::anyhow!("--inject-panic: {e}")))?;
+            Some((task.to_string(), after))
+        }
+        None => None,
+    };
+    let opts = RunOptions {
+        exit_on_arrival: args.exit_on_arrival,
+        max_duration: args.max_duration,
+        record: args.record.clone(),
+        inject_panic,
+    };
+    let (input_tx, input_rx) = mpsc::channel::<UserInput>(16);
+    for p in &args.prompt {
+        input_tx
+            .try_send(UserInput::parse(p))
+            .map_err(|_| bad_input(anyhow::anyhow!("--prompt: at most 16 words")))?;
+    }
+    if !args.no_stdin {
+        let tx = input_tx.clone();
+        std::thread::Builder::new()
+            .name("stdin".into())
+            .spawn(move || {
+                let stdin = std::io::stdin();
+                let mut line = String::new();
+                while stdin.read_line(&mut line).is_ok_and(|n| n > 0) {
+                    if tx.blocking_send(UserInput::parse(&line)).is_err() {
+                        return;
+                    }
+                    line.clear();
+                }
+            })
+            .map_err(failed)?;
+    }
+    drop(input_tx);
+    let rt = if virtual_clock {
+        tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .start_paused(true)
+            .build()
+    } else {
+        tokio::runtime::Builder::new_multi_thread()
+            .worker_threads(2)
+            .enable_all()
+            .build()
+    }
+    .map_err(failed)?;
+    let camera = match (args.camera_replay, args.no_camera) {
+        (Some(d), _) => CameraChoice::Replay(d),
+        (None, true) => CameraChoice::None,
+        (None, false) => CameraChoice::RealSense,
+    };
+    let sim = args.sim;
+    let (report, summary) = rt.block_on(async move {
+        let cancel = CancellationToken::new();
+        let c = cancel.clone();
+        let mut term = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate())
+            .map_err(failed)?;
+        tokio::spawn(async move {
+            tokio::select! {
+                _ = term.recv() => {}
+                _ = tokio::signal::ctrl_c() => {}
+            }
+            tracing::warn!("signal: stopping the chair and shutting down");
+            c.cancel();
+        });
+        let clock: Arc<dyn Clock> = Arc::new(TokioClock::new());
+        let (devices, world) = if sim {
+            let world = opennav::sim::world::SimWorld::living_room(settings.drive_params());
+            let (d, h) =
+                opennav::sim::devices::devices(&settings, world, clock.clone()).map_err(failed)?;
+            (d, Some(h))
+        } else {
+            let d = opennav::daemon::chair::devices(
+                &settings,
+                camera,
+                &PerceptionChoice::default(),
+                clock.clone(),
+            )
+            .map_err(failed)?;
+            (d, None)
+        };
+        let report = opennav::daemon::run(devices, &settings, opts, input_rx, clock, cancel)
+            .await
+            .map_err(failed)?;
+        let label = report.goal.label().map(str::to_string);
+        let summary = world.and_then(|w| w.summary(label.as_deref()));
+        Ok::<_, Failure>((report, summary))
+    })?;
+    let line = serde_json::to_string(&Printed {
+        report: &report,
+        sim: summary,
+    })
+    .map_err(failed)?;
+    println!("{line}");
+    if let Outcome::Fault { task, reason } = &report.outcome {
+        eprintln!("opennav: the {task} task failed ({reason}): the chair was stopped");
+        // the process ends even while the stdin reader waits for a line
+        std::process::exit(1);
+    }
+    std::process::exit(0);
+}

@@ -1,0 +1,249 @@
+//! The control step (pure, 20 Hz): user input, the goal keeper, the
+//! planner and the safety supervisor. `Control::step(now, inputs)` takes
+//! the latest obstacles, odometry and tracks and returns the supervisor's
+//! command, the words perception should look for, what to say, and
+//! whether the trip is over. The async task around it only moves values
+//! between channels.
+
+use serde::Serialize;
+
+use crate::actuation::ActuatorEvent;
+use crate::estimation::goal::{GoalEvent, GoalKeeper, GoalState};
+use crate::estimation::tracker::Tracker;
+use crate::estimation::view::CameraView;
+use crate::msg::{
+    FaultReason, Obstacles, Odometry, SafeCmd, Stamp, Stamped, SupervisorState, UserInput,
+    VelocityCmd,
+};
+use crate::navigation::mpc::UnicycleState;
+use crate::navigation::planner::Planner;
+use crate::safety::{Supervisor, SupervisorInputs};
+
+/// How a run ended.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Outcome {
+    /// At the approach pose of the prompted object.
+    Arrived,
+    /// The object went out of view and did not come back.
+    Lost,
+    /// A full search turn without seeing the word.
+    NotFound,
+    /// A stop from the user (with `exit_on_arrival`).
+    Stopped,
+    /// The user quit.
+    Quit,
+    /// SIGTERM / Ctrl-C.
+    Signal,
+    /// `max_duration` passed.
+    Timeout,
+    /// A task or thread died: the chair was stopped.
+    Fault { task: String, reason: String },
+}
+
+/// The latest inputs of one step.
+#[derive(Clone, Copy)]
+pub struct ControlInputs<'a> {
+    pub obstacles: Option<&'a Stamped<Obstacles>>,
+    pub odometry: Option<&'a Stamped<Odometry>>,
+    pub tracker: &'a Tracker,
+}
+
+/// What one step decided.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ControlOutput {
+    /// The supervisor's output, for the actuator.
+    pub cmd: SafeCmd,
+    /// The words perception should look for.
+    pub wanted: Vec<String>,
+    /// Sentences for the user, in order.
+    pub said: Vec<String>,
+    /// The trip is over (with `exit_on_arrival`, or the user's quit).
+    pub done: Option<Outcome>,
+}
+
+pub struct Control {
+    pub supervisor: Supervisor,
+    pub goal: GoalKeeper,
+    pub planner: Planner,
+    /// The camera's view (None without a camera: nothing is ever in view).
+    pub view: Option<CameraView>,
+    /// End the trip when the goal is reached, lost or not found.
+    pub exit_on_arrival: bool,
+    planner_cmd: Option<Stamped<VelocityCmd>>,
+    said: Vec<String>,
+    done: Option<Outcome>,
+}
+
+impl Control {
+    pub fn new(
+        supervisor: Supervisor,
+        goal: GoalKeeper,
+        planner: Planner,
+        view: Option<CameraView>,
+        exit_on_arrival: bool,
+    ) -> Control {
+        Control {
+            supervisor,
+            goal,
+            planner,
+            view,
+            exit_on_arrival,
+            planner_cmd: None,
+            said: Vec::new(),
+            done: None,
+        }
+    }
+
+    fn say(&mut self, s: String) {
+        self.said.push(s);
+    }
+
+    /// A word, a stop or a quit from the user.
+    pub fn on_input(&mut self, input: UserInput) {
+        match input {
+            UserInput::Goto(word) => {
+                self.supervisor.resume();
+                self.goal.set_prompt(&word);
+                self.say(format!("Looking for a {word}."));
+            }
+            UserInput::Stop => {
+                self.supervisor.user_stop();
+                self.goal.clear();
+                self.planner_cmd = None;
+                self.say("Stopped.".into());
+                if self.exit_on_arrival {
+                    self.done.get_or_insert(Outcome::Stopped);
+                }
+            }
+            UserInput::Quit => {
+                self.done.get_or_insert(Outcome::Quit);
+            }
+        }
+    }
+
+    /// What the motor interface reported.
+    pub fn on_actuator_event(&mut self, ev: &ActuatorEvent) {
+        match ev {
+            ActuatorEvent::Fault { reason } => {
+                self.supervisor.can_fault(FaultReason::CanBus);
+                self.goal.clear();
+                self.say(format!("Motor interface fault: {reason}. Stopped."));
+            }
+            ActuatorEvent::UserDeflection { .. } => {
+                self.supervisor.user_takeover();
+                self.goal.clear();
+                self.say("You have the joystick.".into());
+            }
+            other => tracing::info!(event = ?other, "actuator"),
+        }
+    }
+
+    /// A task or thread died: stop for good and say so.
+    pub fn on_task_failure(&mut self, task: &str, reason: &str) {
+        self.supervisor.can_fault(FaultReason::Task);
+        self.goal.clear();
+        self.say(format!("Internal fault in {task}. Stopped."));
+        self.done = Some(Outcome::Fault {
+            task: task.to_string(),
+            reason: reason.to_string(),
+        });
+    }
+
+    /// One step at `now`.
+    pub fn step(&mut self, now: Stamp, inputs: ControlInputs) -> ControlOutput {
+        if let (Some(o), Some(odo)) = (inputs.obstacles, inputs.odometry) {
+            self.plan(now, o, odo, inputs.tracker);
+        }
+        let mut cmd = self.supervisor.step(
+            now,
+            &SupervisorInputs {
+                obstacles: inputs.obstacles,
+                odometry_stamp: inputs.odometry.map(|p| p.stamp),
+                command: self.planner_cmd.as_ref(),
+            },
+        );
+        if self.done.is_some() {
+            // the trip is over: the last command the chair gets is zero
+            cmd.cmd = VelocityCmd::default();
+        }
+        ControlOutput {
+            cmd,
+            wanted: self.goal.wanted(),
+            said: std::mem::take(&mut self.said),
+            done: self.done.clone(),
+        }
+    }
+
+    fn plan(
+        &mut self,
+        now: Stamp,
+        o: &Stamped<Obstacles>,
+        odo: &Stamped<Odometry>,
+        tracker: &Tracker,
+    ) {
+        let Odometry {
+            pose,
+            v_mps,
+            omega_radps,
+        } = odo.value;
+        let obstacles_odom: Vec<[f64; 2]> = o
+            .value
+            .points_base
+            .iter()
+            .map(|q| {
+                let p = pose.to_isometry3() * nalgebra::Point3::new(q[0] as f64, q[1] as f64, 0.0);
+                [p.x, p.y]
+            })
+            .collect();
+        let view = self.view;
+        let event = self.goal.update(now, tracker, pose, &obstacles_odom, &|p| {
+            view.is_some_and(|v| v.sees(&pose, p))
+        });
+        if let Some(e) = &event {
+            self.say(e.say());
+        }
+        match self.goal.state() {
+            GoalState::Tracking { .. } | GoalState::Searching { .. } => {
+                self.supervisor.goal_active()
+            }
+            GoalState::Holding { .. } => self.supervisor.goal_holding(),
+            GoalState::None | GoalState::Reached { .. } => self.supervisor.goal_cleared(),
+        }
+        self.planner_cmd = if let Some(a) = self.goal.approach() {
+            let out = self.planner.step(
+                UnicycleState {
+                    x_m: pose.x_m,
+                    y_m: pose.y_m,
+                    theta_rad: pose.theta_rad,
+                    v_mps,
+                    omega_radps,
+                },
+                [a.x_m, a.y_m],
+                &o.value,
+            );
+            Some(Stamped::new(now, out.cmd))
+        } else {
+            self.goal.search_command().map(|c| Stamped::new(now, c))
+        };
+        if self.exit_on_arrival {
+            let outcome = match event {
+                Some(GoalEvent::Reached { .. }) => Some(Outcome::Arrived),
+                Some(GoalEvent::Lost { .. }) => Some(Outcome::Lost),
+                Some(GoalEvent::NotFound { .. }) => Some(Outcome::NotFound),
+                _ => None,
+            };
+            if let Some(o) = outcome {
+                self.done.get_or_insert(o);
+            }
+        }
+    }
+
+    pub fn state(&self) -> SupervisorState {
+        self.supervisor.state()
+    }
+
+    pub fn goal_state(&self) -> &GoalState {
+        self.goal.state()
+    }
+}

@@ -1,0 +1,202 @@
+//! The estimation task: it owns the estimator (wheel odometry, gyro, scan
+//! matching into the EKF), the pose history and the object tracker. Wheel
+//! counts predict and publish the chair's [`Odometry`]; merged scans
+//! correct it; perception's objects (in `base_link` at their frame's
+//! stamp) are placed in `odom` with the pose at that stamp and go into the
+//! tracker, whose tracks it publishes.
+
+use std::collections::VecDeque;
+
+use serde::Serialize;
+use tokio::sync::{mpsc, watch};
+use tokio_util::sync::CancellationToken;
+
+use crate::estimation::ekf::PoseHistory;
+use crate::estimation::fusion::Estimator;
+use crate::estimation::tracker::Tracker;
+use crate::estimation::view::CameraView;
+use crate::msg::{Frame, Object3D, Obstacles, Odometry, Stamp, Stamped, WheelTicks};
+
+/// Counters for the report.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct EstimationStats {
+    /// Scans matched into the EKF.
+    pub scan_matches: u64,
+    /// Odometry steps whose heading used the gyro.
+    pub gyro_fused: u64,
+    /// Views placed into the tracker.
+    pub views_placed: u64,
+    /// Views dropped: no pose at their stamp (odometry starting or
+    /// behind; said in the log).
+    pub views_without_pose: u64,
+}
+
+pub struct EstimationIo {
+    pub ticks: watch::Receiver<Option<Stamped<WheelTicks>>>,
+    pub obstacles: watch::Receiver<Option<Stamped<Obstacles>>>,
+    pub gyro: watch::Receiver<Option<Stamped<f64>>>,
+    /// Objects in `base_link`, stamped with their frame's acquisition.
+    pub objects: mpsc::Receiver<Stamped<Vec<Object3D>>>,
+    pub odometry: watch::Sender<Option<Stamped<Odometry>>>,
+    pub tracks: watch::Sender<Tracker>,
+    pub stats: watch::Sender<EstimationStats>,
+}
+
+/// Views waiting for odometry to pass their stamp.
+const MAX_PENDING_VIEWS: usize = 8;
+
+/// The pure part: places views with the pose history.
+pub struct Estimation {
+    pub estimator: Estimator,
+    pub history: PoseHistory,
+    pub tracker: Tracker,
+    pub view: Option<CameraView>,
+    pending: VecDeque<Stamped<Vec<Object3D>>>,
+    pub stats: EstimationStats,
+}
+
+impl Estimation {
+    pub fn new(estimator: Estimator, tracker: Tracker, view: Option<CameraView>) -> Self {
+        Estimation {
+            estimator,
+            history: PoseHistory::new(400),
+            tracker,
+            view,
+            pending: VecDeque::new(),
+            stats: EstimationStats::default(),
+        }
+    }
+
+    pub fn on_ticks(&mut self, t: &Stamped<WheelTicks>) -> Stamped<Odometry> {
+        let e = self.estimator.on_ticks(t);
+        self.history.push(t.stamp, e.pose);
+        self.stats.gyro_fused = self.estimator.gyro_fused;
+        Stamped::new(t.stamp, e)
+    }
+
+    pub fn on_scan(&mut self, o: &Stamped<Obstacles>) {
+        let pts: Vec<[f64; 2]> = o
+            .value
+            .points_base
+            .iter()
+            .map(|p| [p[0] as f64, p[1] as f64])
+            .collect();
+        match self.estimator.on_scan(&pts) {
+            Some(Ok(_)) => self.stats.scan_matches += 1,
+            Some(Err(e)) => tracing::debug!(error = %e, "scan matching"),
+            None => {}
+        }
+    }
+
+    /// Queues a view; returns whether the tracker changed.
+    pub fn on_objects(&mut self, objects: Stamped<Vec<Object3D>>) -> bool {
+        if self.pending.len() == MAX_PENDING_VIEWS {
+            self.pending.pop_front();
+            self.stats.views_without_pose += 1;
+            tracing::warn!("perception: views wait for odometry; the oldest dropped");
+        }
+        self.pending.push_back(objects);
+        self.place_pending()
+    }
+
+    /// Places the views whose stamp the pose history now covers; views
+    /// older than the history are dropped (and counted).
+    pub fn place_pending(&mut self) -> bool {
+        let mut changed = false;
+        while let Some(front) = self.pending.front() {
+            let stamp = front.stamp;
+            match self.history.pose_at(stamp) {
+                Some(pose) => {
+                    let Some(view) = self.pending.pop_front() else {
+                        break;
+                    };
+                    self.place(stamp, pose, view.value);
+                    changed = true;
+                }
+                None if self.history_covers_after(stamp) => {
+                    self.pending.pop_front();
+                    self.stats.views_without_pose += 1;
+                    tracing::info!("perception: no pose at the view's stamp (odometry starting?); view skipped");
+                }
+                None => break,
+            }
+        }
+        changed
+    }
+
+    /// Whether the history's newest pose is past `stamp` (so no pose for
+    /// it will come).
+    fn history_covers_after(&self, stamp: Stamp) -> bool {
+        self.history.newest().is_some_and(|t| t >= stamp)
+    }
+
+    fn place(&mut self, stamp: Stamp, pose: crate::msg::Pose2, objects: Vec<Object3D>) {
+        let odom_from_base = pose.to_isometry3();
+        let objects: Vec<Object3D> = objects
+            .into_iter()
+            .filter_map(|o| {
+                let pts = o
+                    .points
+                    .iter()
+                    .map(|p| (odom_from_base * p.cast::<f64>()).cast::<f32>())
+                    .collect();
+                Object3D::from_points(o.label, o.score, Frame::Odom, pts, o.box_xyxy)
+            })
+            .collect();
+        let view = self.view;
+        self.tracker
+            .update(stamp, &objects, |p| view.is_some_and(|v| v.sees(&pose, p)));
+        self.stats.views_placed += 1;
+    }
+}
+
+/// Runs until cancelled; an input channel closing is a fault.
+pub async fn run(
+    mut est: Estimation,
+    mut io: EstimationIo,
+    cancel: CancellationToken,
+) -> Result<(), String> {
+    // no camera, or one without an IMU: the gyro's sender goes away
+    let mut gyro_open = true;
+    let mut objects_open = true;
+    loop {
+        tokio::select! {
+            biased;
+            _ = cancel.cancelled() => return Ok(()),
+            r = io.gyro.changed(), if gyro_open => {
+                if r.is_err() {
+                    gyro_open = false;
+                    continue;
+                }
+                if let Some(g) = *io.gyro.borrow_and_update() {
+                    est.estimator.on_gyro(g);
+                }
+            }
+            r = io.ticks.changed() => {
+                r.map_err(|_| "the wheel counts' channel closed".to_string())?;
+                let Some(t) = *io.ticks.borrow_and_update() else { continue };
+                let odometry = est.on_ticks(&t);
+                io.odometry.send_replace(Some(odometry));
+                if est.place_pending() {
+                    io.tracks.send_replace(est.tracker.clone());
+                }
+                io.stats.send_replace(est.stats);
+            }
+            r = io.obstacles.changed() => {
+                r.map_err(|_| "the obstacles' channel closed".to_string())?;
+                let Some(o) = io.obstacles.borrow_and_update().clone() else { continue };
+                est.on_scan(&o);
+            }
+            v = io.objects.recv(), if objects_open => match v {
+                Some(v) => {
+                    if est.on_objects(v) {
+                        io.tracks.send_replace(est.tracker.clone());
+                    }
+                    io.stats.send_replace(est.stats);
+                }
+                // no camera: perception never sends
+                None => objects_open = false,
+            },
+        }
+    }
+}

@@ -1,0 +1,671 @@
+//! `opennav run`: the daemon. This folder only wires: a [`Devices`]
+//! bundle (the chair's, from config by [`chair`]; or the simulator's, from
+//! `sim::devices`) → tasks → channels, the same code for both, on the
+//! clock it is given (the monotonic clock on the chair, tokio's paused
+//! clock for a virtual-time simulation).
+//!
+//! Tasks (each owns its state; values move on channels):
+//! - `laser-left`, `laser-right`, `encoders`, `gyro`: the sources'
+//!   readings onto `watch` channels (and the recording); `lasers` merges
+//!   the two scans into obstacles in `base_link`;
+//! - `estimation` ([`estimation`]): odometry, gyro and scan matching into
+//!   the EKF; publishes [`Odometry`]; places perception's objects with the
+//!   pose at their stamp and owns the tracker;
+//! - `perception` ([`perception`]): the camera's newest frame through the
+//!   pipeline for the words the goal wants, on a blocking thread;
+//! - `control` ([`control`]): 20 Hz — user input, goal keeper, planner,
+//!   supervisor; its output goes to the actuator; it feeds the watchdog
+//!   and tells systemd READY once every device has delivered;
+//! - `actuator`: the R-Net writer (or the Rebus link) at its own cadence.
+//!
+//! Health: a task that panics, fails or ends on its own is a fault — the
+//! control step outputs zero with a latched fault, the watchdog is no
+//! longer fed, the chair is centred and released, and the run ends with
+//! [`Outcome::Fault`] naming the task (the command line exits 1).
+//! Shutdown order: the chair first (centred frames, then release), then the
+//! devices, then the recording.
+
+pub mod chair;
+pub mod control;
+pub mod devices;
+pub mod estimation;
+pub mod notify;
+pub mod perception;
+pub mod recorder;
+
+use std::collections::{BTreeSet, HashMap};
+use std::sync::Arc;
+use std::time::Duration;
+
+use serde::Serialize;
+use tokio::sync::{mpsc, watch};
+use tokio::task::JoinSet;
+use tokio_util::sync::CancellationToken;
+
+use crate::actuation::{ActuatorEvent, ActuatorIo, ActuatorStatus};
+use crate::config::Settings;
+use crate::estimation::fusion::Estimator;
+use crate::estimation::goal::{GoalKeeper, GoalState};
+use crate::estimation::tracker::{Tracker, TrackerParams};
+use crate::estimation::view::CameraView;
+use crate::msg::{
+    Clock, LaserScan, Obstacles, Odometry, SafeCmd, Stamped, SupervisorState, UserInput, WheelTicks,
+};
+use crate::navigation::apf::ApfParams;
+use crate::navigation::mpc::MpcParams;
+use crate::navigation::planner::{Planner, PlannerStats};
+use crate::perception::pipeline::Pipeline;
+use crate::safety::Supervisor;
+use crate::sensors::laser::merge_scans;
+
+pub use control::{Control, ControlInputs, ControlOutput, Outcome};
+pub use devices::{CameraDevice, DeviceError, Devices, Source, WatchSource};
+pub use estimation::EstimationStats;
+pub use notify::sd_notify;
+pub use recorder::RecordReport;
+use recorder::{record, RecordItem, RecordSink, Recorder};
+
+#[derive(Debug, Clone, Default)]
+pub struct RunOptions {
+    /// End the run when the goal is reached, lost or not found.
+    pub exit_on_arrival: bool,
+    pub max_duration: Option<Duration>,
+    /// Record the sensors and perception's output to this MCAP file.
+    pub record: Option<std::path::PathBuf>,
+    /// Fault-injection tests: this task panics after this long.
+    pub inject_panic: Option<(String, Duration)>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct RunReport {
+    pub outcome: Outcome,
+    pub duration_s: f64,
+    pub goal: GoalState,
+    pub supervisor: SupervisorState,
+    pub odometry: Odometry,
+    pub planner: PlannerStats,
+    pub estimation: EstimationStats,
+    pub actuator: ActuatorStatus,
+    /// What the chair said, in order.
+    pub said: Vec<String>,
+    pub record: Option<RecordReport>,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum DaemonError {
+    #[error("{0}")]
+    Setup(String),
+}
+
+/// The control loop's period.
+const CONTROL_PERIOD: Duration = Duration::from_millis(50);
+
+/// A task of the daemon: its name and the error that ended it.
+type TaskResult = Result<(), String>;
+
+/// The daemon's tasks, watched: any that ends before shutdown is a fault.
+struct Tasks {
+    set: JoinSet<TaskResult>,
+    names: HashMap<tokio::task::Id, String>,
+    inject_panic: Option<(String, Duration)>,
+}
+
+impl Tasks {
+    fn new(inject_panic: Option<(String, Duration)>) -> Tasks {
+        Tasks {
+            set: JoinSet::new(),
+            names: HashMap::new(),
+            inject_panic,
+        }
+    }
+
+    fn spawn(
+        &mut self,
+        name: &str,
+        fut: impl std::future::Future<Output = TaskResult> + Send + 'static,
+    ) {
+        let h = match &self.inject_panic {
+            Some((task, after)) if task == name => {
+                let after = *after;
+                self.set.spawn(async move {
+                    tokio::select! {
+                        r = fut => r,
+                        _ = tokio::time::sleep(after) => panic!("injected panic (fault-injection test)"),
+                    }
+                })
+            }
+            _ => self.set.spawn(fut),
+        };
+        self.names.insert(h.id(), name.to_string());
+    }
+
+    /// The next task to end: its name and why.
+    async fn next_end(&mut self) -> Option<(String, TaskResult)> {
+        let r = self.set.join_next_with_id().await?;
+        Some(match r {
+            Ok((id, r)) => (self.name(id), r),
+            Err(e) => {
+                let id = e.id();
+                let why = if e.is_panic() {
+                    format!("panicked: {}", panic_message(e.into_panic()))
+                } else {
+                    "cancelled".to_string()
+                };
+                (self.name(id), Err(why))
+            }
+        })
+    }
+
+    fn name(&self, id: tokio::task::Id) -> String {
+        self.names
+            .get(&id)
+            .cloned()
+            .unwrap_or_else(|| format!("task {id}"))
+    }
+}
+
+/// Stand-ins for the control task's channels when it died with them.
+fn channels_lost() -> (watch::Sender<Option<SafeCmd>>, watch::Sender<Vec<String>>) {
+    (watch::channel(None).0, watch::channel(Vec::new()).0)
+}
+
+/// The text of a panic's payload.
+pub fn panic_message(payload: Box<dyn std::any::Any + Send>) -> String {
+    if let Some(s) = payload.downcast_ref::<&str>() {
+        s.to_string()
+    } else if let Some(s) = payload.downcast_ref::<String>() {
+        s.clone()
+    } else {
+        "(no message)".to_string()
+    }
+}
+
+/// A source's readings onto a watch channel; the first one is announced
+/// (READY waits for it).
+async fn pump<T: Clone + Send + Sync + 'static>(
+    mut source: Box<dyn Source<T>>,
+    tx: watch::Sender<Option<Stamped<T>>>,
+    first: mpsc::UnboundedSender<&'static str>,
+    label: &'static str,
+    rec: Option<RecordSink>,
+    to_record: fn(Stamped<T>) -> RecordItem,
+    cancel: CancellationToken,
+) -> TaskResult {
+    let mut announced = false;
+    loop {
+        let v = tokio::select! {
+            biased;
+            _ = cancel.cancelled() => return Ok(()),
+            v = source.next() => v.map_err(|e| e.to_string())?,
+        };
+        if !announced {
+            announced = true;
+            first.send(label).ok();
+        }
+        record(&rec, || to_record(v.clone()));
+        tx.send_replace(Some(v));
+    }
+}
+
+fn no_record<T>(_: Stamped<T>) -> RecordItem {
+    unreachable!("not recorded")
+}
+
+/// Runs the daemon on `devices` until the user quits, the trip ends (with
+/// `exit_on_arrival`), `shutdown` is cancelled or a task fails.
+pub async fn run(
+    devices: Devices,
+    settings: &Settings,
+    opts: RunOptions,
+    mut inputs: mpsc::Receiver<UserInput>,
+    clock: Arc<dyn Clock>,
+    shutdown: CancellationToken,
+) -> Result<RunReport, DaemonError> {
+    let start = clock.now();
+    let (recorder, sink) = match &opts.record {
+        Some(p) => {
+            let (r, s) = Recorder::start(p).map_err(DaemonError::Setup)?;
+            (Some(r), Some(s))
+        }
+        None => (None, None),
+    };
+    let Devices {
+        lasers,
+        wheels,
+        gyro,
+        camera,
+        actuator,
+        background,
+        stop: devices_stop,
+        close,
+    } = devices;
+    let sources = CancellationToken::new();
+    let mut tasks = Tasks::new(opts.inject_panic.clone());
+    let (first_tx, mut first_rx) = mpsc::unbounded_channel::<&'static str>();
+    let mut waiting: BTreeSet<&'static str> = BTreeSet::new();
+
+    // device-side tasks (the simulated world and chair)
+    for (name, fut) in background {
+        tasks.spawn(&name, async move { fut.await.map_err(|e| e.to_string()) });
+    }
+
+    // the lasers, then their merge into obstacles in base_link
+    let mut scan_rx = Vec::new();
+    let mut poses = Vec::new();
+    for ((source, base_from_laser), (label, left)) in lasers
+        .into_iter()
+        .zip([("laser-left", true), ("laser-right", false)])
+    {
+        let (tx, rx) = watch::channel::<Option<Stamped<LaserScan>>>(None);
+        let to_record: fn(Stamped<LaserScan>) -> RecordItem = if left {
+            |s| RecordItem::Scan(true, s)
+        } else {
+            |s| RecordItem::Scan(false, s)
+        };
+        waiting.insert(label);
+        tasks.spawn(
+            label,
+            pump(
+                source,
+                tx,
+                first_tx.clone(),
+                label,
+                sink.clone(),
+                to_record,
+                sources.clone(),
+            ),
+        );
+        scan_rx.push(rx);
+        poses.push(base_from_laser);
+    }
+    let (obst_tx, obst_rx) = watch::channel::<Option<Stamped<Obstacles>>>(None);
+    {
+        let (mut left, mut right) = (scan_rx[0].clone(), scan_rx[1].clone());
+        let poses = [poses[0], poses[1]];
+        let cancel = sources.clone();
+        tasks.spawn("lasers", async move {
+            loop {
+                tokio::select! {
+                    biased;
+                    _ = cancel.cancelled() => return Ok(()),
+                    r = left.changed() => r.map_err(|_| "the left laser's channel closed")?,
+                    r = right.changed() => r.map_err(|_| "the right laser's channel closed")?,
+                }
+                let (l, r) = (
+                    left.borrow_and_update().clone(),
+                    right.borrow_and_update().clone(),
+                );
+                // both scanners or none: the merged stamp is the older one,
+                // so a dead scanner makes the set stale and the chair stops
+                if let (Some(l), Some(r)) = (l, r) {
+                    obst_tx.send_replace(merge_scans(&[(&l, &poses[0]), (&r, &poses[1])]));
+                }
+            }
+        });
+    }
+
+    // the wheels and the gyro
+    let (ticks_tx, ticks_rx) = watch::channel::<Option<Stamped<WheelTicks>>>(None);
+    waiting.insert("encoders");
+    tasks.spawn(
+        "encoders",
+        pump(
+            wheels,
+            ticks_tx,
+            first_tx.clone(),
+            "encoders",
+            sink.clone(),
+            RecordItem::Ticks,
+            sources.clone(),
+        ),
+    );
+    let (gyro_tx, gyro_rx) = watch::channel::<Option<Stamped<f64>>>(None);
+    let camera_gyro = match gyro {
+        Some(g) => {
+            tasks.spawn(
+                "gyro",
+                pump(
+                    g,
+                    gyro_tx,
+                    first_tx.clone(),
+                    "gyro",
+                    None,
+                    no_record,
+                    sources.clone(),
+                ),
+            );
+            // the camera's IMU, if any, goes nowhere: one yaw-rate source
+            watch::channel(None).0
+        }
+        None => gyro_tx,
+    };
+
+    // the motor interface
+    let (cmd_tx, cmd_rx) = watch::channel::<Option<SafeCmd>>(None);
+    let (act_ev_tx, act_ev_rx) = mpsc::channel(64);
+    let (status_tx, status_rx) = watch::channel(ActuatorStatus::default());
+    let writer_cancel = CancellationToken::new();
+    let actuator_run = actuator(ActuatorIo {
+        commands: cmd_rx,
+        events: act_ev_tx,
+        status: status_tx,
+        cancel: writer_cancel.clone(),
+        clock: clock.clone(),
+    })
+    .map_err(|e| DaemonError::Setup(e.to_string()))?;
+    let mut actuator_task = tokio::spawn(actuator_run);
+    waiting.insert("motors");
+
+    // perception and estimation
+    let (objects_tx, objects_rx) = mpsc::channel::<Stamped<Vec<crate::msg::Object3D>>>(4);
+    let (prompts_tx, prompts_rx) = watch::channel::<Vec<String>>(Vec::new());
+    let base_from_camera = settings
+        .camera
+        .base_from_camera
+        .to_isometry("camera.base_from_camera")
+        .map_err(|e| DaemonError::Setup(e.to_string()))?;
+    let view = match camera {
+        Some(CameraDevice {
+            mut open,
+            detector,
+            segmenter,
+            restamp,
+            period,
+            latency,
+        }) => {
+            let (open_back, source) = tokio::task::spawn_blocking(move || {
+                let s = open();
+                (open, s)
+            })
+            .await
+            .map_err(|e| DaemonError::Setup(format!("camera: {e}")))?;
+            let source = source.map_err(|e| DaemonError::Setup(format!("camera: {e}")))?;
+            let mut calibration = source.calibration().clone();
+            calibration.base_from_camera = base_from_camera;
+            let view = CameraView::from_calibration(&calibration);
+            let cam = perception::CameraLoop {
+                open: open_back,
+                restamp,
+                period,
+                latency,
+            };
+            let pipeline = Pipeline::new(
+                detector,
+                segmenter,
+                calibration,
+                settings.geometry_settings(),
+            );
+            waiting.insert("camera");
+            tasks.spawn(
+                "perception",
+                perception::run(
+                    cam,
+                    source,
+                    pipeline,
+                    perception::PerceptionIo {
+                        prompts: prompts_rx,
+                        objects: objects_tx,
+                        gyro: camera_gyro,
+                        first_frame: first_tx.clone(),
+                        record: sink.clone(),
+                    },
+                    clock.clone(),
+                    sources.clone(),
+                ),
+            );
+            Some(view)
+        }
+        None => {
+            drop((objects_tx, prompts_rx, camera_gyro));
+            None
+        }
+    };
+    drop(sink);
+    let (odo_tx, odo_rx) = watch::channel::<Option<Stamped<Odometry>>>(None);
+    let odo_report = odo_rx.clone();
+    let (tracks_tx, tracks_rx) = watch::channel(Tracker::new(TrackerParams::default()));
+    let (stats_tx, stats_rx) = watch::channel(EstimationStats::default());
+    tasks.spawn(
+        "estimation",
+        estimation::run(
+            estimation::Estimation::new(
+                Estimator::new(settings.drive_params()),
+                Tracker::new(TrackerParams::default()),
+                view,
+            ),
+            estimation::EstimationIo {
+                ticks: ticks_rx,
+                obstacles: obst_rx.clone(),
+                gyro: gyro_rx,
+                objects: objects_rx,
+                odometry: odo_tx,
+                tracks: tracks_tx,
+                stats: stats_tx,
+            },
+            sources.clone(),
+        ),
+    );
+
+    // the control task, watched together with the others
+    let control = Control::new(
+        Supervisor::new(settings.safety_limits()),
+        GoalKeeper::new(settings.goal_settings()),
+        Planner::new(MpcParams::default(), ApfParams::default()),
+        view,
+        opts.exit_on_arrival,
+    );
+    let (fault_tx, mut fault_rx) = mpsc::unbounded_channel::<(String, String)>();
+    let mut act_ev_rx = act_ev_rx;
+    let control_clock = clock.clone();
+    let control_cancel = shutdown.clone();
+    let max_duration = opts.max_duration;
+    let mut control_task = tokio::spawn(async move {
+        let mut control = control;
+        let mut said: Vec<String> = Vec::new();
+        let mut tick = tokio::time::interval(CONTROL_PERIOD);
+        tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+        let mut ready = false;
+        let mut status_sent = String::new();
+        let mut inputs_open = true;
+        let outcome = loop {
+            tokio::select! {
+                biased;
+                Some((task, reason)) = fault_rx.recv() => control.on_task_failure(&task, &reason),
+                _ = control_cancel.cancelled() => break Outcome::Signal,
+                i = inputs.recv(), if inputs_open => match i {
+                    Some(i) => control.on_input(i),
+                    None => inputs_open = false,
+                },
+                Some(ev) = act_ev_rx.recv() => {
+                    if matches!(ev, ActuatorEvent::Ready { .. }) {
+                        waiting.remove("motors");
+                    }
+                    control.on_actuator_event(&ev);
+                }
+                Some(first) = first_rx.recv() => { waiting.remove(first); }
+                _ = tick.tick() => {}
+            }
+            let now = control_clock.now();
+            let obstacles = obst_rx.borrow().clone();
+            let odometry = *odo_rx.borrow();
+            let out = {
+                let tracker = tracks_rx.borrow();
+                control.step(
+                    now,
+                    ControlInputs {
+                        obstacles: obstacles.as_ref(),
+                        odometry: odometry.as_ref(),
+                        tracker: &tracker,
+                    },
+                )
+            };
+            cmd_tx.send_replace(Some(out.cmd));
+            prompts_tx.send_if_modified(|p| {
+                let changed = *p != out.wanted;
+                if changed {
+                    p.clone_from(&out.wanted);
+                }
+                changed
+            });
+            for s in out.said {
+                tracing::info!(say = %s, "opennav");
+                eprintln!("opennav says: {s}");
+                said.push(s);
+            }
+            if !ready {
+                if waiting.is_empty() {
+                    ready = true;
+                    sd_notify("READY=1");
+                    sd_notify("STATUS=running");
+                } else {
+                    let status = format!(
+                        "STATUS=waiting for a first reading from: {}",
+                        waiting.iter().copied().collect::<Vec<_>>().join(", ")
+                    );
+                    if status != status_sent {
+                        sd_notify(&status);
+                        status_sent = status;
+                    }
+                }
+            }
+            if let Some(o) = out.done {
+                break o;
+            }
+            if max_duration.is_some_and(|m| now.0.saturating_sub(start.0) > m) {
+                break Outcome::Timeout;
+            }
+            // fed only while every task runs and nothing is faulted
+            if !matches!(out.cmd.state, SupervisorState::Fault(_)) {
+                sd_notify("WATCHDOG=1");
+            }
+        };
+        // the last word to the actuator: zero
+        let now = control_clock.now();
+        cmd_tx.send_replace(Some(SafeCmd {
+            cmd: Default::default(),
+            state: control.state(),
+            stamp: now,
+        }));
+        sd_notify("STOPPING=1");
+        // the channels stay open until the daemon shuts the tasks down: a
+        // closed channel means a dead task
+        (control, outcome, said, now, (cmd_tx, prompts_tx))
+    });
+
+    // watch every task until the control task ends
+    let mut failure: Option<(String, String)> = None;
+    let mut actuator_result = None;
+    let control_end = loop {
+        tokio::select! {
+            biased;
+            r = &mut control_task => break r,
+            Some((name, r)) = tasks.next_end() => {
+                let reason = match r {
+                    Ok(()) => "ended on its own".to_string(),
+                    Err(e) => e,
+                };
+                tracing::error!(task = %name, reason = %reason, "task failed: stopping the chair");
+                failure.get_or_insert((name.clone(), reason.clone()));
+                fault_tx.send((name, reason)).ok();
+            }
+            r = &mut actuator_task, if actuator_result.is_none() => {
+                let reason = match &r {
+                    Ok(Ok(_)) => "ended on its own".to_string(),
+                    Ok(Err(e)) => e.to_string(),
+                    Err(e) if e.is_panic() => "panicked".to_string(),
+                    Err(e) => e.to_string(),
+                };
+                tracing::error!(task = "actuator", reason = %reason, "the motor interface stopped");
+                actuator_result = Some(r);
+                failure.get_or_insert(("actuator".into(), reason.clone()));
+                fault_tx.send(("actuator".into(), reason)).ok();
+            }
+        }
+    };
+    let (control, mut outcome, said, end, _channels) = match control_end {
+        Ok(c) => c,
+        Err(e) => {
+            let why = if e.is_panic() {
+                format!("panicked: {}", panic_message(e.into_panic()))
+            } else {
+                e.to_string()
+            };
+            tracing::error!(task = "control", reason = %why, "task failed");
+            // the writer centres when the supervisor's command goes stale
+            let reason = why.clone();
+            failure.get_or_insert(("control".into(), reason));
+            let now = clock.now();
+            (
+                Control::new(
+                    Supervisor::new(settings.safety_limits()),
+                    GoalKeeper::new(settings.goal_settings()),
+                    Planner::new(MpcParams::default(), ApfParams::default()),
+                    None,
+                    false,
+                ),
+                Outcome::Fault {
+                    task: "control".into(),
+                    reason: why,
+                },
+                Vec::new(),
+                now,
+                channels_lost(),
+            )
+        }
+    };
+    if let Some((task, reason)) = &failure {
+        outcome = Outcome::Fault {
+            task: task.clone(),
+            reason: reason.clone(),
+        };
+    }
+
+    // shutdown: the chair first (centred, then released), then the devices
+    writer_cancel.cancel();
+    let actuator = match actuator_result {
+        Some(r) => r,
+        None => actuator_task.await,
+    };
+    let actuator_status = match actuator {
+        Ok(Ok(s)) => s,
+        Ok(Err(e)) => {
+            tracing::error!(error = %e, "actuator");
+            status_rx.borrow().clone()
+        }
+        Err(_) => status_rx.borrow().clone(),
+    };
+    sources.cancel();
+    devices_stop.cancel();
+    while let Some((name, r)) = tasks.next_end().await {
+        if let Err(e) = r {
+            tracing::warn!(task = %name, error = %e, "task ended with an error during shutdown");
+        }
+    }
+    let estimation = *stats_rx.borrow();
+    if !close.is_empty() {
+        tokio::task::spawn_blocking(move || close.into_iter().for_each(|c| c()))
+            .await
+            .map_err(|e| DaemonError::Setup(format!("closing devices: {e}")))?;
+    }
+    let record = match recorder {
+        Some(r) => Some(
+            tokio::task::spawn_blocking(move || r.finish())
+                .await
+                .map_err(|e| DaemonError::Setup(format!("recorder: {e}")))?,
+        ),
+        None => None,
+    };
+    let odometry = odo_report.borrow().map(|o| o.value).unwrap_or_default();
+    Ok(RunReport {
+        outcome,
+        duration_s: end.0.saturating_sub(start.0).as_secs_f64(),
+        goal: control.goal_state().clone(),
+        supervisor: control.state(),
+        odometry,
+        planner: control.planner.stats.clone(),
+        estimation,
+        actuator: actuator_status,
+        said,
+        record,
+    })
+}

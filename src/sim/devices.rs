@@ -1,0 +1,353 @@
+//! The simulator's [`Devices`]: the same traits as the chair's drivers,
+//! played by the simulated world. A world task steps the chair's motion
+//! at 100 Hz from what its power module does (the simulated R-Net chair,
+//! JSM and power module, on an in-memory CAN bus driven by the real R-Net
+//! writer); the encoder board's counts, the camera IMU's yaw rate and the
+//! two lasers' scans (10 Hz, ray casting) come from it as sources; the
+//! camera renders the room from the chair's true pose, and the simulator's
+//! ground-truth detector boxes the objects it sees, whose frames go through
+//! the same perception pipeline as the chair's.
+
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use nalgebra::Isometry3;
+use serde::Serialize;
+use tokio::sync::watch;
+use tokio_util::sync::CancellationToken;
+
+use super::replica::SimGtDetector;
+use super::rnet::{run_sim_chair, SimChair, SimChairSettings};
+use super::world::{SimReport, SimWorld};
+use crate::actuation::can::MemoryBus;
+use crate::actuation::rnet::TakeoverMode;
+use crate::actuation::writer::RnetActuator;
+use crate::actuation::{Actuator, ActuatorError};
+use crate::config::Settings;
+use crate::daemon::devices::{CameraDevice, DeviceError, Devices, WatchSource};
+use crate::daemon::Source;
+use crate::msg::{Clock, LaserScan, RgbdFrame, Stamp, Stamped, WheelTicks};
+use crate::perception::calibration::{Intrinsics, RgbdCalibration};
+use crate::perception::detector::{Detection, Detector, DetectorError, PromptReport};
+use crate::perception::image::RgbImage;
+use crate::perception::segmenter::DepthBoxSegmenter;
+use crate::sensors::camera::{CameraError, CameraSource};
+
+/// The world's step, s.
+const WORLD_STEP: Duration = Duration::from_millis(10);
+/// The lasers scan every this many world steps (10 Hz).
+const LASER_EVERY: u64 = 10;
+
+/// What the simulator's camera rendered last, for its detector.
+type LastView = Arc<Mutex<Option<Vec<i32>>>>;
+
+/// The simulated world while the daemon runs on it.
+#[derive(Clone)]
+pub struct SimHandle {
+    pub world: Arc<Mutex<SimWorld>>,
+    /// The chair's CAN bus (tests attach other nodes to it).
+    pub bus: MemoryBus,
+    /// The chair's JSM and power module.
+    pub chair: Arc<Mutex<SimChair>>,
+}
+
+/// What the simulator measured of a trip.
+#[derive(Debug, Clone, Serialize)]
+pub struct SimSummary {
+    pub world: SimReport,
+    /// From the chair's footprint centre (base_link) to the nearest object
+    /// of the goal's word, box to point, m.
+    pub distance_to_goal_object_m: Option<f64>,
+}
+
+impl SimHandle {
+    /// The trip's measurements; `label`: the goal's word.
+    pub fn summary(&self, label: Option<&str>) -> Option<SimSummary> {
+        let w = self.world.lock().ok()?;
+        let distance = label.and_then(|l| {
+            w.room
+                .objects
+                .iter()
+                .filter(|o| o.label.eq_ignore_ascii_case(l))
+                .map(|o| {
+                    let dx = (o.min_m[0] - w.truth.x_m)
+                        .max(w.truth.x_m - o.max_m[0])
+                        .max(0.0);
+                    let dy = (o.min_m[1] - w.truth.y_m)
+                        .max(w.truth.y_m - o.max_m[1])
+                        .max(0.0);
+                    dx.hypot(dy)
+                })
+                .min_by(f64::total_cmp)
+        });
+        Some(SimSummary {
+            world: w.report,
+            distance_to_goal_object_m: distance,
+        })
+    }
+}
+
+/// The simulator's devices on `world`, timed by `clock` (tokio's: real
+/// or paused).
+pub fn devices(
+    settings: &Settings,
+    world: SimWorld,
+    clock: Arc<dyn Clock>,
+) -> Result<(Devices, SimHandle), DeviceError> {
+    let world = Arc::new(Mutex::new(world));
+    let stop = CancellationToken::new();
+    let base_from_camera = settings
+        .camera
+        .base_from_camera
+        .to_isometry("camera.base_from_camera")
+        .map_err(|e| DeviceError::new("camera", e.to_string()))?;
+    let lasers_at = [
+        settings.lasers.left.base_from_laser(),
+        settings.lasers.right.base_from_laser(),
+    ];
+
+    // the chair's R-Net bus: its JSM and power module
+    let bus = MemoryBus::new();
+    let chair = Arc::new(Mutex::new(SimChair::new(
+        SimChairSettings::default(),
+        clock.now(),
+    )));
+    let chair_task = {
+        let (endpoint, chair, clock, stop) =
+            (bus.endpoint(), chair.clone(), clock.clone(), stop.clone());
+        async move {
+            run_sim_chair(endpoint, chair, clock, stop.clone()).await;
+            if stop.is_cancelled() {
+                Ok(())
+            } else {
+                Err(DeviceError::new("sim-chair", "the simulated chair stopped"))
+            }
+        }
+    };
+
+    // the world: 100 Hz, driven by what the power module does
+    let (ticks_tx, ticks_rx) = watch::channel::<Option<Stamped<WheelTicks>>>(None);
+    let (gyro_tx, gyro_rx) = watch::channel::<Option<Stamped<f64>>>(None);
+    let (left_tx, left_rx) = watch::channel::<Option<Stamped<LaserScan>>>(None);
+    let (right_tx, right_rx) = watch::channel::<Option<Stamped<LaserScan>>>(None);
+    let mapping = settings.joystick_mapping();
+    let world_task = {
+        let (world, chair, clock, stop) =
+            (world.clone(), chair.clone(), clock.clone(), stop.clone());
+        async move {
+            let mut tick = tokio::time::interval(WORLD_STEP);
+            let mut k: u64 = 0;
+            loop {
+                tokio::select! {
+                    biased;
+                    _ = stop.cancelled() => return Ok(()),
+                    _ = tick.tick() => {}
+                }
+                let now = clock.now();
+                let motor = chair
+                    .lock()
+                    .map_err(|_| DeviceError::new("sim-world", "the chair model is poisoned"))?
+                    .motor_output(now);
+                let mut w = world
+                    .lock()
+                    .map_err(|_| DeviceError::new("sim-world", "the world is poisoned"))?;
+                w.step(WORLD_STEP.as_secs_f64(), motor, &mapping);
+                w.now = now;
+                gyro_tx.send_replace(Some(Stamped::new(now, w.omega_radps)));
+                ticks_tx.send_replace(Some(Stamped::new(now, w.wheel_ticks())));
+                if k.is_multiple_of(LASER_EVERY) {
+                    let ms = (now.0.as_millis() & 0xFF_FFFF) as u32;
+                    left_tx.send_replace(Some(Stamped::new(now, w.laser_scan(&lasers_at[0], ms))));
+                    right_tx.send_replace(Some(Stamped::new(now, w.laser_scan(&lasers_at[1], ms))));
+                }
+                k += 1;
+            }
+        }
+    };
+
+    // the motor interface: the real R-Net writer on the simulated bus,
+    // ticking on tokio's clock (real or paused)
+    let mut rnet = settings.rnet_settings();
+    rnet.mode = TakeoverMode::JsmError;
+    rnet.precise_timer = false;
+    let endpoint = bus.endpoint();
+    let actuator: crate::daemon::devices::ActuatorStart = Box::new(move |io| {
+        let h = tokio::spawn(
+            RnetActuator {
+                bus: endpoint,
+                settings: rnet,
+            }
+            .run(io),
+        );
+        Ok(Box::pin(async move {
+            h.await.unwrap_or_else(|e| {
+                Err(ActuatorError::Task(if e.is_panic() {
+                    format!("panicked: {}", crate::daemon::panic_message(e.into_panic()))
+                } else {
+                    e.to_string()
+                }))
+            })
+        }))
+    });
+
+    // the camera and its ground-truth detector
+    let cam = super::replica::camera(2);
+    let k = cam.intrinsics();
+    let last: LastView = Arc::new(Mutex::new(None));
+    let room = world
+        .lock()
+        .map_err(|_| DeviceError::new("sim-world", "the world is poisoned"))?
+        .room
+        .clone();
+    let detector = SimDetector {
+        gt: SimGtDetector::new(room, cam),
+        last: last.clone(),
+        width: k.width,
+        prompts: Vec::new(),
+    };
+    let camera_world = world.clone();
+    let camera = CameraDevice {
+        open: Box::new(move || {
+            Ok(Box::new(SimCamera {
+                world: camera_world.clone(),
+                calibration: RgbdCalibration::registered(k, base_from_camera),
+                k,
+                base_from_camera,
+                last: last.clone(),
+            }) as Box<dyn CameraSource>)
+        }),
+        detector: Box::new(detector),
+        segmenter: Box::new(DepthBoxSegmenter::new(settings.depth_segmenter_settings())),
+        restamp: false,
+        period: Duration::from_millis(500),
+        latency: Duration::from_millis(100),
+    };
+
+    let devices = Devices {
+        lasers: [
+            (
+                Box::new(WatchSource::new("laser-left", left_rx)) as Box<dyn Source<LaserScan>>,
+                lasers_at[0],
+            ),
+            (
+                Box::new(WatchSource::new("laser-right", right_rx)),
+                lasers_at[1],
+            ),
+        ],
+        wheels: Box::new(WatchSource::new("encoders", ticks_rx)),
+        gyro: Some(Box::new(WatchSource::new("gyro", gyro_rx))),
+        camera: Some(camera),
+        actuator,
+        background: vec![
+            ("sim-world".into(), Box::pin(world_task)),
+            ("sim-chair".into(), Box::pin(chair_task)),
+        ],
+        stop,
+        close: Vec::new(),
+    };
+    Ok((devices, SimHandle { world, bus, chair }))
+}
+
+/// The simulator's RGB-D camera: the room rendered from the chair's true
+/// pose, depth registered to colour.
+struct SimCamera {
+    world: Arc<Mutex<SimWorld>>,
+    calibration: RgbdCalibration,
+    k: Intrinsics,
+    base_from_camera: Isometry3<f64>,
+    last: LastView,
+}
+
+impl CameraSource for SimCamera {
+    fn calibration(&self) -> &RgbdCalibration {
+        &self.calibration
+    }
+
+    fn next_frame(&mut self) -> Result<Option<Stamped<RgbdFrame>>, CameraError> {
+        let (r, stamp): (_, Stamp) = {
+            let w = self
+                .world
+                .lock()
+                .map_err(|_| CameraError::Device("the simulated world is poisoned".into()))?;
+            (w.render(&self.k, &self.base_from_camera)?, w.now)
+        };
+        if let Ok(mut l) = self.last.lock() {
+            *l = Some(r.instance);
+        }
+        Ok(Some(Stamped::new(
+            stamp,
+            RgbdFrame {
+                color: r.color,
+                depth: r.depth,
+                color_stamp: stamp,
+                depth_stamp: stamp,
+            },
+        )))
+    }
+}
+
+/// The simulator's detector: boxes of the prompted objects' visible pixels
+/// in the camera's last rendering (ground truth, from the room, not from
+/// the image).
+struct SimDetector {
+    gt: SimGtDetector,
+    last: LastView,
+    width: usize,
+    prompts: Vec<String>,
+}
+
+impl Detector for SimDetector {
+    fn backend(&self) -> &'static str {
+        "simulator ground truth"
+    }
+
+    fn set_prompts(&mut self, prompts: &[String]) -> Result<PromptReport, DetectorError> {
+        let mut report = PromptReport::default();
+        for p in prompts {
+            match self
+                .gt
+                .room
+                .objects
+                .iter()
+                .find(|o| o.label.eq_ignore_ascii_case(p))
+            {
+                Some(o) => report.matched.push((p.clone(), o.label.clone())),
+                None => report.unmatched.push(p.clone()),
+            }
+        }
+        self.prompts = prompts.to_vec();
+        Ok(report)
+    }
+
+    fn detect(&mut self, image: &RgbImage) -> Result<Vec<Detection>, DetectorError> {
+        let instance = self
+            .last
+            .lock()
+            .map_err(|_| DetectorError::Prompt("simulator: the last view is poisoned".into()))?
+            .take()
+            .ok_or_else(|| {
+                DetectorError::Prompt("simulator: no view rendered for this image".into())
+            })?;
+        if instance.len() != image.width() * image.height() || image.width() != self.width {
+            return Err(DetectorError::Prompt(
+                "simulator: the image is not the camera's last view".into(),
+            ));
+        }
+        let mut dets = self.gt.detect_instances(&instance, self.width);
+        dets.retain(|d| {
+            self.prompts
+                .iter()
+                .any(|p| p.eq_ignore_ascii_case(&d.class))
+        });
+        for d in &mut dets {
+            if let Some(p) = self
+                .prompts
+                .iter()
+                .find(|p| p.eq_ignore_ascii_case(&d.class))
+            {
+                d.label = p.clone();
+            }
+        }
+        Ok(dets)
+    }
+}
