@@ -247,3 +247,143 @@ impl Control {
         self.goal.state()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use std::time::Duration;
+
+    use super::*;
+    use crate::estimation::goal::GoalSettings;
+    use crate::estimation::tracker::TrackerParams;
+    use crate::msg::Pose2;
+    use crate::navigation::apf::ApfParams;
+    use crate::navigation::mpc::MpcParams;
+    use crate::safety::SafetyLimits;
+
+    fn control(exit_on_arrival: bool) -> Control {
+        Control::new(
+            Supervisor::new(SafetyLimits::default()),
+            GoalKeeper::new(GoalSettings::default()),
+            Planner::new(MpcParams::default(), ApfParams::default()),
+            None,
+            exit_on_arrival,
+        )
+    }
+
+    fn at(ms: u64) -> Stamp {
+        Stamp(Duration::from_millis(ms))
+    }
+
+    /// An empty room's inputs at `now`: fresh obstacles (none near) and
+    /// odometry at rest.
+    fn fresh(now: Stamp) -> (Stamped<Obstacles>, Stamped<Odometry>) {
+        (
+            Stamped::new(
+                now,
+                Obstacles {
+                    points_base: vec![[4.0, 0.0]],
+                },
+            ),
+            Stamped::new(
+                now,
+                Odometry {
+                    pose: Pose2::default(),
+                    v_mps: 0.0,
+                    omega_radps: 0.0,
+                },
+            ),
+        )
+    }
+
+    #[test]
+    fn a_word_starts_the_search_turn_and_a_stop_zeroes_it() {
+        let mut c = control(false);
+        let tracker = Tracker::new(TrackerParams::default());
+        c.on_input(UserInput::Goto("chair".into()));
+        let mut turning = false;
+        for k in 0..20 {
+            let now = at(50 * k);
+            let (o, odo) = fresh(now);
+            let out = c.step(
+                now,
+                ControlInputs {
+                    obstacles: Some(&o),
+                    odometry: Some(&odo),
+                    tracker: &tracker,
+                },
+            );
+            assert_eq!(out.wanted, vec!["chair".to_string()]);
+            turning |= out.cmd.cmd.omega_radps > 0.0;
+            assert_eq!(out.cmd.cmd.v_mps, 0.0, "turning on the spot");
+        }
+        assert!(turning, "the search turns the chair");
+        c.on_input(UserInput::Stop);
+        let now = at(1000);
+        let (o, odo) = fresh(now);
+        let out = c.step(
+            now,
+            ControlInputs {
+                obstacles: Some(&o),
+                odometry: Some(&odo),
+                tracker: &tracker,
+            },
+        );
+        assert_eq!(out.cmd.cmd, VelocityCmd::default());
+        assert_eq!(out.said, vec!["Stopped.".to_string()]);
+        assert!(out.wanted.is_empty());
+        assert_eq!(out.done, None, "the daemon goes on after a stop");
+    }
+
+    #[test]
+    fn stale_inputs_give_zero_and_a_dead_task_latches_a_fault() {
+        let mut c = control(true);
+        let tracker = Tracker::new(TrackerParams::default());
+        c.on_input(UserInput::Goto("chair".into()));
+        // odometry 300 ms old: nothing moves
+        let (o, odo) = fresh(at(0));
+        let out = c.step(
+            at(300),
+            ControlInputs {
+                obstacles: Some(&o),
+                odometry: Some(&odo),
+                tracker: &tracker,
+            },
+        );
+        assert_eq!(out.cmd.cmd, VelocityCmd::default());
+        c.on_task_failure("perception", "panicked");
+        let (o, odo) = fresh(at(350));
+        let out = c.step(
+            at(350),
+            ControlInputs {
+                obstacles: Some(&o),
+                odometry: Some(&odo),
+                tracker: &tracker,
+            },
+        );
+        assert_eq!(out.cmd.cmd, VelocityCmd::default());
+        assert_eq!(out.cmd.state, SupervisorState::Fault(FaultReason::Task));
+        assert_eq!(
+            out.done,
+            Some(Outcome::Fault {
+                task: "perception".into(),
+                reason: "panicked".into()
+            })
+        );
+        assert_eq!(
+            out.said,
+            vec!["Internal fault in perception. Stopped.".to_string()]
+        );
+        // a word does not clear the fault
+        c.on_input(UserInput::Goto("chair".into()));
+        let (o, odo) = fresh(at(400));
+        let out = c.step(
+            at(400),
+            ControlInputs {
+                obstacles: Some(&o),
+                odometry: Some(&odo),
+                tracker: &tracker,
+            },
+        );
+        assert_eq!(out.cmd.cmd, VelocityCmd::default());
+    }
+}

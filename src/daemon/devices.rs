@@ -133,3 +133,22 @@ pub struct Devices {
     /// threads, closes ports.
     pub close: Vec<Box<dyn FnOnce() + Send>>,
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::msg::Stamp;
+
+    #[tokio::test]
+    async fn a_watch_source_delivers_each_new_reading_and_says_when_its_reader_died() {
+        let (tx, rx) = watch::channel::<Option<Stamped<u32>>>(None);
+        let mut s = WatchSource::new("laser-left", rx);
+        tx.send_replace(Some(Stamped::new(Stamp::ZERO, 7)));
+        assert_eq!(s.next().await.map(|v| v.value), Ok(7));
+        // the reader thread dies: its sender goes away
+        drop(tx);
+        let e = s.next().await.expect_err("ended");
+        assert_eq!(e.device, "laser-left");
+        assert!(e.to_string().contains("reader ended"), "{e}");
+    }
+}

@@ -124,18 +124,8 @@ impl Tasks {
         name: &str,
         fut: impl std::future::Future<Output = TaskResult> + Send + 'static,
     ) {
-        let h = match &self.inject_panic {
-            Some((task, after)) if task == name => {
-                let after = *after;
-                self.set.spawn(async move {
-                    tokio::select! {
-                        r = fut => r,
-                        _ = tokio::time::sleep(after) => panic!("injected panic (fault-injection test)"),
-                    }
-                })
-            }
-            _ => self.set.spawn(fut),
-        };
+        let after = injected_panic_after(&self.inject_panic, name);
+        let h = self.set.spawn(panic_after(after, fut));
         self.names.insert(h.id(), name.to_string());
     }
 
@@ -161,6 +151,23 @@ impl Tasks {
             .get(&id)
             .cloned()
             .unwrap_or_else(|| format!("task {id}"))
+    }
+}
+
+/// When `name` is the task a fault-injection test names, its delay.
+fn injected_panic_after(inject: &Option<(String, Duration)>, name: &str) -> Option<Duration> {
+    inject.as_ref().filter(|(t, _)| t == name).map(|(_, d)| *d)
+}
+
+/// Runs `fut`; with `after`, panics then unless it has ended (fault
+/// injection).
+async fn panic_after<F: std::future::Future>(after: Option<Duration>, fut: F) -> F::Output {
+    match after {
+        Some(after) => tokio::select! {
+            r = fut => r,
+            _ = tokio::time::sleep(after) => panic!("injected panic (fault-injection test)"),
+        },
+        None => fut.await,
     }
 }
 
@@ -459,7 +466,8 @@ pub async fn run(
     let control_clock = clock.clone();
     let control_cancel = shutdown.clone();
     let max_duration = opts.max_duration;
-    let mut control_task = tokio::spawn(async move {
+    let control_panic = injected_panic_after(&opts.inject_panic, "control");
+    let mut control_task = tokio::spawn(panic_after(control_panic, async move {
         let mut control = control;
         let mut said: Vec<String> = Vec::new();
         let mut tick = tokio::time::interval(CONTROL_PERIOD);
@@ -550,7 +558,7 @@ pub async fn run(
         // the channels stay open until the daemon shuts the tasks down: a
         // closed channel means a dead task
         (control, outcome, said, now, (cmd_tx, prompts_tx))
-    });
+    }));
 
     // watch every task until the control task ends
     let mut failure: Option<(String, String)> = None;
