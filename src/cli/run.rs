@@ -88,10 +88,21 @@ pub fn run(config: Option<&std::path::Path>, args: RunArgs) -> Result<(), Failur
         }
         None => None,
     };
+    // what the chair says, on stderr as it is said
+    let (speech_tx, mut speech_rx) = mpsc::unbounded_channel::<String>();
+    let speech = std::thread::Builder::new()
+        .name("speech".into())
+        .spawn(move || {
+            while let Some(s) = speech_rx.blocking_recv() {
+                eprintln!("opennav says: {s}");
+            }
+        })
+        .map_err(failed)?;
     let opts = RunOptions {
         exit_on_arrival: args.exit_on_arrival,
         max_duration: args.max_duration,
         record: args.record.clone(),
+        speech: Some(speech_tx),
         inject_panic,
     };
     let (input_tx, input_rx) = mpsc::channel::<UserInput>(16);
@@ -171,6 +182,10 @@ pub fn run(config: Option<&std::path::Path>, args: RunArgs) -> Result<(), Failur
         let summary = world.and_then(|w| w.summary(label.as_deref()));
         Ok::<_, Failure>((report, summary))
     })?;
+    // every sentence printed before the report (the daemon's senders are gone)
+    if speech.join().is_err() {
+        tracing::error!("the thread printing the chair's sentences died");
+    }
     let line = serde_json::to_string(&Printed {
         report: &report,
         sim: summary,

@@ -72,6 +72,9 @@ pub struct RunOptions {
     pub max_duration: Option<Duration>,
     /// Record the sensors and perception's output to this MCAP file.
     pub record: Option<std::path::PathBuf>,
+    /// What the chair says goes here too, as it is said (the command line
+    /// prints it; the voice output will speak it).
+    pub speech: Option<mpsc::UnboundedSender<String>>,
     /// Fault-injection tests: this task panics after this long.
     pub inject_panic: Option<(String, Duration)>,
 }
@@ -466,6 +469,7 @@ pub async fn run(
     let control_clock = clock.clone();
     let control_cancel = shutdown.clone();
     let max_duration = opts.max_duration;
+    let speech = opts.speech.clone();
     let control_panic = injected_panic_after(&opts.inject_panic, "control");
     let mut control_task = tokio::spawn(panic_after(control_panic, async move {
         let mut control = control;
@@ -517,7 +521,10 @@ pub async fn run(
             });
             for s in out.said {
                 tracing::info!(say = %s, "opennav");
-                eprintln!("opennav says: {s}");
+                if let Some(tx) = &speech {
+                    // the listener gone (its process ending) loses nothing: the report has it
+                    tx.send(s.clone()).ok();
+                }
                 said.push(s);
             }
             if !ready {

@@ -1,12 +1,10 @@
 //! Laser scan matching (pure): point-to-point ICP in 2D on the merged
-//! scans (base_link points), with a hashed grid for nearest neighbours and
+//! scans (base_link points), with a dense grid for nearest neighbours and
 //! trimming of the worst pairs (partial overlap, moving people), and a
 //! keyframe matcher that turns each match into an absolute pose for
 //! [`PoseEkf::correct`](super::ekf::PoseEkf::correct): the current scan is
 //! matched against the last keyframe's, starting from the odometry's guess,
 //! so wheel slip on turns is measured by the walls and removed.
-
-use std::collections::HashMap;
 
 use nalgebra::Matrix3;
 use serde::Serialize;
@@ -34,6 +32,10 @@ pub struct IcpParams {
     /// Smallest / largest eigenvalue of the translation block of the
     /// information matrix below this: degenerate, rejected.
     pub min_information_ratio: f64,
+    /// Cell of the reference's neighbour grid, m: about the points'
+    /// spacing on a nearby wall (searches are exact whatever the cell;
+    /// it only sets their speed).
+    pub grid_cell_m: f64,
 }
 
 impl Default for IcpParams {
@@ -48,6 +50,7 @@ impl Default for IcpParams {
             converged_step: 1e-5,
             max_rms_m: 0.05,
             min_information_ratio: 0.05,
+            grid_cell_m: 0.03,
         }
     }
 }
@@ -82,48 +85,161 @@ pub enum ScanMatchError {
     PoorFit { rms_m: f64, max_m: f64 },
     /// The scene constrains the pose in too few directions (a bare
     /// corridor, one wall): the match would slide.
+    #[error("scan matching: a point is not finite ({point:?})")]
+    NotFinite { point: [f64; 2] },
     #[error("scan matching: degenerate geometry (information ratio {ratio:.1e} below {min:.0e})")]
     Degenerate { ratio: f64, min: f64 },
 }
 
-/// Reference points hashed on a grid of the pair distance.
-struct Grid<'a> {
+/// Reference points bucketed on a dense grid (counting sort: each cell's
+/// points are contiguous, in index order), for fixed-radius nearest
+/// neighbours.
+#[derive(Clone)]
+struct Grid {
     cell: f64,
-    cells: HashMap<(i64, i64), Vec<usize>>,
-    pts: &'a [[f64; 2]],
+    origin: [f64; 2],
+    nx: usize,
+    ny: usize,
+    /// Cell `c`'s points are `sorted[starts[c]..starts[c + 1]]`.
+    starts: Vec<u32>,
+    /// (index in the input, point), cell by cell.
+    sorted: Vec<(u32, [f64; 2])>,
 }
 
-impl<'a> Grid<'a> {
-    fn new(pts: &'a [[f64; 2]], cell: f64) -> Self {
-        let mut cells: HashMap<(i64, i64), Vec<usize>> = HashMap::new();
-        for (i, p) in pts.iter().enumerate() {
-            cells.entry(Self::key(p, cell)).or_default().push(i);
+/// Cells at most; a wider spread of points gets coarser cells (the
+/// searches stay exact: they cover their radius whatever the cell).
+const MAX_GRID_CELLS: usize = 1 << 20;
+
+impl Grid {
+    /// `pts` must be finite.
+    fn new(pts: &[[f64; 2]], cell: f64) -> Self {
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for p in pts {
+            for k in 0..2 {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
         }
-        Grid { cell, cells, pts }
+        if pts.is_empty() {
+            (lo, hi) = ([0.0; 2], [0.0; 2]);
+        }
+        let mut cell = cell;
+        let dims = |cell: f64| {
+            (
+                ((hi[0] - lo[0]) / cell).floor() as usize + 1,
+                ((hi[1] - lo[1]) / cell).floor() as usize + 1,
+            )
+        };
+        let (mut nx, mut ny) = dims(cell);
+        while nx.saturating_mul(ny) > MAX_GRID_CELLS {
+            cell *= 2.0;
+            (nx, ny) = dims(cell);
+        }
+        let key = |p: &[f64; 2]| {
+            let ix = (((p[0] - lo[0]) / cell) as usize).min(nx - 1);
+            let iy = (((p[1] - lo[1]) / cell) as usize).min(ny - 1);
+            iy * nx + ix
+        };
+        let mut starts = vec![0u32; nx * ny + 1];
+        for p in pts {
+            starts[key(p) + 1] += 1;
+        }
+        for c in 0..nx * ny {
+            starts[c + 1] += starts[c];
+        }
+        let mut fill = starts.clone();
+        let mut sorted = vec![(0u32, [0.0; 2]); pts.len()];
+        for (i, p) in pts.iter().enumerate() {
+            let c = key(p);
+            sorted[fill[c] as usize] = (i as u32, *p);
+            fill[c] += 1;
+        }
+        Grid {
+            cell,
+            origin: lo,
+            nx,
+            ny,
+            starts,
+            sorted,
+        }
     }
 
-    fn key(p: &[f64; 2], cell: f64) -> (i64, i64) {
-        ((p[0] / cell).floor() as i64, (p[1] / cell).floor() as i64)
+    /// Calls `f(index, point, distance²)` for every point within `radius`
+    /// of `q` (and a few beyond: the caller checks the distance).
+    fn for_each_near(&self, q: &[f64; 2], radius: f64, mut f: impl FnMut(u32, &[f64; 2], f64)) {
+        let cx = (q[0] - self.origin[0]) / self.cell;
+        let cy = (q[1] - self.origin[1]) / self.cell;
+        let r = radius / self.cell;
+        let clamp = |v: f64, n: usize| v.floor().clamp(0.0, n as f64 - 1.0) as usize;
+        if cx + r < 0.0 || cy + r < 0.0 || cx - r >= self.nx as f64 || cy - r >= self.ny as f64 {
+            return;
+        }
+        let (x0, x1) = (clamp(cx - r, self.nx), clamp(cx + r, self.nx));
+        let (y0, y1) = (clamp(cy - r, self.ny), clamp(cy + r, self.ny));
+        for iy in y0..=y1 {
+            let row = iy * self.nx;
+            let (a, b) = (
+                self.starts[row + x0] as usize,
+                self.starts[row + x1 + 1] as usize,
+            );
+            for (i, p) in &self.sorted[a..b] {
+                let d2 = (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2);
+                f(*i, p, d2);
+            }
+        }
     }
 
-    /// Nearest reference point within one cell's reach: (index, distance²).
-    fn nearest(&self, q: &[f64; 2]) -> Option<(usize, f64)> {
-        let (kx, ky) = Self::key(q, self.cell);
-        let mut best: Option<(usize, f64)> = None;
-        for dx in -1..=1 {
-            for dy in -1..=1 {
-                if let Some(v) = self.cells.get(&(kx + dx, ky + dy)) {
-                    for &i in v {
-                        let p = self.pts[i];
-                        let d2 = (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2);
-                        if best.is_none_or(|(_, b)| d2 < b) {
-                            best = Some((i, d2));
-                        }
-                    }
+    /// The nearest point within `max_d` of `q`: (index, distance²); ties
+    /// go to the lower index. Searches rings of cells outwards and stops
+    /// once no farther ring can hold a closer point.
+    fn nearest(&self, q: &[f64; 2], max_d: f64) -> Option<(usize, f64)> {
+        let max_d2 = max_d * max_d;
+        let fx = (q[0] - self.origin[0]) / self.cell;
+        let fy = (q[1] - self.origin[1]) / self.cell;
+        if !(fx.is_finite() && fy.is_finite()) {
+            return None;
+        }
+        let (cx, cy) = (fx.floor() as i64, fy.floor() as i64);
+        let (nx, ny) = (self.nx as i64, self.ny as i64);
+        let rings = (max_d / self.cell).ceil() as i64 + 1;
+        let mut best: Option<(u32, f64)> = None;
+        let visit = |x0: i64, x1: i64, y: i64, best: &mut Option<(u32, f64)>| {
+            let (x0, x1) = (x0.max(0), x1.min(nx - 1));
+            if y < 0 || y >= ny || x0 > x1 {
+                return;
+            }
+            let row = y as usize * self.nx;
+            let (a, b) = (
+                self.starts[row + x0 as usize] as usize,
+                self.starts[row + x1 as usize + 1] as usize,
+            );
+            for (i, p) in &self.sorted[a..b] {
+                let d2 = (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2);
+                if d2 <= max_d2 && best.is_none_or(|(bi, bd)| d2 < bd || (d2 == bd && *i < bi)) {
+                    *best = Some((*i, d2));
+                }
+            }
+        };
+        for k in 0..=rings {
+            // the ring of cells at Chebyshev distance k from q's cell
+            // (clipped to the grid)
+            visit(cx - k, cx + k, cy - k, &mut best);
+            if k > 0 {
+                visit(cx - k, cx + k, cy + k, &mut best);
+                for y in (cy - k + 1)..=(cy + k - 1) {
+                    visit(cx - k, cx - k, y, &mut best);
+                    visit(cx + k, cx + k, y, &mut best);
+                }
+            }
+            // a point in ring k + 1 is at least k cells away
+            if let Some((_, d2)) = best {
+                let reach = k as f64 * self.cell;
+                if d2 <= reach * reach {
+                    break;
                 }
             }
         }
-        best
+        best.map(|(i, d2)| (i as usize, d2))
     }
 }
 
@@ -132,30 +248,27 @@ impl<'a> Grid<'a> {
 /// neighbourhood is not line-like (corners, clutter, isolated points).
 fn normals(pts: &[[f64; 2]], grid: &Grid, radius_m: f64) -> Vec<Option<[f64; 2]>> {
     let r2 = radius_m * radius_m;
+    let mut near: Vec<(u32, [f64; 2])> = Vec::new();
     pts.iter()
         .map(|p| {
-            let (kx, ky) = Grid::key(p, grid.cell);
-            let (mut n, mut mx, mut my) = (0.0, 0.0, 0.0);
-            let mut near = Vec::new();
-            for dx in -1..=1 {
-                for dy in -1..=1 {
-                    for &i in grid.cells.get(&(kx + dx, ky + dy)).into_iter().flatten() {
-                        let q = pts[i];
-                        if (q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2) <= r2 {
-                            near.push(q);
-                            n += 1.0;
-                            mx += q[0];
-                            my += q[1];
-                        }
-                    }
+            near.clear();
+            grid.for_each_near(p, radius_m, |i, q, d2| {
+                if d2 <= r2 {
+                    near.push((i, *q));
                 }
-            }
+            });
+            // in index order, as the sums were always taken
+            near.sort_unstable_by_key(|(i, _)| *i);
+            let n = near.len() as f64;
+            let (mx, my) = near
+                .iter()
+                .fold((0.0, 0.0), |(x, y), (_, q)| (x + q[0], y + q[1]));
             if near.len() < 3 {
                 return None;
             }
             let (mx, my) = (mx / n, my / n);
             let (mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0);
-            for q in &near {
+            for (_, q) in &near {
                 let (dx, dy) = (q[0] - mx, q[1] - my);
                 sxx += dx * dx;
                 sxy += dx * dy;
@@ -221,16 +334,65 @@ pub fn icp(
     initial: Pose2,
     p: &IcpParams,
 ) -> Result<IcpResult, ScanMatchError> {
-    for (which, pts) in [("reference", reference), ("current", current)] {
-        if pts.len() < p.min_pairs {
-            return Err(ScanMatchError::TooFewPoints {
-                which,
-                got: pts.len(),
-                need: p.min_pairs,
-            });
-        }
+    icp_against(&IcpReference::new(reference, p)?, current, initial, p)
+}
+
+/// A reference scan prepared for matching (its grid and surface normals),
+/// kept while it is the keyframe.
+#[derive(Clone)]
+pub struct IcpReference {
+    points: Vec<[f64; 2]>,
+    grid: Grid,
+    normals: Vec<Option<[f64; 2]>>,
+}
+
+impl IcpReference {
+    pub fn new(points: &[[f64; 2]], p: &IcpParams) -> Result<IcpReference, ScanMatchError> {
+        check_points("reference", points, p)?;
+        let grid = Grid::new(points, p.grid_cell_m.max(1e-3));
+        let normals = normals(points, &grid, 0.3);
+        Ok(IcpReference {
+            points: points.to_vec(),
+            grid,
+            normals,
+        })
     }
-    let grid = Grid::new(reference, p.max_pair_distance_m);
+}
+
+impl std::fmt::Debug for IcpReference {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "IcpReference({} points)", self.points.len())
+    }
+}
+
+fn check_points(
+    which: &'static str,
+    pts: &[[f64; 2]],
+    p: &IcpParams,
+) -> Result<(), ScanMatchError> {
+    if pts.len() < p.min_pairs {
+        return Err(ScanMatchError::TooFewPoints {
+            which,
+            got: pts.len(),
+            need: p.min_pairs,
+        });
+    }
+    match pts.iter().find(|q| !(q[0].is_finite() && q[1].is_finite())) {
+        Some(bad) => Err(ScanMatchError::NotFinite { point: *bad }),
+        None => Ok(()),
+    }
+}
+
+/// Aligns `current` to a prepared reference from `initial`.
+pub fn icp_against(
+    reference: &IcpReference,
+    current: &[[f64; 2]],
+    initial: Pose2,
+    p: &IcpParams,
+) -> Result<IcpResult, ScanMatchError> {
+    check_points("current", current, p)?;
+    let (grid, ref_normals) = (&reference.grid, &reference.normals);
+    let reference = &reference.points[..];
     let mut gate = p.max_pair_distance_m;
     let mut t = initial;
     let mut rms = f64::INFINITY;
@@ -238,23 +400,23 @@ pub fn icp(
     let mut converged = false;
     let mut iterations = 0;
     let mut info = Matrix3::<f64>::zeros();
-    let ref_normals = normals(reference, &grid, 0.3);
     let mut pairs: Vec<Pair> = Vec::with_capacity(current.len());
     for it in 0..p.max_iterations {
         iterations = it + 1;
-        let max_d2 = gate * gate;
+        let gate_now = gate;
         gate = (gate * p.gate_decay).max(p.min_pair_distance_m);
         pairs.clear();
         for q in current {
             let qt = apply(&t, q);
-            if let Some((i, d2)) = grid.nearest(&qt) {
-                if d2 <= max_d2 {
-                    pairs.push((qt, reference[i], d2, ref_normals[i]));
-                }
+            if let Some((i, d2)) = grid.nearest(&qt, gate_now) {
+                pairs.push((qt, reference[i], d2, ref_normals[i]));
             }
         }
-        pairs.sort_by(|a, b| a.2.total_cmp(&b.2));
+        // the closest `trim_fraction` of the pairs (in no particular order)
         let keep = ((pairs.len() as f64) * p.trim_fraction).round() as usize;
+        if keep > 0 && keep < pairs.len() {
+            pairs.select_nth_unstable_by(keep - 1, |a, b| a.2.total_cmp(&b.2));
+        }
         pairs.truncate(keep);
         if pairs.len() < p.min_pairs {
             return Err(ScanMatchError::TooFewPairs {
@@ -360,7 +522,7 @@ pub struct KeyframeMatcher {
     /// with the residual.
     pub sigma_xy_m: f64,
     pub sigma_theta_rad: f64,
-    keyframe: Option<(Pose2, Vec<[f64; 2]>)>,
+    keyframe: Option<(Pose2, IcpReference)>,
     pub matched: u64,
     pub rejected: u64,
 }
@@ -392,14 +554,13 @@ impl KeyframeMatcher {
         ekf: &mut PoseEkf,
         scan_base: &[[f64; 2]],
     ) -> Option<Result<IcpResult, ScanMatchError>> {
-        let Some((key_pose, key_pts)) = &self.keyframe else {
-            self.keyframe = Some((ekf.pose, scan_base.to_vec()));
-            return None;
+        let Some((key_pose, key_ref)) = &self.keyframe else {
+            return self.set_keyframe(ekf.pose, scan_base).err().map(Err);
         };
         let key_pose = *key_pose;
         // odometry's guess of the scan's pose in the keyframe
         let guess = compose(&inverse(&key_pose), &ekf.pose);
-        let r = icp(key_pts, scan_base, guess, &self.icp);
+        let r = icp_against(key_ref, scan_base, guess, &self.icp);
         match &r {
             Ok(m) => {
                 self.matched += 1;
@@ -418,16 +579,26 @@ impl KeyframeMatcher {
                 if moved >= self.keyframe_distance_m
                     || m.ref_from_cur.theta_rad.abs() >= self.keyframe_turn_rad
                 {
-                    self.keyframe = Some((z, scan_base.to_vec()));
+                    // a scan that matched has enough finite points
+                    self.set_keyframe(z, scan_base).ok();
                 }
             }
             Err(_) => {
                 self.rejected += 1;
                 // start again from here: the old keyframe no longer overlaps
-                self.keyframe = Some((ekf.pose, scan_base.to_vec()));
+                // (a scan unfit to be one leaves none: the next scan is)
+                self.set_keyframe(ekf.pose, scan_base).ok();
             }
         }
         Some(r)
+    }
+
+    /// Makes `scan_base` the keyframe at `pose`; a scan that cannot be a
+    /// reference (too few or non-finite points) leaves no keyframe.
+    fn set_keyframe(&mut self, pose: Pose2, scan_base: &[[f64; 2]]) -> Result<(), ScanMatchError> {
+        self.keyframe = None;
+        self.keyframe = Some((pose, IcpReference::new(scan_base, &self.icp)?));
+        Ok(())
     }
 }
 
