@@ -27,7 +27,7 @@ fn bench(c: &mut Criterion) {
     for n in [20usize, 30] {
         let p = MpcParams {
             horizon: n,
-            ..Default::default()
+            ..opennav::config::Settings::defaults().mpc
         };
         assert!(solve(&pr, &p).is_ok());
         c.bench_function(&format!("mpc_solve_n{n}"), |b| {

@@ -60,7 +60,7 @@ fn main() {
     for n in [20usize, 30] {
         let params = MpcParams {
             horizon: n,
-            ..Default::default()
+            ..opennav::config::Settings::defaults().mpc
         };
         let mut rng = Rng(0x5EED_0000 + n as u64);
         let problems: Vec<MpcProblem> = (0..solves).map(|_| problem(&mut rng)).collect();

@@ -180,7 +180,7 @@ fn rig(iface: &str, mode: TakeoverMode) -> Result<Rig, String> {
         supervisor: Supervisor::new(SafetyLimits {
             a_linear_max_mps2: 100.0,
             a_angular_max_radps2: 100.0,
-            ..SafetyLimits::default()
+            ..opennav::config::Settings::defaults().safety_limits()
         }),
         planner: planner_rx,
         commands: cmd_tx,

@@ -44,6 +44,9 @@ pub struct Settings {
     pub lasers: LasersSection,
     pub actuation: ActuationSection,
     pub goal: GoalSection,
+    pub mpc: crate::navigation::mpc::MpcParams,
+    pub field: crate::navigation::apf::ApfParams,
+    pub tracker: crate::estimation::tracker::TrackerParams,
 }
 
 #[derive(Debug, Clone, Deserialize, PartialEq)]
@@ -231,6 +234,14 @@ fn finite_range(key: &str, v: f64, lo: f64, hi: f64) -> Result<(), ConfigError> 
 
 impl Settings {
     /// Defaults, then `file` (when given), then the environment.
+    /// The built-in configuration alone (`config/opennav.toml`, no file, no
+    /// environment): the one place the defaults live.
+    pub fn defaults() -> Settings {
+        // the embedded file is checked by the unit tests below
+        Self::load_with_env(None, std::iter::empty())
+            .expect("the built-in config/opennav.toml is valid")
+    }
+
     pub fn load(file: Option<&Path>) -> Result<Settings, ConfigError> {
         Self::load_with_env(file, std::env::vars())
     }
@@ -401,6 +412,92 @@ impl Settings {
         finite_range("goal.hold_s", g.hold_s, 0.0, 120.0)?;
         finite_range("goal.reached_within_m", g.reached_within_m, 0.02, 1.0)?;
         finite_range("goal.search_turn_radps", g.search_turn_radps, 0.05, 1.0)?;
+        let m = &self.mpc;
+        range("mpc.horizon", m.horizon, 5, 60)?;
+        finite_range("mpc.dt_s", m.dt_s, 0.02, 0.5)?;
+        finite_range(
+            "mpc.v_min_mps",
+            m.v_min_mps,
+            -self.safety.v_reverse_max_mps,
+            0.0,
+        )?;
+        finite_range(
+            "mpc.v_max_mps",
+            m.v_max_mps,
+            0.01,
+            self.safety.v_forward_max_mps,
+        )?;
+        finite_range(
+            "mpc.omega_max_radps",
+            m.omega_max_radps,
+            0.05,
+            self.safety.omega_max_radps,
+        )?;
+        finite_range("mpc.accel_max_mps2", m.accel_max_mps2, 0.05, 3.0)?;
+        finite_range("mpc.alpha_max_radps2", m.alpha_max_radps2, 0.1, 10.0)?;
+        for (k, w) in [
+            ("mpc.w_position", m.w_position),
+            ("mpc.w_terminal", m.w_terminal),
+            ("mpc.w_heading", m.w_heading),
+            ("mpc.w_speed", m.w_speed),
+            ("mpc.w_omega", m.w_omega),
+            ("mpc.w_accel", m.w_accel),
+            ("mpc.w_alpha", m.w_alpha),
+        ] {
+            finite_range(k, w, 0.0, 1000.0)?;
+        }
+        finite_range("mpc.clearance_m", m.clearance_m, 0.2, 2.0)?;
+        range("mpc.max_obstacles", m.max_obstacles, 0, 64)?;
+        finite_range("mpc.obstacle_range_m", m.obstacle_range_m, 0.5, 10.0)?;
+        let f = &self.field;
+        finite_range("field.size_m", f.size_m, 0.3, 1.5)?;
+        finite_range("field.beta1", f.beta1, 0.0, 100.0)?;
+        finite_range("field.beta2_m", f.beta2_m, 0.05, 10.0)?;
+        finite_range("field.gamma", f.gamma, 0.0, 10.0)?;
+        finite_range("field.d_front_m", f.d_front_m, 0.0, 3.0)?;
+        finite_range("field.d_lat_m", f.d_lat_m, 0.0, 3.0)?;
+        finite_range(
+            "field.v_max_mps",
+            f.v_max_mps,
+            0.0,
+            self.safety.v_forward_max_mps,
+        )?;
+        finite_range(
+            "field.v_close_mps",
+            f.v_close_mps,
+            -self.safety.v_reverse_max_mps,
+            f.v_max_mps,
+        )?;
+        finite_range("field.decay_m", f.decay_m, 0.05, 10.0)?;
+        finite_range(
+            "field.omega_max_radps",
+            f.omega_max_radps,
+            0.05,
+            self.safety.omega_max_radps,
+        )?;
+        let t = &self.tracker;
+        range("tracker.confirm_hits", t.confirm_hits, 1, 20)?;
+        finite_range(
+            "tracker.max_center_distance_m",
+            t.max_center_distance_m,
+            0.05,
+            5.0,
+        )?;
+        finite_range("tracker.merge_iou", t.merge_iou, 0.0, 1.0)?;
+        finite_range("tracker.miss_decay", t.miss_decay, 0.0, 1.0)?;
+        finite_range("tracker.drop_confidence", t.drop_confidence, 0.0, 1.0)?;
+        finite_range(
+            "tracker.process_noise_m2ps",
+            t.process_noise_m2ps,
+            0.0,
+            10.0,
+        )?;
+        finite_range(
+            "tracker.measurement_noise_m2",
+            t.measurement_noise_m2,
+            1e-6,
+            10.0,
+        )?;
         let a = &self.actuation;
         finite_range("actuation.forward_full_mps", a.forward_full_mps, 0.1, 5.0)?;
         finite_range("actuation.reverse_full_mps", a.reverse_full_mps, 0.05, 5.0)?;
@@ -562,9 +659,41 @@ mod tests {
     }
 
     #[test]
+    fn the_controllers_come_from_config_and_out_of_range_values_name_the_key() {
+        let s = Settings::defaults();
+        assert_eq!(s.mpc.horizon, 20);
+        assert_eq!(s.field.beta1, 5.0);
+        assert_eq!(s.tracker.confirm_hits, 3);
+        let s = Settings::load_with_env(None, env(&[("OPENNAV_MPC__HORIZON", "30")])).unwrap();
+        assert_eq!(s.mpc.horizon, 30);
+        for (k, v, key) in [
+            ("OPENNAV_MPC__V_MAX_MPS", "0.5", "mpc.v_max_mps"),
+            (
+                "OPENNAV_FIELD__OMEGA_MAX_RADPS",
+                "2.0",
+                "field.omega_max_radps",
+            ),
+            ("OPENNAV_TRACKER__MERGE_IOU", "1.5", "tracker.merge_iou"),
+        ] {
+            let e = Settings::load_with_env(None, env(&[(k, v)])).unwrap_err();
+            assert!(e.to_string().contains(key), "{e}");
+        }
+    }
+
+    #[test]
     fn safety_defaults_are_the_architectures_and_nonsense_is_refused() {
         let s = Settings::load_with_env(None, env(&[])).unwrap();
-        assert_eq!(s.safety_limits(), crate::safety::SafetyLimits::default());
+        // the architecture's safety contract
+        let l = s.safety_limits();
+        assert_eq!(
+            (l.v_forward_max_mps, l.v_reverse_max_mps, l.omega_max_radps),
+            (0.30, 0.15, 0.8)
+        );
+        let ms = std::time::Duration::from_millis;
+        assert_eq!(
+            (l.laser_max_age, l.odometry_max_age, l.command_max_age),
+            (ms(250), ms(100), ms(200))
+        );
         let p = s.drive_params();
         let q = crate::estimation::odometry::DiffDriveParams::paper_chair();
         assert!(

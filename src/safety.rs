@@ -32,26 +32,6 @@ pub struct SafetyLimits {
     pub rear_offset_m: f64,
 }
 
-impl Default for SafetyLimits {
-    fn default() -> Self {
-        SafetyLimits {
-            v_forward_max_mps: 0.30,
-            v_reverse_max_mps: 0.15,
-            omega_max_radps: 0.8,
-            a_linear_max_mps2: 0.5,
-            a_angular_max_radps2: 1.5,
-            laser_max_age: Duration::from_millis(250),
-            odometry_max_age: Duration::from_millis(100),
-            command_max_age: Duration::from_millis(200),
-            chair_width_m: 0.70,
-            corridor_margin_m: 0.10,
-            stop_distance_m: 0.30,
-            front_offset_m: 0.55,
-            rear_offset_m: 0.45,
-        }
-    }
-}
-
 /// The latest inputs, each with its acquisition stamp.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct SupervisorInputs<'a> {
@@ -280,7 +260,7 @@ mod tests {
         let mut s = Supervisor::new(SafetyLimits {
             a_linear_max_mps2: 100.0,
             a_angular_max_radps2: 100.0,
-            ..Default::default()
+            ..crate::config::Settings::defaults().safety_limits()
         });
         s.goal_active();
         let w = World::new(0, v, 0.0);
@@ -443,7 +423,7 @@ mod tests {
 
     #[test]
     fn caps_and_acceleration_limits() {
-        let mut s = Supervisor::new(SafetyLimits::default());
+        let mut s = Supervisor::new(crate::config::Settings::defaults().safety_limits());
         s.goal_active();
         // far too fast, from standstill: capped to 0.3, ramped at 0.5 m/s²
         let w = World::new(0, 2.0, -3.0);

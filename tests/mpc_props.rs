@@ -15,7 +15,7 @@ proptest! {
         obs in proptest::collection::vec((-4.0f64..4.0, -4.0f64..4.0), 0..6),
         n in 10usize..30,
     ) {
-        let p = MpcParams { horizon: n, ..Default::default() };
+        let p = MpcParams { horizon: n, ..opennav::config::Settings::defaults().mpc };
         let obstacles: Vec<[f64; 2]> = obs.iter().map(|&(a, b)| [a, b])
             // the start itself must be clear for a feasible problem
             .filter(|o| (o[0] - x).hypot(o[1] - y) > p.clearance_m + 0.5)

@@ -56,7 +56,7 @@ fn limits() -> SafetyLimits {
     SafetyLimits {
         a_linear_max_mps2: 100.0,
         a_angular_max_radps2: 100.0,
-        ..SafetyLimits::default()
+        ..opennav::config::Settings::defaults().safety_limits()
     }
 }
 

@@ -253,18 +253,16 @@ mod tests {
     use std::time::Duration;
 
     use super::*;
-    use crate::estimation::goal::GoalSettings;
-    use crate::estimation::tracker::TrackerParams;
     use crate::msg::Pose2;
-    use crate::navigation::apf::ApfParams;
-    use crate::navigation::mpc::MpcParams;
-    use crate::safety::SafetyLimits;
 
     fn control(exit_on_arrival: bool) -> Control {
         Control::new(
-            Supervisor::new(SafetyLimits::default()),
-            GoalKeeper::new(GoalSettings::default()),
-            Planner::new(MpcParams::default(), ApfParams::default()),
+            Supervisor::new(crate::config::Settings::defaults().safety_limits()),
+            GoalKeeper::new(crate::config::Settings::defaults().goal_settings()),
+            Planner::new(
+                crate::config::Settings::defaults().mpc,
+                crate::config::Settings::defaults().field,
+            ),
             None,
             exit_on_arrival,
         )
@@ -298,7 +296,7 @@ mod tests {
     #[test]
     fn a_word_starts_the_search_turn_and_a_stop_zeroes_it() {
         let mut c = control(false);
-        let tracker = Tracker::new(TrackerParams::default());
+        let tracker = Tracker::new(crate::config::Settings::defaults().tracker);
         c.on_input(UserInput::Goto("chair".into()));
         let mut turning = false;
         for k in 0..20 {
@@ -337,7 +335,7 @@ mod tests {
     #[test]
     fn stale_inputs_give_zero_and_a_dead_task_latches_a_fault() {
         let mut c = control(true);
-        let tracker = Tracker::new(TrackerParams::default());
+        let tracker = Tracker::new(crate::config::Settings::defaults().tracker);
         c.on_input(UserInput::Goto("chair".into()));
         // odometry 300 ms old: nothing moves
         let (o, odo) = fresh(at(0));

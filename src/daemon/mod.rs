@@ -46,13 +46,11 @@ use crate::actuation::{ActuatorEvent, ActuatorIo, ActuatorStatus};
 use crate::config::Settings;
 use crate::estimation::fusion::Estimator;
 use crate::estimation::goal::{GoalKeeper, GoalState};
-use crate::estimation::tracker::{Tracker, TrackerParams};
+use crate::estimation::tracker::Tracker;
 use crate::estimation::view::CameraView;
 use crate::msg::{
     Clock, LaserScan, Obstacles, Odometry, SafeCmd, Stamped, SupervisorState, UserInput, WheelTicks,
 };
-use crate::navigation::apf::ApfParams;
-use crate::navigation::mpc::MpcParams;
 use crate::navigation::planner::{Planner, PlannerStats};
 use crate::perception::pipeline::Pipeline;
 use crate::safety::Supervisor;
@@ -433,14 +431,14 @@ pub async fn run(
     drop(sink);
     let (odo_tx, odo_rx) = watch::channel::<Option<Stamped<Odometry>>>(None);
     let odo_report = odo_rx.clone();
-    let (tracks_tx, tracks_rx) = watch::channel(Tracker::new(TrackerParams::default()));
+    let (tracks_tx, tracks_rx) = watch::channel(Tracker::new(settings.tracker));
     let (stats_tx, stats_rx) = watch::channel(EstimationStats::default());
     tasks.spawn(
         "estimation",
         estimation::run(
             estimation::Estimation::new(
                 Estimator::new(settings.drive_params()),
-                Tracker::new(TrackerParams::default()),
+                Tracker::new(settings.tracker),
                 view,
             ),
             estimation::EstimationIo {
@@ -460,7 +458,7 @@ pub async fn run(
     let control = Control::new(
         Supervisor::new(settings.safety_limits()),
         GoalKeeper::new(settings.goal_settings()),
-        Planner::new(MpcParams::default(), ApfParams::default()),
+        Planner::new(settings.mpc, settings.field),
         view,
         opts.exit_on_arrival,
     );
@@ -614,7 +612,7 @@ pub async fn run(
                 Control::new(
                     Supervisor::new(settings.safety_limits()),
                     GoalKeeper::new(settings.goal_settings()),
-                    Planner::new(MpcParams::default(), ApfParams::default()),
+                    Planner::new(settings.mpc, settings.field),
                     None,
                     false,
                 ),

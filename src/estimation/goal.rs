@@ -32,20 +32,6 @@ pub struct GoalSettings {
     pub search_turn_radps: f64,
 }
 
-impl Default for GoalSettings {
-    fn default() -> Self {
-        GoalSettings {
-            standoff_m: 0.6,
-            front_offset_m: 0.55,
-            clearance_m: 0.35,
-            unseen_after: Duration::from_secs(3),
-            hold_for: Duration::from_secs(5),
-            reached_within_m: 0.1,
-            search_turn_radps: 0.3,
-        }
-    }
-}
-
 #[derive(Debug, Clone, PartialEq, Serialize)]
 #[serde(tag = "state", rename_all = "snake_case")]
 pub enum GoalState {
@@ -362,7 +348,6 @@ impl GoalKeeper {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::estimation::tracker::TrackerParams;
     use crate::msg::Frame;
     use crate::perception::boxes::Object3D;
     use nalgebra::Point3;
@@ -381,10 +366,10 @@ mod tests {
 
     #[test]
     fn acquire_hold_back_in_view_then_lost_after_the_hold_time() {
-        let mut tracker = Tracker::new(TrackerParams::default());
+        let mut tracker = Tracker::new(crate::config::Settings::defaults().tracker);
         let mut g = GoalKeeper::new(GoalSettings {
             unseen_after: Duration::from_secs(1),
-            ..GoalSettings::default()
+            ..crate::config::Settings::defaults().goal_settings()
         });
         let chair = Pose2::default();
         g.set_prompt(" Chair ");
@@ -433,8 +418,8 @@ mod tests {
 
     #[test]
     fn a_renumbered_track_near_the_goal_is_still_the_goal() {
-        let mut tracker = Tracker::new(TrackerParams::default());
-        let mut g = GoalKeeper::new(GoalSettings::default());
+        let mut tracker = Tracker::new(crate::config::Settings::defaults().tracker);
+        let mut g = GoalKeeper::new(crate::config::Settings::defaults().goal_settings());
         g.set_prompt("chair");
         for k in 0..3 {
             tracker.update(t(k as f64 * 0.1), &[chair_obj(3.0)], |_| true);
@@ -471,8 +456,8 @@ mod tests {
 
     #[test]
     fn reached_when_at_the_approach_pose() {
-        let mut tracker = Tracker::new(TrackerParams::default());
-        let mut g = GoalKeeper::new(GoalSettings::default());
+        let mut tracker = Tracker::new(crate::config::Settings::defaults().tracker);
+        let mut g = GoalKeeper::new(crate::config::Settings::defaults().goal_settings());
         g.set_prompt("chair");
         for k in 0..3 {
             tracker.update(t(k as f64 * 0.1), &[chair_obj(3.0)], |_| true);

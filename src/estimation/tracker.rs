@@ -11,7 +11,9 @@ use serde::Serialize;
 use crate::msg::Stamp;
 use crate::perception::boxes::{Aabb, Object3D};
 
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// The tracker's parameters (config `[tracker]`, read directly).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct TrackerParams {
     /// Hits before a track is confirmed.
     pub confirm_hits: u32,
@@ -28,20 +30,6 @@ pub struct TrackerParams {
     pub process_noise_m2ps: f64,
     /// Detection position noise, m².
     pub measurement_noise_m2: f64,
-}
-
-impl Default for TrackerParams {
-    fn default() -> Self {
-        TrackerParams {
-            confirm_hits: 3,
-            max_center_distance_m: 0.5,
-            merge_iou: 0.8,
-            miss_decay: 0.2,
-            drop_confidence: 0.1,
-            process_noise_m2ps: 0.01,
-            measurement_noise_m2: 0.01,
-        }
-    }
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -71,7 +59,7 @@ impl Track {
     }
 }
 
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone)]
 pub struct Tracker {
     pub params: TrackerParams,
     tracks: Vec<Track>,
@@ -300,7 +288,7 @@ mod tests {
 
     #[test]
     fn two_chairs_stay_apart_and_confirm() {
-        let mut tr = Tracker::new(TrackerParams::default());
+        let mut tr = Tracker::new(crate::config::Settings::defaults().tracker);
         for k in 0..3 {
             let j = 0.02 * k as f32;
             tr.update(
@@ -323,7 +311,7 @@ mod tests {
 
     #[test]
     fn unseen_tracks_decay_only_when_they_should_be_visible() {
-        let mut tr = Tracker::new(TrackerParams::default());
+        let mut tr = Tracker::new(crate::config::Settings::defaults().tracker);
         tr.update(s(0.0), &[obj("sofa", [3.0, 0.0, 0.4], 0.5)], |_| true);
         tr.update(
             s(0.1),
@@ -351,7 +339,7 @@ mod tests {
     fn overlapping_same_label_tracks_merge() {
         let mut tr = Tracker::new(TrackerParams {
             max_center_distance_m: 0.01,
-            ..Default::default()
+            ..crate::config::Settings::defaults().tracker
         });
         // two detections of one table, boxes overlapping (IoU ≈ 0.9) but
         // centres apart beyond association: two tracks, then one
@@ -371,7 +359,7 @@ mod tests {
     fn approach_pose_faces_the_object_from_the_free_side() {
         let mut tr = Tracker::new(TrackerParams {
             confirm_hits: 1,
-            ..Default::default()
+            ..crate::config::Settings::defaults().tracker
         });
         tr.update(s(0.0), &[obj("chair", [3.0, 0.0, 0.4], 0.25)], |_| true);
         let t = tr.goal("chair", [0.0, 0.0]).unwrap().clone();

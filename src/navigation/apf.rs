@@ -17,7 +17,9 @@ use serde::Serialize;
 
 use super::grid::ProximityGrid;
 
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// The field's parameters (config `[field]`, read directly).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct ApfParams {
     /// Chair size (its width), m; R = size / 2.
     pub size_m: f64,
@@ -31,24 +33,6 @@ pub struct ApfParams {
     pub v_close_mps: f64,
     pub decay_m: f64,
     pub omega_max_radps: f64,
-}
-
-impl Default for ApfParams {
-    /// The reference defaults.
-    fn default() -> Self {
-        ApfParams {
-            size_m: 0.75,
-            beta1: 5.0,
-            beta2_m: 1.0,
-            gamma: 0.5,
-            d_front_m: 0.5,
-            d_lat_m: 0.2,
-            v_max_mps: 0.25,
-            v_close_mps: -0.05,
-            decay_m: 1.0,
-            omega_max_radps: 0.3,
-        }
-    }
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -131,7 +115,7 @@ mod tests {
     #[test]
     fn repeller_by_hand() {
         // sector 14 (θ = +8.889°) at 1.5 m
-        let p = ApfParams::default();
+        let p = crate::config::Settings::defaults().field;
         let g = grid_with(14, 1.5);
         let theta = g.sector_angle(14);
         let lambda = 5.0 * (-(1.5 - 0.5) / 1.0f64).exp();
@@ -150,7 +134,7 @@ mod tests {
 
     #[test]
     fn attractor_turns_towards_the_goal() {
-        let p = ApfParams::default();
+        let p = crate::config::Settings::defaults().field;
         let g = ProximityGrid::paper();
         let o = apf(&g, Some(0.4), &p);
         assert!((o.omega_attractor - 0.5 * (-0.4f64).sin()).abs() < 1e-12);
@@ -165,7 +149,7 @@ mod tests {
 
     #[test]
     fn speed_falls_with_the_nearest_obstacle_in_the_corridor() {
-        let p = ApfParams::default();
+        let p = crate::config::Settings::defaults().field;
         // straight ahead at 1.5 m
         let o = apf(&grid_with(13, 1.5), Some(0.0), &p);
         assert!((o.corridor_distance_m - 1.5).abs() < 1e-12);

@@ -14,7 +14,9 @@ use thiserror::Error;
 
 use crate::msg::VelocityCmd;
 
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// The MPC's parameters (config `[mpc]`, read directly).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct MpcParams {
     pub horizon: usize,
     pub dt_s: f64,
@@ -35,30 +37,6 @@ pub struct MpcParams {
     /// Obstacle points considered (the nearest ones within `obstacle_range_m`).
     pub max_obstacles: usize,
     pub obstacle_range_m: f64,
-}
-
-impl Default for MpcParams {
-    fn default() -> Self {
-        MpcParams {
-            horizon: 20,
-            dt_s: 0.1,
-            v_min_mps: 0.0,
-            v_max_mps: 0.3,
-            omega_max_radps: 0.8,
-            accel_max_mps2: 0.3,
-            alpha_max_radps2: 1.0,
-            w_position: 1.0,
-            w_terminal: 20.0,
-            w_heading: 0.5,
-            w_speed: 0.5,
-            w_omega: 0.1,
-            w_accel: 0.5,
-            w_alpha: 0.1,
-            clearance_m: 0.6,
-            max_obstacles: 8,
-            obstacle_range_m: 3.0,
-        }
-    }
 }
 
 /// [x, y, θ, v, ω] in the odometry frame.
@@ -406,7 +384,7 @@ mod tests {
 
     #[test]
     fn reaches_a_goal_in_open_space_within_bounds() {
-        let p = MpcParams::default();
+        let p = crate::config::Settings::defaults().mpc;
         let mut s = UnicycleState::default();
         let goal = [3.0, 2.0];
         for _ in 0..300 {
@@ -433,7 +411,7 @@ mod tests {
 
     #[test]
     fn keeps_clear_of_an_obstacle_on_the_way() {
-        let p = MpcParams::default();
+        let p = crate::config::Settings::defaults().mpc;
         let mut s = UnicycleState::default();
         let goal = [4.0, 0.0];
         let obstacle = [2.0, 0.05];

@@ -146,7 +146,10 @@ mod tests {
 
     #[test]
     fn open_space_uses_the_mpc_and_reaches_the_goal() {
-        let mut p = Planner::new(MpcParams::default(), ApfParams::default());
+        let mut p = Planner::new(
+            crate::config::Settings::defaults().mpc,
+            crate::config::Settings::defaults().field,
+        );
         let mut s = UnicycleState::default();
         let goal = [2.0, 1.0];
         let mut reached = false;
@@ -171,7 +174,10 @@ mod tests {
 
     #[test]
     fn failures_fall_back_then_stop() {
-        let mut p = Planner::new(MpcParams::default(), ApfParams::default());
+        let mut p = Planner::new(
+            crate::config::Settings::defaults().mpc,
+            crate::config::Settings::defaults().field,
+        );
         // an obstacle inside the clearance ahead: the MPC cannot satisfy it
         let s = UnicycleState {
             v_mps: 0.2,
