@@ -17,4 +17,5 @@ pub mod perception;
 pub mod record;
 pub mod safety;
 pub mod sensors;
+pub mod setup;
 pub mod sim;

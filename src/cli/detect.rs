@@ -12,9 +12,7 @@ use opennav::perception::calibration::RgbdCalibration;
 use opennav::perception::detector::parse_prompts;
 use opennav::perception::image::{DepthImage, RgbImage};
 use opennav::perception::pipeline::Pipeline;
-use opennav::perception::setup::{
-    open_configured_detector, open_configured_segmenter, PerceptionChoice,
-};
+use opennav::setup::{open_configured_detector, open_configured_segmenter, PerceptionChoice};
 
 use super::{bad_input, failed, Failure, Format};
 

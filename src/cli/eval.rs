@@ -7,9 +7,7 @@ use clap::{Subcommand, ValueEnum};
 
 use opennav::config::Settings;
 use opennav::perception::detector::parse_prompts;
-use opennav::perception::setup::{
-    open_configured_detector, open_configured_segmenter, PerceptionChoice,
-};
+use opennav::setup::{open_configured_detector, open_configured_segmenter, PerceptionChoice};
 
 use super::{bad_input, failed, Failure};
 

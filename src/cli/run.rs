@@ -15,7 +15,7 @@ use opennav::config::Settings;
 use opennav::daemon::chair::CameraChoice;
 use opennav::daemon::{Outcome, RunOptions, RunReport};
 use opennav::msg::{Clock, TokioClock, UserInput};
-use opennav::perception::setup::PerceptionChoice;
+use opennav::setup::PerceptionChoice;
 use opennav::sim::devices::SimSummary;
 
 use super::{bad_input, failed, parse_duration, Failure};

@@ -16,11 +16,11 @@ use crate::actuation::spawn_actuator_thread;
 use crate::actuation::writer::RnetActuator;
 use crate::config::{ActuationBackend, Settings};
 use crate::msg::Clock;
-use crate::perception::setup::PerceptionChoice;
 use crate::sensors::camera::{CameraError, CameraSource, ReplaySource};
 use crate::sensors::encoders::EncoderDriver;
 use crate::sensors::hokuyo::{HokuyoDriver, HokuyoSettings};
 use crate::sensors::task::{spawn_source, Step};
+use crate::setup::PerceptionChoice;
 
 /// Where the chair's camera frames come from.
 #[derive(Debug, Clone)]
@@ -219,9 +219,9 @@ fn camera_device(
             false,
         ),
     };
-    let detector = crate::perception::setup::open_configured_detector(settings, perception)
+    let detector = crate::setup::open_configured_detector(settings, perception)
         .map_err(|e| DeviceError::new("detector", e.to_string()))?;
-    let segmenter = crate::perception::setup::open_configured_segmenter(settings, perception)
+    let segmenter = crate::setup::open_configured_segmenter(settings, perception)
         .map_err(|e| DeviceError::new("segmenter", e.to_string()))?;
     Ok(Some(CameraDevice {
         open,

@@ -1,5 +1,7 @@
-//! Navigation: the proximity grid of the lasers and the paper group's
-//! shared-dynamics potential field (pure). The MPC on clarabel follows.
+//! Navigation (pure): the lasers' proximity grid (`grid`), the paper
+//! group's shared-dynamics potential field (`apf`), the MPC on clarabel
+//! (`mpc`), and the 20 Hz planner step that combines them with its
+//! fallback and stop rules (`planner`).
 
 pub mod apf;
 pub mod grid;

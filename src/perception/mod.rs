@@ -1,4 +1,10 @@
-//! Open-vocabulary 3D object detection: the paper's six steps.
+//! Open-vocabulary 3D object detection, the paper's six steps: detectors
+//! (`detector`: YOLO, YOLO-World with the CLIP text encoder and our
+//! `tokenizer`), box-prompted masks (`segmenter`: SAM-family, depth-guided),
+//! erosion (`masks`), depth isolation and back-projection (`cloud`,
+//! `calibration`), 3D boxes and merging (`boxes`), all per view in
+//! `pipeline`; ONNX Runtime sessions (`runtime`), the model manifest
+//! (`models`), images (`image`).
 
 pub mod boxes;
 pub mod calibration;
@@ -10,7 +16,6 @@ pub mod models;
 pub mod pipeline;
 pub mod runtime;
 pub mod segmenter;
-pub mod setup;
 pub mod tokenizer;
 
 pub use boxes::{merge_objects, Aabb, Object3D, OrientedBox};

@@ -1,5 +1,9 @@
-//! The simulator: worlds, sensor models and device emulators standing in
-//! for hardware behind the same traits as the real drivers.
+//! The simulator: the living room (`room`) and the chair's motion in it
+//! (`world`); the simulated R-Net chair — JSM and power module (`rnet`);
+//! the simulator's `Devices` for the daemon (`devices`: sensor models,
+//! camera, ground-truth detector); byte-exact emulators on ptys for the
+//! driver tests (`hokuyo`, `rebus`, `pty`); synthetic Replica scenes
+//! (`replica`).
 
 pub mod devices;
 pub mod hokuyo;

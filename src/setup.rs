@@ -1,16 +1,19 @@
-//! Builds the detector and segmenter the configuration asks for, from the
-//! models directory or explicit paths.
+//! Opens what the configuration asks for: ONNX Runtime, the detector and
+//! the segmenter, from the models directory or explicit paths. (The
+//! perception modules themselves take plain parameters, never `Settings`.)
 
 use std::path::{Path, PathBuf};
 
 use thiserror::Error;
 
-use super::detector::{open_detector, Detector, DetectorError, TextEmbedder, TextEmbeddingError};
-use super::models::{ModelStore, ModelStoreError, Role};
-use super::runtime::{init_runtime, resolve_library_path, Model, RuntimeError};
-use super::segmenter::{DepthBoxSegmenter, SamSegmenter, Segmenter};
-use super::tokenizer::ClipTokenizer;
 use crate::config::{SegmenterChoice, Settings};
+use crate::perception::detector::{
+    open_detector, Detector, DetectorError, TextEmbedder, TextEmbeddingError,
+};
+use crate::perception::models::{ModelStore, ModelStoreError, Role};
+use crate::perception::runtime::{init_runtime, resolve_library_path, Model, RuntimeError};
+use crate::perception::segmenter::{DepthBoxSegmenter, SamSegmenter, Segmenter};
+use crate::perception::tokenizer::ClipTokenizer;
 
 #[derive(Debug, Error)]
 pub enum SetupError {
