@@ -21,10 +21,20 @@ use serde_json::Value;
 
 /// An encoder board standing still: counts frames at 100 Hz on a pty.
 fn encoder_board(link: std::path::PathBuf, stop: Arc<AtomicBool>) -> std::thread::JoinHandle<()> {
+    encoder_board_after(link, stop, Duration::ZERO)
+}
+
+/// The board's port is there at once, its frames only after `silent`.
+fn encoder_board_after(
+    link: std::path::PathBuf,
+    stop: Arc<AtomicBool>,
+    silent: Duration,
+) -> std::thread::JoinHandle<()> {
     std::thread::spawn(move || {
         let (mut master, slave) = serialport::TTYPort::pair().expect("pty");
         let name = serialport::SerialPort::name(&slave).expect("name");
         std::os::unix::fs::symlink(&name, &link).expect("link");
+        std::thread::sleep(silent);
         let mut seq: u16 = 0;
         while !stop.load(Ordering::SeqCst) {
             let f = encode_message(&Message::Counts(CountsFrame {
@@ -134,4 +144,104 @@ fn runs_on_emulated_devices_turns_to_search_and_stops_on_the_word() {
     assert_eq!(r["actuator"]["backend"], "rebus");
     assert_eq!(r["actuator"]["state"], "released", "{r}");
     assert!(left.scans_sent() > 10 && right.scans_sent() > 10);
+}
+
+/// READY=1 only once every device delivered: with the encoder board
+/// silent for its first 3 s, systemd hears what the daemon waits for, and
+/// READY after the board speaks; then the watchdog.
+#[test]
+fn ready_only_after_every_device_gave_a_first_reading() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let scans: Vec<Vec<u32>> = load_sena_csv(&common::asset(
+        common::shared().join("data/laser/sena_2006_laser_scans.csv"),
+    ))
+    .expect("scans")
+    .iter()
+    .take(20)
+    .map(|s| resample_to_urg(s, &SensorParams::URG_04LX))
+    .collect();
+    let _left = HokuyoEmulator::spawn(
+        &dir.path().join("hokuyo_left"),
+        scans.clone(),
+        Duration::from_millis(100),
+        0,
+    )
+    .expect("left laser");
+    let _right = HokuyoEmulator::spawn(
+        &dir.path().join("hokuyo_right"),
+        scans,
+        Duration::from_millis(100),
+        5000,
+    )
+    .expect("right laser");
+    let stop = Arc::new(AtomicBool::new(false));
+    let silent = Duration::from_secs(3);
+    let started = Instant::now();
+    let board = encoder_board_after(dir.path().join("encoders"), stop.clone(), silent);
+    let _chip = RebusChipset::spawn(&dir.path().join("rebus")).expect("chipset");
+    wait_for(&dir.path().join("encoders"));
+    let notify = dir.path().join("notify");
+    let sock = std::os::unix::net::UnixDatagram::bind(&notify).expect("bind");
+    sock.set_read_timeout(Some(Duration::from_secs(20)))
+        .expect("timeout");
+    let p = |n: &str| dir.path().join(n).display().to_string();
+    let child = Command::new(env!("CARGO_BIN_EXE_opennav"))
+        .args(["run", "--no-camera", "--no-stdin", "--max-duration", "5s"])
+        .env("OPENNAV_LASERS__LEFT__PORT", p("hokuyo_left"))
+        .env("OPENNAV_LASERS__RIGHT__PORT", p("hokuyo_right"))
+        .env("OPENNAV_ENCODERS__PORT", p("encoders"))
+        .env("OPENNAV_ACTUATION__BACKEND", "rebus")
+        .env("OPENNAV_ACTUATION__REBUS__PORT", p("rebus"))
+        .env("NOTIFY_SOCKET", &notify)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("runs");
+    let mut msgs: Vec<(Duration, String)> = Vec::new();
+    let mut buf = [0u8; 512];
+    while let Ok(n) = sock.recv(&mut buf) {
+        let m = String::from_utf8_lossy(&buf[..n]).to_string();
+        let done = m == "STOPPING=1";
+        msgs.push((started.elapsed(), m));
+        if done {
+            break;
+        }
+    }
+    let out = child.wait_with_output().expect("exits");
+    stop.store(true, Ordering::SeqCst);
+    board.join().expect("board");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let ready = msgs
+        .iter()
+        .position(|(_, m)| m == "READY=1")
+        .unwrap_or_else(|| panic!("no READY: {msgs:?}"));
+    assert!(
+        msgs[ready].0 >= silent,
+        "READY at {:?}, before the board spoke: {msgs:?}",
+        msgs[ready].0
+    );
+    // what it waited for, last the encoder board alone
+    let waiting: Vec<&str> = msgs[..ready]
+        .iter()
+        .filter(|(_, m)| m.starts_with("STATUS=waiting"))
+        .map(|(_, m)| m.as_str())
+        .collect();
+    assert_eq!(
+        waiting.last().copied(),
+        Some("STATUS=waiting for a first reading from: encoders"),
+        "{msgs:?}"
+    );
+    assert_eq!(msgs.iter().filter(|(_, m)| m == "READY=1").count(), 1);
+    assert!(
+        msgs[ready..]
+            .iter()
+            .filter(|(_, m)| m == "WATCHDOG=1")
+            .count()
+            > 10,
+        "{msgs:?}"
+    );
 }
