@@ -27,6 +27,7 @@
 
 pub mod chair;
 pub mod control;
+pub mod control_task;
 pub mod devices;
 pub mod estimation;
 pub mod notify;
@@ -42,7 +43,7 @@ use tokio::sync::{mpsc, watch};
 use tokio::task::JoinSet;
 use tokio_util::sync::CancellationToken;
 
-use crate::actuation::{ActuatorEvent, ActuatorIo, ActuatorStatus};
+use crate::actuation::{ActuatorIo, ActuatorStatus};
 use crate::config::Settings;
 use crate::estimation::fusion::Estimator;
 use crate::estimation::goal::{GoalKeeper, GoalState};
@@ -57,11 +58,12 @@ use crate::safety::Supervisor;
 use crate::sensors::laser::merge_scans;
 
 pub use control::{Control, ControlInputs, ControlOutput, Outcome};
+use control_task::ControlEnd;
 pub use devices::{CameraDevice, DeviceError, Devices, Source, WatchSource};
 pub use estimation::EstimationStats;
 pub use notify::sd_notify;
 pub use recorder::RecordReport;
-use recorder::{record, RecordItem, RecordSink, Recorder};
+use recorder::{RecordItem, RecordSink, Recorder};
 
 #[derive(Debug, Clone, Default)]
 pub struct RunOptions {
@@ -97,9 +99,6 @@ pub enum DaemonError {
     #[error("{0}")]
     Setup(String),
 }
-
-/// The control loop's period.
-const CONTROL_PERIOD: Duration = Duration::from_millis(50);
 
 /// A task of the daemon: its name and the error that ended it.
 type TaskResult = Result<(), String>;
@@ -172,9 +171,15 @@ async fn panic_after<F: std::future::Future>(after: Option<Duration>, fut: F) ->
     }
 }
 
-/// Stand-ins for the control task's channels when it died with them.
-fn channels_lost() -> (watch::Sender<Option<SafeCmd>>, watch::Sender<Vec<String>>) {
-    (watch::channel(None).0, watch::channel(Vec::new()).0)
+/// The control step from config.
+fn new_control(settings: &Settings, view: Option<CameraView>, exit_on_arrival: bool) -> Control {
+    Control::new(
+        Supervisor::new(settings.safety_limits()),
+        GoalKeeper::new(settings.goal_settings()),
+        Planner::new(settings.mpc, settings.field),
+        view,
+        exit_on_arrival,
+    )
 }
 
 /// The text of a panic's payload.
@@ -188,6 +193,9 @@ pub fn panic_message(payload: Box<dyn std::any::Any + Send>) -> String {
     }
 }
 
+/// Where a source's readings are recorded, and as what.
+type RecordAs<T> = Option<(RecordSink, fn(Stamped<T>) -> RecordItem)>;
+
 /// A source's readings onto a watch channel; the first one is announced
 /// (READY waits for it).
 async fn pump<T: Clone + Send + Sync + 'static>(
@@ -195,8 +203,7 @@ async fn pump<T: Clone + Send + Sync + 'static>(
     tx: watch::Sender<Option<Stamped<T>>>,
     first: mpsc::UnboundedSender<&'static str>,
     label: &'static str,
-    rec: Option<RecordSink>,
-    to_record: fn(Stamped<T>) -> RecordItem,
+    rec: RecordAs<T>,
     cancel: CancellationToken,
 ) -> TaskResult {
     let mut announced = false;
@@ -210,13 +217,11 @@ async fn pump<T: Clone + Send + Sync + 'static>(
             announced = true;
             first.send(label).ok();
         }
-        record(&rec, || to_record(v.clone()));
+        if let Some((sink, item)) = &rec {
+            sink.put(item(v.clone()));
+        }
         tx.send_replace(Some(v));
     }
-}
-
-fn no_record<T>(_: Stamped<T>) -> RecordItem {
-    unreachable!("not recorded")
 }
 
 /// Runs the daemon on `devices` until the user quits, the trip ends (with
@@ -225,7 +230,7 @@ pub async fn run(
     devices: Devices,
     settings: &Settings,
     opts: RunOptions,
-    mut inputs: mpsc::Receiver<UserInput>,
+    inputs: mpsc::Receiver<UserInput>,
     clock: Arc<dyn Clock>,
     shutdown: CancellationToken,
 ) -> Result<RunReport, DaemonError> {
@@ -249,7 +254,7 @@ pub async fn run(
     } = devices;
     let sources = CancellationToken::new();
     let mut tasks = Tasks::new(opts.inject_panic.clone());
-    let (first_tx, mut first_rx) = mpsc::unbounded_channel::<&'static str>();
+    let (first_tx, first_rx) = mpsc::unbounded_channel::<&'static str>();
     let mut waiting: BTreeSet<&'static str> = BTreeSet::new();
 
     // device-side tasks (the simulated world and chair)
@@ -258,38 +263,29 @@ pub async fn run(
     }
 
     // the lasers, then their merge into obstacles in base_link
-    let mut scan_rx = Vec::new();
-    let mut poses = Vec::new();
-    for ((source, base_from_laser), (label, left)) in lasers
-        .into_iter()
-        .zip([("laser-left", true), ("laser-right", false)])
-    {
-        let (tx, rx) = watch::channel::<Option<Stamped<LaserScan>>>(None);
-        let to_record: fn(Stamped<LaserScan>) -> RecordItem = if left {
-            |s| RecordItem::Scan(true, s)
-        } else {
-            |s| RecordItem::Scan(false, s)
-        };
-        waiting.insert(label);
-        tasks.spawn(
-            label,
-            pump(
-                source,
-                tx,
-                first_tx.clone(),
+    let [(left_source, left_pose), (right_source, right_pose)] = lasers;
+    let mut laser =
+        |label: &'static str, source, to_record: fn(Stamped<LaserScan>) -> RecordItem| {
+            let (tx, rx) = watch::channel::<Option<Stamped<LaserScan>>>(None);
+            waiting.insert(label);
+            tasks.spawn(
                 label,
-                sink.clone(),
-                to_record,
-                sources.clone(),
-            ),
-        );
-        scan_rx.push(rx);
-        poses.push(base_from_laser);
-    }
+                pump(
+                    source,
+                    tx,
+                    first_tx.clone(),
+                    label,
+                    sink.clone().map(|s| (s, to_record)),
+                    sources.clone(),
+                ),
+            );
+            rx
+        };
+    let mut left = laser("laser-left", left_source, |s| RecordItem::Scan(true, s));
+    let mut right = laser("laser-right", right_source, |s| RecordItem::Scan(false, s));
     let (obst_tx, obst_rx) = watch::channel::<Option<Stamped<Obstacles>>>(None);
     {
-        let (mut left, mut right) = (scan_rx[0].clone(), scan_rx[1].clone());
-        let poses = [poses[0], poses[1]];
+        let poses = [left_pose, right_pose];
         let cancel = sources.clone();
         tasks.spawn("lasers", async move {
             loop {
@@ -322,8 +318,7 @@ pub async fn run(
             ticks_tx,
             first_tx.clone(),
             "encoders",
-            sink.clone(),
-            RecordItem::Ticks,
+            sink.clone().map(|s| (s, RecordItem::Ticks as fn(_) -> _)),
             sources.clone(),
         ),
     );
@@ -332,15 +327,7 @@ pub async fn run(
         Some(g) => {
             tasks.spawn(
                 "gyro",
-                pump(
-                    g,
-                    gyro_tx,
-                    first_tx.clone(),
-                    "gyro",
-                    None,
-                    no_record,
-                    sources.clone(),
-                ),
+                pump(g, gyro_tx, first_tx.clone(), "gyro", None, sources.clone()),
             );
             // the camera's IMU, if any, goes nowhere: one yaw-rate source
             watch::channel(None).0
@@ -455,115 +442,32 @@ pub async fn run(
     );
 
     // the control task, watched together with the others
-    let control = Control::new(
-        Supervisor::new(settings.safety_limits()),
-        GoalKeeper::new(settings.goal_settings()),
-        Planner::new(settings.mpc, settings.field),
-        view,
-        opts.exit_on_arrival,
-    );
-    let (fault_tx, mut fault_rx) = mpsc::unbounded_channel::<(String, String)>();
-    let mut act_ev_rx = act_ev_rx;
-    let control_clock = clock.clone();
-    let control_cancel = shutdown.clone();
-    let max_duration = opts.max_duration;
-    let speech = opts.speech.clone();
+    let control = new_control(settings, view, opts.exit_on_arrival);
+    let (fault_tx, faults) = mpsc::unbounded_channel::<(String, String)>();
     let control_panic = injected_panic_after(&opts.inject_panic, "control");
-    let mut control_task = tokio::spawn(panic_after(control_panic, async move {
-        let mut control = control;
-        let mut said: Vec<String> = Vec::new();
-        let mut tick = tokio::time::interval(CONTROL_PERIOD);
-        tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
-        let mut ready = false;
-        let mut status_sent = String::new();
-        let mut inputs_open = true;
-        let outcome = loop {
-            tokio::select! {
-                biased;
-                Some((task, reason)) = fault_rx.recv() => control.on_task_failure(&task, &reason),
-                _ = control_cancel.cancelled() => break Outcome::Signal,
-                i = inputs.recv(), if inputs_open => match i {
-                    Some(i) => control.on_input(i),
-                    None => inputs_open = false,
-                },
-                Some(ev) = act_ev_rx.recv() => {
-                    if matches!(ev, ActuatorEvent::Ready { .. }) {
-                        waiting.remove("motors");
-                    }
-                    control.on_actuator_event(&ev);
-                }
-                Some(first) = first_rx.recv() => { waiting.remove(first); }
-                _ = tick.tick() => {}
-            }
-            let now = control_clock.now();
-            let obstacles = obst_rx.borrow().clone();
-            let odometry = *odo_rx.borrow();
-            let out = {
-                let tracker = tracks_rx.borrow();
-                control.step(
-                    now,
-                    ControlInputs {
-                        obstacles: obstacles.as_ref(),
-                        odometry: odometry.as_ref(),
-                        tracker: &tracker,
-                    },
-                )
-            };
-            cmd_tx.send_replace(Some(out.cmd));
-            prompts_tx.send_if_modified(|p| {
-                let changed = *p != out.wanted;
-                if changed {
-                    p.clone_from(&out.wanted);
-                }
-                changed
-            });
-            for s in out.said {
-                tracing::info!(say = %s, "opennav");
-                if let Some(tx) = &speech {
-                    // the listener gone (its process ending) loses nothing: the report has it
-                    tx.send(s.clone()).ok();
-                }
-                said.push(s);
-            }
-            if !ready {
-                if waiting.is_empty() {
-                    ready = true;
-                    sd_notify("READY=1");
-                    sd_notify("STATUS=running");
-                } else {
-                    let status = format!(
-                        "STATUS=waiting for a first reading from: {}",
-                        waiting.iter().copied().collect::<Vec<_>>().join(", ")
-                    );
-                    if status != status_sent {
-                        sd_notify(&status);
-                        status_sent = status;
-                    }
-                }
-            }
-            if let Some(o) = out.done {
-                break o;
-            }
-            if max_duration.is_some_and(|m| now.0.saturating_sub(start.0) > m) {
-                break Outcome::Timeout;
-            }
-            // fed only while every task runs and nothing is faulted
-            if !matches!(out.cmd.state, SupervisorState::Fault(_)) {
-                sd_notify("WATCHDOG=1");
-            }
-        };
-        // the last word to the actuator: zero
-        let now = control_clock.now();
-        cmd_tx.send_replace(Some(SafeCmd {
-            cmd: Default::default(),
-            state: control.state(),
-            stamp: now,
-        }));
-        sd_notify("STOPPING=1");
-        // the channels stay open until the daemon shuts the tasks down: a
-        // closed channel means a dead task
-        (control, outcome, said, now, (cmd_tx, prompts_tx))
-    }));
+    let mut control_task = tokio::spawn(panic_after(
+        control_panic,
+        control_task::run(
+            control,
+            control_task::ControlTaskIo {
+                inputs,
+                faults,
+                actuator_events: act_ev_rx,
+                first_readings: first_rx,
+                waiting,
+                obstacles: obst_rx,
+                odometry: odo_rx,
+                tracks: tracks_rx,
+                commands: cmd_tx,
+                prompts: prompts_tx,
+                speech: opts.speech.clone(),
+                clock: clock.clone(),
+                cancel: shutdown.clone(),
+                start,
+                max_duration: opts.max_duration,
+            },
+        ),
+    ));
 
     // watch every task until the control task ends
     let mut failure: Option<(String, String)> = None;
@@ -595,7 +499,13 @@ pub async fn run(
             }
         }
     };
-    let (control, mut outcome, said, end, _channels) = match control_end {
+    let ControlEnd {
+        control,
+        mut outcome,
+        said,
+        end,
+        channels: _channels,
+    } = match control_end {
         Ok(c) => c,
         Err(e) => {
             let why = if e.is_panic() {
@@ -604,26 +514,19 @@ pub async fn run(
                 e.to_string()
             };
             tracing::error!(task = "control", reason = %why, "task failed");
-            // the writer centres when the supervisor's command goes stale
-            let reason = why.clone();
-            failure.get_or_insert(("control".into(), reason));
-            let now = clock.now();
-            (
-                Control::new(
-                    Supervisor::new(settings.safety_limits()),
-                    GoalKeeper::new(settings.goal_settings()),
-                    Planner::new(settings.mpc, settings.field),
-                    None,
-                    false,
-                ),
-                Outcome::Fault {
+            // no command any more: the writer centres when the last one
+            // goes stale
+            failure.get_or_insert(("control".into(), why.clone()));
+            ControlEnd {
+                control: new_control(settings, None, false),
+                outcome: Outcome::Fault {
                     task: "control".into(),
                     reason: why,
                 },
-                Vec::new(),
-                now,
-                channels_lost(),
-            )
+                said: Vec::new(),
+                end: clock.now(),
+                channels: (watch::channel(None).0, watch::channel(Vec::new()).0),
+            }
         }
     };
     if let Some((task, reason)) = &failure {

@@ -87,7 +87,7 @@ pub async fn run(
         // without a word the frame is still taken: the camera is checked
         // and its gyro read, but nothing is detected
         let look = !words.is_empty();
-        let new_prompts = (words != active).then(|| words.clone());
+        let new_prompts = (look && words != active).then(|| words.clone());
         if let Some(w) = &new_prompts {
             active = w.clone();
         }

@@ -1,0 +1,168 @@
+//! The control task: the pure [`Control`] step at 20 Hz, fed from the
+//! daemon's channels — user input, the actuator's events, task failures,
+//! the devices' first readings (systemd READY and STATUS), the latest
+//! obstacles, odometry and tracks — and publishing the supervisor's
+//! command, the wanted words and the sentences; it feeds the watchdog.
+
+use std::collections::BTreeSet;
+use std::sync::Arc;
+use std::time::Duration;
+
+use tokio::sync::{mpsc, watch};
+use tokio_util::sync::CancellationToken;
+
+use super::control::{Control, ControlInputs, Outcome};
+use super::notify::sd_notify;
+use crate::actuation::ActuatorEvent;
+use crate::estimation::tracker::Tracker;
+use crate::msg::{Clock, Obstacles, Odometry, SafeCmd, Stamp, Stamped, SupervisorState, UserInput};
+
+/// The control step's period.
+pub const CONTROL_PERIOD: Duration = Duration::from_millis(50);
+
+pub struct ControlTaskIo {
+    pub inputs: mpsc::Receiver<UserInput>,
+    /// A task that died: its name and why.
+    pub faults: mpsc::UnboundedReceiver<(String, String)>,
+    pub actuator_events: mpsc::Receiver<ActuatorEvent>,
+    /// A device's first reading, by name.
+    pub first_readings: mpsc::UnboundedReceiver<&'static str>,
+    /// The devices READY waits for ("motors": the actuator's Ready event).
+    pub waiting: BTreeSet<&'static str>,
+    pub obstacles: watch::Receiver<Option<Stamped<Obstacles>>>,
+    pub odometry: watch::Receiver<Option<Stamped<Odometry>>>,
+    pub tracks: watch::Receiver<Tracker>,
+    pub commands: watch::Sender<Option<SafeCmd>>,
+    pub prompts: watch::Sender<Vec<String>>,
+    pub speech: Option<mpsc::UnboundedSender<String>>,
+    pub clock: Arc<dyn Clock>,
+    pub cancel: CancellationToken,
+    pub start: Stamp,
+    pub max_duration: Option<Duration>,
+}
+
+/// How the control task ended.
+pub struct ControlEnd {
+    pub control: Control,
+    pub outcome: Outcome,
+    /// Everything said, in order.
+    pub said: Vec<String>,
+    pub end: Stamp,
+    /// The channels stay open until the daemon shuts the tasks down: a
+    /// closed channel means a dead task.
+    pub channels: (watch::Sender<Option<SafeCmd>>, watch::Sender<Vec<String>>),
+}
+
+/// Runs until the trip is over, the user quits, `cancel` or a fault; the
+/// last command it sends is zero.
+pub async fn run(mut control: Control, mut io: ControlTaskIo) -> ControlEnd {
+    let mut said: Vec<String> = Vec::new();
+    let mut tick = tokio::time::interval(CONTROL_PERIOD);
+    tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+    let mut ready = false;
+    let mut status_sent = String::new();
+    let mut inputs_open = true;
+    let outcome = loop {
+        tokio::select! {
+            biased;
+            Some((task, reason)) = io.faults.recv() => control.on_task_failure(&task, &reason),
+            _ = io.cancel.cancelled() => break Outcome::Signal,
+            i = io.inputs.recv(), if inputs_open => match i {
+                Some(i) => control.on_input(i),
+                None => inputs_open = false,
+            },
+            Some(ev) = io.actuator_events.recv() => {
+                if matches!(ev, ActuatorEvent::Ready { .. }) {
+                    io.waiting.remove("motors");
+                }
+                control.on_actuator_event(&ev);
+            }
+            Some(first) = io.first_readings.recv() => { io.waiting.remove(first); }
+            _ = tick.tick() => {}
+        }
+        let now = io.clock.now();
+        let obstacles = io.obstacles.borrow().clone();
+        let odometry = *io.odometry.borrow();
+        let out = {
+            let tracker = io.tracks.borrow();
+            control.step(
+                now,
+                ControlInputs {
+                    obstacles: obstacles.as_ref(),
+                    odometry: odometry.as_ref(),
+                    tracker: &tracker,
+                },
+            )
+        };
+        io.commands.send_replace(Some(out.cmd));
+        io.prompts.send_if_modified(|p| {
+            let changed = *p != out.wanted;
+            if changed {
+                p.clone_from(&out.wanted);
+            }
+            changed
+        });
+        for s in out.said {
+            tracing::info!(say = %s, "opennav");
+            if let Some(tx) = &io.speech {
+                // the listener gone (its process ending) loses nothing: the report has it
+                tx.send(s.clone()).ok();
+            }
+            said.push(s);
+        }
+        if !ready {
+            if io.waiting.is_empty() {
+                ready = true;
+                sd_notify("READY=1");
+                sd_notify("STATUS=running");
+            } else {
+                let status = format!(
+                    "STATUS=waiting for a first reading from: {}",
+                    io.waiting.iter().copied().collect::<Vec<_>>().join(", ")
+                );
+                if status != status_sent {
+                    sd_notify(&status);
+                    status_sent = status;
+                }
+            }
+        }
+        if let Some(o) = out.done {
+            break o;
+        }
+        if io
+            .max_duration
+            .is_some_and(|m| now.0.saturating_sub(io.start.0) > m)
+        {
+            break Outcome::Timeout;
+        }
+        // fed only while every task runs and nothing is faulted
+        if !matches!(out.cmd.state, SupervisorState::Fault(_)) {
+            sd_notify("WATCHDOG=1");
+        }
+    };
+    // the last word to the actuator: zero
+    let now = io.clock.now();
+    io.commands.send_replace(Some(SafeCmd {
+        cmd: Default::default(),
+        state: control.state(),
+        stamp: now,
+    }));
+    sd_notify("STOPPING=1");
+    // the channels stay open until the daemon shuts the tasks down: a
+    // closed channel means a dead task
+    // the last word to the actuator: zero
+    let now = io.clock.now();
+    io.commands.send_replace(Some(SafeCmd {
+        cmd: Default::default(),
+        state: control.state(),
+        stamp: now,
+    }));
+    sd_notify("STOPPING=1");
+    ControlEnd {
+        control,
+        outcome,
+        said,
+        end: now,
+        channels: (io.commands, io.prompts),
+    }
+}
