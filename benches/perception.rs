@@ -16,9 +16,10 @@ use std::path::PathBuf;
 use criterion::{criterion_group, criterion_main, Criterion};
 use nalgebra::Isometry3;
 use opennav::msg::Frame;
-use opennav::perception::calibration::{Intrinsics, RgbdCalibration};
+use opennav::msg::{DepthImage, RgbImage};
+use opennav::msg::{Intrinsics, RgbdCalibration};
 use opennav::perception::detector::{open_detector, Detection, DetectorSettings};
-use opennav::perception::image::{letterbox_chw, DepthImage, RgbImage};
+use opennav::perception::image::letterbox_chw;
 use opennav::perception::pipeline::{objects_from_masks, GeometrySettings, Pipeline};
 use opennav::perception::segmenter::DepthBoxSegmenter;
 

@@ -11,7 +11,7 @@ use config::{Config, Environment, File, FileFormat};
 use serde::Deserialize;
 use thiserror::Error;
 
-use crate::perception::calibration::TransformSpec;
+use crate::msg::TransformSpec;
 use crate::perception::detector::DetectorSettings;
 use crate::perception::pipeline::GeometrySettings;
 use crate::perception::runtime::{ExecutionProviderKind, SessionSettings};

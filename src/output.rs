@@ -7,9 +7,9 @@ use std::path::Path;
 use font8x8::UnicodeFonts;
 use serde::Serialize;
 
+use crate::msg::RgbImage;
 use crate::perception::boxes::Object3D;
 use crate::perception::detector::{Detection, PromptReport};
-use crate::perception::image::RgbImage;
 use crate::perception::masks::Mask;
 use crate::perception::pipeline::{Dropped, Timing, ViewResult};
 

@@ -27,10 +27,10 @@ use serde::{Deserialize, Serialize};
 use crate::msg::LaserScan;
 use crate::msg::RgbdFrame;
 use crate::msg::WheelTicks;
+use crate::msg::{DepthImage, RgbImage};
 use crate::msg::{NoReturn, Reading};
 use crate::msg::{Stamp, Stamped};
 use crate::perception::detector::Detection;
-use crate::perception::image::{DepthImage, RgbImage};
 
 #[derive(Debug, thiserror::Error)]
 pub enum RecordError {
@@ -297,7 +297,7 @@ impl Recorder {
     pub fn calibration(
         &mut self,
         stamp: Stamp,
-        c: &crate::perception::calibration::CalibrationFile,
+        c: &crate::msg::calibration::CalibrationFile,
     ) -> Result<(), RecordError> {
         self.write_json(TOPIC_CALIBRATION, stamp, c)
     }
@@ -356,7 +356,7 @@ pub enum Recorded {
     },
     Ticks(Stamped<WheelTicks>),
     Rgbd(Stamped<RgbdFrame>),
-    Calibration(Box<crate::perception::calibration::CalibrationFile>),
+    Calibration(Box<crate::msg::calibration::CalibrationFile>),
     Detections(Stamp, Vec<Detection>),
     Objects(Stamp, Vec<ObjectRecord>),
     /// A topic this version does not know (kept, not dropped silently).

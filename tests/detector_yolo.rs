@@ -4,8 +4,8 @@
 
 mod common;
 
+use opennav::msg::RgbImage;
 use opennav::perception::detector::{iou_xyxy, open_detector, Detection, DetectorSettings};
-use opennav::perception::image::RgbImage;
 
 fn detect(image: &str, prompts: &[String], threshold: f32) -> Vec<Detection> {
     common::init_ort();

@@ -5,10 +5,10 @@ mod common;
 
 use nalgebra::Isometry3;
 use opennav::msg::Frame;
-use opennav::perception::calibration::RgbdCalibration;
+use opennav::msg::RgbdCalibration;
+use opennav::msg::{DepthImage, RgbImage};
 use opennav::perception::cloud::{back_project, DepthSample};
 use opennav::perception::detector::{open_detector, DetectorSettings};
-use opennav::perception::image::{DepthImage, RgbImage};
 use opennav::perception::pipeline::{GeometrySettings, Pipeline};
 use opennav::perception::segmenter::DepthBoxSegmenter;
 
@@ -136,7 +136,7 @@ fn registration_changes_little_for_this_rig() {
     let (dk, color_from_depth) = cal.depth.expect("depth");
     let depth = DepthImage::load_png(&common::mrpt("depth_mm.png"), cal.depth_scale_m as f32)
         .expect("depth");
-    let reg = opennav::perception::calibration::register_depth_to_color(
+    let reg = opennav::perception::registration::register_depth_to_color(
         &depth,
         &dk,
         &color_from_depth,

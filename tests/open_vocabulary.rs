@@ -4,8 +4,8 @@
 
 mod common;
 
+use opennav::msg::RgbImage;
 use opennav::perception::detector::{open_detector, Detection, DetectorSettings, TextEmbedder};
-use opennav::perception::image::RgbImage;
 use opennav::perception::runtime::Model;
 use opennav::perception::segmenter::{SamSegmenter, Segmenter};
 use opennav::perception::tokenizer::ClipTokenizer;

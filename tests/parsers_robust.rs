@@ -1,7 +1,8 @@
 //! Property tests: the parsers of outside data (model metadata, calibration
 //! and embeddings files, prompt text) return errors or values, never panic.
 
-use opennav::perception::calibration::{CalibrationFile, RgbdCalibration};
+use opennav::msg::calibration::CalibrationFile;
+use opennav::msg::RgbdCalibration;
 use opennav::perception::detector::parse_prompts;
 use opennav::perception::detector::vocab::{parse_class_names, resolve_prompt};
 use opennav::perception::tokenizer::{ClipTokenizer, CONTEXT_LENGTH, END_OF_TEXT, START_OF_TEXT};

@@ -7,10 +7,10 @@ use anyhow::Context;
 use clap::Args;
 
 use opennav::config::Settings;
+use opennav::msg::RgbdCalibration;
+use opennav::msg::{DepthImage, RgbImage};
 use opennav::output::{overlay, slug, write_ply, DetectReport};
-use opennav::perception::calibration::RgbdCalibration;
 use opennav::perception::detector::parse_prompts;
-use opennav::perception::image::{DepthImage, RgbImage};
 use opennav::perception::pipeline::Pipeline;
 use opennav::setup::{open_configured_detector, open_configured_segmenter, PerceptionChoice};
 
@@ -98,7 +98,7 @@ pub fn run(mut settings: Settings, args: DetectArgs) -> Result<(), Failure> {
     let calib = match &rgbd {
         Some((c, _)) => c.clone(),
         None => RgbdCalibration::registered(
-            opennav::perception::calibration::Intrinsics {
+            opennav::msg::Intrinsics {
                 width: color.width(),
                 height: color.height(),
                 fx: color.width() as f64,

@@ -6,7 +6,7 @@
 use nalgebra::{Isometry3, Point3};
 
 use crate::msg::Pose2;
-use crate::perception::calibration::{Intrinsics, RgbdCalibration};
+use crate::msg::{Intrinsics, RgbdCalibration};
 
 /// The colour camera's view cone.
 #[derive(Debug, Clone, Copy, PartialEq)]

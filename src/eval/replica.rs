@@ -29,10 +29,10 @@ use super::instances::{
     evaluate, EvalCase, EvalError, EvalResult, Prediction, Rle, Scene, ScoreMode, REPLICA_CLASSES,
 };
 use crate::msg::Frame;
+use crate::msg::Intrinsics;
+use crate::msg::{DepthImage, ImageError, RgbImage};
 use crate::perception::boxes::{merge_objects_by, MergeRule, Object3D};
-use crate::perception::calibration::Intrinsics;
 use crate::perception::detector::{Detection, Detector, DetectorError};
-use crate::perception::image::{DepthImage, ImageError, RgbImage};
 use crate::perception::pipeline::{lift_detections, GeometrySettings, PipelineError};
 use crate::perception::segmenter::Segmenter;
 

@@ -4,19 +4,25 @@
 //! - [`time`]: [`Stamp`], [`Stamped`], the [`Clock`] handle;
 //! - [`geometry`]: [`Frame`], [`Pose2`];
 //! - [`sensors`]: [`LaserScan`], [`Obstacles`], [`WheelTicks`], [`RgbdFrame`];
+//! - [`image`]: [`RgbImage`], [`DepthImage`]; [`calibration`]: [`Intrinsics`],
+//!   [`RgbdCalibration`] and the calibration file;
 //! - [`command`]: [`VelocityCmd`], [`SafeCmd`] and the supervisor's state;
 //! - here: [`Odometry`], [`UserInput`], and perception's [`Object3D`]
 //!   (defined with its box geometry in `perception::boxes`).
 
+pub mod calibration;
 pub mod command;
 pub mod geometry;
+pub mod image;
 pub mod sensors;
 pub mod time;
 
 use serde::Serialize;
 
+pub use calibration::{CalibrationError, Intrinsics, RgbdCalibration, TransformSpec};
 pub use command::{FaultReason, SafeCmd, StopReason, SupervisorState, VelocityCmd};
 pub use geometry::{wrap_angle, Frame, Pose2};
+pub use image::{is_valid_depth, DepthImage, ImageError, RgbImage};
 pub use sensors::{LaserScan, NoReturn, Obstacles, Reading, RgbdFrame, WheelTicks};
 pub use time::{Clock, MonotonicClock, Stamp, Stamped, TokioClock};
 

@@ -5,7 +5,7 @@
 use serde::Serialize;
 
 use super::Stamp;
-use crate::perception::image::{DepthImage, RgbImage};
+use crate::msg::{DepthImage, RgbImage};
 
 /// One scan in the sensor's frame: step angles counter-clockwise, 0 ahead.
 #[derive(Debug, Clone, PartialEq)]

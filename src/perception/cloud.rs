@@ -3,9 +3,9 @@
 
 use nalgebra::{Isometry3, Point3};
 
-use super::calibration::Intrinsics;
-use super::image::DepthImage;
 use super::masks::Mask;
+use crate::msg::DepthImage;
+use crate::msg::Intrinsics;
 
 /// A depth sample under a mask: pixel and depth in metres.
 #[derive(Debug, Clone, Copy, PartialEq)]

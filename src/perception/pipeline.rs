@@ -8,13 +8,14 @@ use serde::Serialize;
 use thiserror::Error;
 
 use super::boxes::Object3D;
-use super::calibration::{register_depth_to_color, Intrinsics, RgbdCalibration};
 use super::cloud::{back_project, isolate_depth, zscore_filter};
 use super::detector::{Detection, Detector, DetectorError, PromptReport};
-use super::image::{DepthImage, ImageError, RgbImage};
 use super::masks::Mask;
+use super::registration::register_depth_to_color;
 use super::segmenter::{Segmenter, SegmenterError};
 use crate::msg::Frame;
+use crate::msg::{DepthImage, ImageError, RgbImage};
+use crate::msg::{Intrinsics, RgbdCalibration};
 
 #[derive(Debug, Error)]
 pub enum PipelineError {

@@ -26,10 +26,10 @@ use crate::actuation::{Actuator, ActuatorError};
 use crate::config::Settings;
 use crate::daemon::devices::{CameraDevice, DeviceError, Devices, WatchSource};
 use crate::daemon::Source;
+use crate::msg::RgbImage;
 use crate::msg::{Clock, LaserScan, RgbdFrame, Stamp, Stamped, WheelTicks};
-use crate::perception::calibration::{Intrinsics, RgbdCalibration};
+use crate::msg::{Intrinsics, RgbdCalibration};
 use crate::perception::detector::{Detection, Detector, DetectorError, PromptReport};
-use crate::perception::image::RgbImage;
 use crate::perception::segmenter::DepthBoxSegmenter;
 use crate::sensors::camera::{CameraError, CameraSource};
 

@@ -8,8 +8,8 @@
 
 use nalgebra::{Isometry3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
 
-use crate::perception::calibration::Intrinsics;
-use crate::perception::image::{DepthImage, ImageError, RgbImage};
+use crate::msg::Intrinsics;
+use crate::msg::{DepthImage, ImageError, RgbImage};
 
 /// A labelled box in the room.
 #[derive(Debug, Clone, PartialEq)]

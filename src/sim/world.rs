@@ -15,11 +15,11 @@ use serde::Serialize;
 use super::room::{Rendered, Room};
 use crate::actuation::rnet::JoystickMapping;
 use crate::estimation::odometry::DiffDriveParams;
+use crate::msg::ImageError;
+use crate::msg::Intrinsics;
 use crate::msg::LaserScan;
 use crate::msg::Pose2;
 use crate::msg::WheelTicks;
-use crate::perception::calibration::Intrinsics;
-use crate::perception::image::ImageError;
 use crate::sensors::scip::SensorParams;
 
 /// The chair's footprint about base_link, metres.

@@ -12,8 +12,9 @@ use std::path::Path;
 use serde::Serialize;
 use thiserror::Error;
 
-use super::image::{Letterbox, RgbImage};
+use super::image::Letterbox;
 use super::runtime::{Model, RuntimeError, SessionSettings};
+use crate::msg::RgbImage;
 
 pub use text::{TextEmbedder, TextEmbeddingError};
 pub use yolo::ClosedVocabularyYolo;

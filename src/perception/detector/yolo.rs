@@ -6,7 +6,8 @@ use ort::value::Tensor;
 
 use super::vocab::{parse_class_names, resolve_prompt};
 use super::{decode_yolo_head, Detection, Detector, DetectorError, DetectorSettings, PromptReport};
-use crate::perception::image::{letterbox_chw, RgbImage};
+use crate::msg::RgbImage;
+use crate::perception::image::letterbox_chw;
 use crate::perception::runtime::Model;
 
 /// Letterbox padding value (grey 114), as Ultralytics.

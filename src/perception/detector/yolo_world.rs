@@ -7,7 +7,8 @@ use ort::value::Tensor;
 use super::text::TextEmbedder;
 use super::yolo::{image_input, PAD_VALUE};
 use super::{decode_yolo_head, Detection, Detector, DetectorError, DetectorSettings, PromptReport};
-use crate::perception::image::{letterbox_chw, RgbImage};
+use crate::msg::RgbImage;
+use crate::perception::image::letterbox_chw;
 use crate::perception::runtime::Model;
 
 pub struct YoloWorld {

@@ -13,7 +13,7 @@
 use std::collections::VecDeque;
 
 use super::{Segmenter, SegmenterError};
-use crate::perception::image::{DepthImage, RgbImage};
+use crate::msg::{DepthImage, RgbImage};
 use crate::perception::masks::Mask;
 
 #[derive(Debug, Clone, PartialEq)]

@@ -7,9 +7,9 @@ pub mod sam;
 
 use thiserror::Error;
 
-use super::image::{DepthImage, RgbImage};
 use super::masks::Mask;
 use super::runtime::RuntimeError;
+use crate::msg::{DepthImage, RgbImage};
 
 pub use depth::{DepthBoxSegmenter, DepthSegmenterSettings};
 pub use sam::SamSegmenter;

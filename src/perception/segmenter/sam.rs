@@ -13,7 +13,8 @@
 use ort::value::Tensor;
 
 use super::{Segmenter, SegmenterError};
-use crate::perception::image::{resize_bilinear, DepthImage, RgbImage};
+use crate::msg::{DepthImage, RgbImage};
+use crate::perception::image::resize_bilinear;
 use crate::perception::masks::Mask;
 use crate::perception::runtime::{Model, RuntimeError};
 

@@ -8,9 +8,9 @@ pub mod replay;
 
 use thiserror::Error;
 
+use crate::msg::ImageError;
+use crate::msg::{CalibrationError, RgbdCalibration};
 use crate::msg::{RgbdFrame, Stamped};
-use crate::perception::calibration::{CalibrationError, RgbdCalibration};
-use crate::perception::image::ImageError;
 
 pub use replay::ReplaySource;
 

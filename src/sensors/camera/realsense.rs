@@ -26,8 +26,8 @@ use realsense_rust::processing_blocks::align::Align;
 
 use super::{CameraError, CameraSource, RgbdFrame};
 use crate::msg::{Clock, Stamp, Stamped};
-use crate::perception::calibration::{Intrinsics, RgbdCalibration};
-use crate::perception::image::{DepthImage, RgbImage};
+use crate::msg::{DepthImage, RgbImage};
+use crate::msg::{Intrinsics, RgbdCalibration};
 use crate::sensors::clock::DeviceClock;
 
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -12,10 +12,10 @@
 use std::path::{Path, PathBuf};
 
 use super::{associate, CameraError, CameraSource};
+use crate::msg::RgbdCalibration;
 use crate::msg::RgbdFrame;
+use crate::msg::{DepthImage, RgbImage};
 use crate::msg::{Stamp, Stamped};
-use crate::perception::calibration::RgbdCalibration;
-use crate::perception::image::{DepthImage, RgbImage};
 
 /// Largest colour/depth time difference accepted as a pair, seconds.
 pub const MAX_PAIR_DT_S: f64 = 0.02;
