@@ -60,6 +60,10 @@ pub struct GoalSection {
     pub search_turn_radps: f64,
 }
 
+/// The control step's period (the daemon's control task): part of the
+/// reaction time the stop distance must cover.
+pub const CONTROL_PERIOD: std::time::Duration = std::time::Duration::from_millis(50);
+
 /// Which motor interface drives the chair.
 #[derive(Debug, Clone, Copy, Deserialize, PartialEq, Eq)]
 #[serde(rename_all = "lowercase")]
@@ -114,6 +118,9 @@ pub struct SafetySection {
     pub stop_distance_m: f64,
     pub front_offset_m: f64,
     pub rear_offset_m: f64,
+    pub overspeed_margin_mps: f64,
+    pub overspeed_margin_radps: f64,
+    pub overspeed_window_s: f64,
 }
 
 #[derive(Debug, Clone, Deserialize, PartialEq)]
@@ -360,6 +367,51 @@ impl Settings {
         finite_range("safety.stop_distance_m", sf.stop_distance_m, 0.05, 2.0)?;
         finite_range("safety.front_offset_m", sf.front_offset_m, 0.0, 2.0)?;
         finite_range("safety.rear_offset_m", sf.rear_offset_m, 0.0, 2.0)?;
+        finite_range(
+            "safety.overspeed_margin_mps",
+            sf.overspeed_margin_mps,
+            0.01,
+            0.5,
+        )?;
+        finite_range(
+            "safety.overspeed_margin_radps",
+            sf.overspeed_margin_radps,
+            0.05,
+            1.0,
+        )?;
+        finite_range(
+            "safety.overspeed_window_s",
+            sf.overspeed_window_s,
+            0.05,
+            2.0,
+        )?;
+        // the corridor must reach far enough to stop in: what the chair
+        // covers at full speed while the newest scan ages to its deadline,
+        // the command to its own, one control period and the writer's
+        // freshness limit, plus braking at the deceleration limit
+        let reaction_s = sf.laser_max_age_s
+            + sf.command_max_age_s
+            + CONTROL_PERIOD.as_secs_f64()
+            + self.actuation.command_max_age_s;
+        let needed = sf.v_forward_max_mps * reaction_s
+            + sf.v_forward_max_mps.powi(2) / (2.0 * sf.a_linear_max_mps2);
+        if sf.stop_distance_m < needed {
+            return Err(ConfigError::Range {
+                key: "safety.stop_distance_m".into(),
+                value: sf.stop_distance_m.to_string(),
+                reason: format!(
+                    "the chair cannot stop in it: at safety.v_forward_max_mps = {} it covers {:.3} m while \
+                     safety.laser_max_age_s + safety.command_max_age_s + the control period ({:?}) + \
+                     actuation.command_max_age_s pass ({reaction_s:.3} s), and brakes over {:.3} m at \
+                     safety.a_linear_max_mps2 = {}: needs at least {needed:.3} m",
+                    sf.v_forward_max_mps,
+                    sf.v_forward_max_mps * reaction_s,
+                    CONTROL_PERIOD,
+                    sf.v_forward_max_mps.powi(2) / (2.0 * sf.a_linear_max_mps2),
+                    sf.a_linear_max_mps2,
+                ),
+            });
+        }
         let o = &self.odometry;
         finite_range("odometry.wheel_radius_m", o.wheel_radius_m, 0.02, 1.0)?;
         finite_range("odometry.track_m", o.track_m, 0.1, 2.0)?;
@@ -590,6 +642,9 @@ impl Settings {
             stop_distance_m: s.stop_distance_m,
             front_offset_m: s.front_offset_m,
             rear_offset_m: s.rear_offset_m,
+            overspeed_margin_mps: s.overspeed_margin_mps,
+            overspeed_margin_radps: s.overspeed_margin_radps,
+            overspeed_window: d(s.overspeed_window_s),
         }
     }
 
@@ -678,6 +733,40 @@ mod tests {
             let e = Settings::load_with_env(None, env(&[(k, v)])).unwrap_err();
             assert!(e.to_string().contains(key), "{e}");
         }
+    }
+
+    #[test]
+    fn a_stop_distance_the_chair_cannot_stop_in_is_refused_naming_the_keys() {
+        // defaults: 0.3 m/s · (0.25 + 0.2 + 0.05 + 0.1) s + 0.09 / 1.0 = 0.27 m ≤ 0.30 m
+        assert!(Settings::load_with_env(None, env(&[])).is_ok());
+        for (k, v) in [
+            ("OPENNAV_SAFETY__STOP_DISTANCE_M", "0.25"),
+            ("OPENNAV_SAFETY__V_FORWARD_MAX_MPS", "0.5"),
+            ("OPENNAV_SAFETY__LASER_MAX_AGE_S", "0.5"),
+            ("OPENNAV_SAFETY__A_LINEAR_MAX_MPS2", "0.2"),
+        ] {
+            let e = Settings::load_with_env(None, env(&[(k, v)]))
+                .expect_err(k)
+                .to_string();
+            assert!(e.contains("safety.stop_distance_m"), "{k}: {e}");
+            for key in [
+                "safety.v_forward_max_mps",
+                "safety.laser_max_age_s",
+                "safety.a_linear_max_mps2",
+            ] {
+                assert!(e.contains(key), "{k}: {e}");
+            }
+        }
+        // a longer corridor makes the faster chair acceptable
+        assert!(Settings::load_with_env(
+            None,
+            env(&[
+                ("OPENNAV_SAFETY__V_FORWARD_MAX_MPS", "0.5"),
+                ("OPENNAV_SAFETY__STOP_DISTANCE_M", "0.6"),
+                ("OPENNAV_GOAL__STANDOFF_M", "0.7"),
+            ])
+        )
+        .is_ok());
     }
 
     #[test]

@@ -3,14 +3,20 @@
 //!
 //! It outputs zero when laser data is older than 250 ms, odometry older
 //! than 100 ms, the planner's command older than 200 ms (all from config),
-//! when anything is inside the stop corridor in the direction of travel,
-//! after a stop from any input, when the user deflects the real joystick,
-//! and on CAN bus faults. Otherwise it caps speeds and accelerations.
+//! when anything is inside the stop corridor in the direction of travel —
+//! of the command, of the chair's actual motion (odometry) and of the last
+//! output, so a chair still rolling forward keeps its front checked while
+//! the planner asks for zero or reverse —, when a turn on the spot (asked
+//! for or happening) would sweep into something, after a stop from any
+//! input, when the user deflects the real joystick, on CAN bus faults, and
+//! (latched) when the chair moves faster than the caps for longer than the
+//! overspeed window. Otherwise it caps speeds and accelerations.
 
 use std::time::Duration;
 
 use crate::msg::{
-    FaultReason, Obstacles, SafeCmd, Stamp, Stamped, StopReason, SupervisorState, VelocityCmd,
+    FaultReason, Obstacles, Odometry, SafeCmd, Stamp, Stamped, StopReason, SupervisorState,
+    VelocityCmd,
 };
 
 /// Limits (config `[safety]`).
@@ -30,15 +36,26 @@ pub struct SafetyLimits {
     /// From `base_link` to the chair's front edge / rear edge, metres.
     pub front_offset_m: f64,
     pub rear_offset_m: f64,
+    /// Measured speed above a cap by more than these (m/s, rad/s) for
+    /// longer than `overspeed_window`: a latched fault.
+    pub overspeed_margin_mps: f64,
+    pub overspeed_margin_radps: f64,
+    pub overspeed_window: Duration,
 }
 
 /// The latest inputs, each with its acquisition stamp.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct SupervisorInputs<'a> {
     pub obstacles: Option<&'a Stamped<Obstacles>>,
-    pub odometry_stamp: Option<Stamp>,
+    /// The chair's measured motion.
+    pub odometry: Option<&'a Stamped<Odometry>>,
     pub command: Option<&'a Stamped<VelocityCmd>>,
 }
+
+/// Below this the chair counts as not moving along / not turning (m/s,
+/// rad/s).
+const MOVING_MPS: f64 = 0.02;
+const TURNING_RADPS: f64 = 0.05;
 
 #[derive(Debug, Clone)]
 pub struct Supervisor {
@@ -49,6 +66,8 @@ pub struct Supervisor {
     fault: Option<FaultReason>,
     last: Option<(VelocityCmd, Stamp)>,
     state: SupervisorState,
+    /// Since when the measured speed has been above a cap.
+    overspeed_since: Option<Stamp>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -72,6 +91,7 @@ impl Supervisor {
             fault: None,
             last: None,
             state: SupervisorState::Idle,
+            overspeed_since: None,
         }
     }
 
@@ -145,8 +165,38 @@ impl Supervisor {
         })
     }
 
+    /// Watches the measured speed: above a cap (+ margin) for longer than
+    /// the window → a latched overspeed fault.
+    fn watch_speed(&mut self, now: Stamp, odometry: Option<&Stamped<Odometry>>) {
+        let l = &self.limits;
+        let Some(o) = odometry.filter(|o| o.stamp.age_at(now) <= l.odometry_max_age) else {
+            return;
+        };
+        let v = o.value.v_mps;
+        let over = !v.is_finite()
+            || !o.value.omega_radps.is_finite()
+            || v > l.v_forward_max_mps + l.overspeed_margin_mps
+            || v < -(l.v_reverse_max_mps + l.overspeed_margin_mps)
+            || o.value.omega_radps.abs() > l.omega_max_radps + l.overspeed_margin_radps;
+        if !over {
+            self.overspeed_since = None;
+            return;
+        }
+        let since = *self.overspeed_since.get_or_insert(o.stamp);
+        if o.stamp.age_at(now) + since.age_at(o.stamp) > l.overspeed_window && self.fault.is_none()
+        {
+            tracing::error!(
+                v_mps = v,
+                omega_radps = o.value.omega_radps,
+                "overspeed: fault"
+            );
+            self.fault = Some(FaultReason::Overspeed);
+        }
+    }
+
     /// One control cycle at `now`.
     pub fn step(&mut self, now: Stamp, inputs: &SupervisorInputs) -> SafeCmd {
+        self.watch_speed(now, inputs.odometry);
         let l = self.limits;
         let state = if let Some(f) = self.fault {
             SupervisorState::Fault(f)
@@ -160,7 +210,7 @@ impl Supervisor {
             SupervisorState::Holding
         } else if !fresh(inputs.obstacles.map(|o| o.stamp), now, l.laser_max_age) {
             SupervisorState::Stopped(StopReason::LaserStale)
-        } else if !fresh(inputs.odometry_stamp, now, l.odometry_max_age) {
+        } else if !fresh(inputs.odometry.map(|o| o.stamp), now, l.odometry_max_age) {
             SupervisorState::Stopped(StopReason::OdometryStale)
         } else if !fresh(inputs.command.map(|c| c.stamp), now, l.command_max_age) {
             SupervisorState::Stopped(StopReason::CommandStale)
@@ -183,7 +233,22 @@ impl Supervisor {
                 } else {
                     0.0
                 };
-                if self.corridor_blocked(&obs.value, v) || self.turn_blocked(&obs.value, v, w) {
+                // the motion now (measured) and the last output are
+                // checked as well as the request: a chair still rolling
+                // forward keeps its front checked while asked to stop or
+                // reverse
+                let (v_now, w_now) = inputs
+                    .odometry
+                    .map(|o| (o.value.v_mps, o.value.omega_radps))
+                    .unwrap_or((0.0, 0.0));
+                let v_last = self.last.map(|(c, _)| c.v_mps).unwrap_or(0.0);
+                let rolling = |x: f64| if x.abs() >= MOVING_MPS { x } else { 0.0 };
+                let blocked = [v, rolling(v_now), rolling(v_last)]
+                    .into_iter()
+                    .any(|d| self.corridor_blocked(&obs.value, d))
+                    || self.turn_blocked(&obs.value, v, w)
+                    || (w_now.abs() > TURNING_RADPS && self.turn_blocked(&obs.value, v_now, w_now));
+                if blocked {
                     state = SupervisorState::Stopped(StopReason::Obstacle);
                 } else {
                     // acceleration limits from the last output
@@ -223,7 +288,8 @@ mod tests {
 
     struct World {
         obstacles: Stamped<Obstacles>,
-        odom: Stamp,
+        /// The chair's measured motion: at rest unless a test says.
+        odom: Stamped<Odometry>,
         cmd: Stamped<VelocityCmd>,
     }
 
@@ -236,7 +302,7 @@ mod tests {
                         points_base: vec![[3.0, 0.0]],
                     },
                 ),
-                odom: ms(t),
+                odom: Stamped::new(ms(t), Odometry::default()),
                 cmd: Stamped::new(
                     ms(t),
                     VelocityCmd {
@@ -249,7 +315,7 @@ mod tests {
         fn inputs(&self) -> SupervisorInputs<'_> {
             SupervisorInputs {
                 obstacles: Some(&self.obstacles),
-                odometry_stamp: Some(self.odom),
+                odometry: Some(&self.odom),
                 command: Some(&self.cmd),
             }
         }
@@ -303,7 +369,7 @@ mod tests {
         let mut s = moving(0.2);
         let mut w = World::new(0, 0.2, 0.0);
         // everything but the laser stays fresh
-        w.odom = ms(250);
+        w.odom.stamp = ms(250);
         w.cmd.stamp = ms(250);
         let c = s.step(ms(250), &w.inputs());
         assert_eq!(c.state, SupervisorState::Navigating);
@@ -316,10 +382,93 @@ mod tests {
     }
 
     #[test]
+    fn a_chair_still_rolling_forward_keeps_its_front_checked_when_asked_to_stop_or_reverse() {
+        for asked in [0.0, -0.1] {
+            let mut s = moving(0.3);
+            // something 0.2 m ahead of the front edge (inside the 0.30 m
+            // corridor); the rear is clear; the planner asks for `asked`
+            // while the chair still rolls forward at 0.25 m/s
+            let mut w = World::new(20, asked, 0.0);
+            w.obstacles.value.points_base = vec![[0.55 + 0.2, 0.0]];
+            w.odom.value.v_mps = 0.25;
+            let c = s.step(ms(20), &w.inputs());
+            assert_eq!(
+                c.state,
+                SupervisorState::Stopped(StopReason::Obstacle),
+                "asked {asked}"
+            );
+            assert_eq!(c.cmd, VelocityCmd::default(), "asked {asked}");
+            // at rest, a reverse request is allowed again (the rear is clear)
+            let mut w = World::new(200, -0.1, 0.0);
+            w.obstacles.value.points_base = vec![[0.55 + 0.2, 0.0]];
+            w.odom.value.v_mps = 0.0;
+            let c = s.step(ms(200), &w.inputs());
+            assert_eq!(c.state, SupervisorState::Navigating);
+            assert!(c.cmd.v_mps < 0.0, "{c:?}");
+        }
+    }
+
+    #[test]
+    fn a_turn_that_is_happening_is_checked_like_one_asked_for() {
+        let mut s = moving(0.0);
+        // asked to stand still, but the chair spins: something within the
+        // swept circle beside it
+        let mut w = World::new(20, 0.0, 0.0);
+        w.obstacles.value.points_base = vec![[0.0, 0.6]];
+        w.odom.value.omega_radps = 0.5;
+        let c = s.step(ms(20), &w.inputs());
+        assert_eq!(c.state, SupervisorState::Stopped(StopReason::Obstacle));
+    }
+
+    #[test]
+    fn sustained_overspeed_is_a_latched_fault_a_blip_is_not() {
+        let mut s = moving(0.3);
+        // 0.40 m/s measured (cap 0.30 + 0.05 margin) for 0.2 s: no fault
+        for t in (20..=220).step_by(50) {
+            let mut w = World::new(t, 0.3, 0.0);
+            w.odom.value.v_mps = 0.40;
+            assert_eq!(
+                s.step(ms(t), &w.inputs()).state,
+                SupervisorState::Navigating
+            );
+        }
+        let w = World::new(270, 0.3, 0.0);
+        assert_eq!(
+            s.step(ms(270), &w.inputs()).state,
+            SupervisorState::Navigating
+        );
+        // for longer than the 0.3 s window: latched
+        let mut last = None;
+        for t in (320..=720).step_by(50) {
+            let mut w = World::new(t, 0.3, 0.0);
+            w.odom.value.v_mps = 0.40;
+            last = Some(s.step(ms(t), &w.inputs()));
+        }
+        let c = last.expect("stepped");
+        assert_eq!(c.state, SupervisorState::Fault(FaultReason::Overspeed));
+        assert_eq!(c.cmd, VelocityCmd::default());
+        let w = World::new(800, 0.3, 0.0);
+        let c = s.step(ms(800), &w.inputs());
+        assert_eq!(
+            c.state,
+            SupervisorState::Fault(FaultReason::Overspeed),
+            "latched"
+        );
+        // spinning too fast counts too
+        let mut s = moving(0.0);
+        for t in (20..=520).step_by(50) {
+            let mut w = World::new(t, 0.0, 0.5);
+            w.odom.value.omega_radps = 1.2;
+            s.step(ms(t), &w.inputs());
+        }
+        assert_eq!(s.state(), SupervisorState::Fault(FaultReason::Overspeed));
+    }
+
+    #[test]
     fn stale_odometry_and_command_stop() {
         let mut s = moving(0.2);
         let mut w = World::new(100, 0.2, 0.0);
-        w.odom = ms(0);
+        w.odom.stamp = ms(0);
         assert_eq!(
             s.step(ms(100), &w.inputs()).state,
             SupervisorState::Navigating

@@ -159,7 +159,7 @@ impl Control {
             now,
             &SupervisorInputs {
                 obstacles: inputs.obstacles,
-                odometry_stamp: inputs.odometry.map(|p| p.stamp),
+                odometry: inputs.odometry,
                 command: self.planner_cmd.as_ref(),
             },
         );

@@ -17,8 +17,7 @@ use crate::actuation::ActuatorEvent;
 use crate::estimation::tracker::Tracker;
 use crate::msg::{Clock, Obstacles, Odometry, SafeCmd, Stamp, Stamped, SupervisorState, UserInput};
 
-/// The control step's period.
-pub const CONTROL_PERIOD: Duration = Duration::from_millis(50);
+pub use crate::config::CONTROL_PERIOD;
 
 pub struct ControlTaskIo {
     pub inputs: mpsc::Receiver<UserInput>,

@@ -34,6 +34,9 @@ pub enum FaultReason {
     MotorLink,
     /// A task or thread of the daemon died.
     Task,
+    /// The chair moved faster than the caps (plus a margin) for longer
+    /// than the overspeed window: something other than us drives it.
+    Overspeed,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]

@@ -23,10 +23,7 @@ use crate::actuation::rnet::{
     decode, joystick_frame, CanFrame, RnetMessage, JSM_HEARTBEAT_ID, JSM_SILENCE_ID,
 };
 use crate::actuation::ActuatorEvent;
-use crate::msg::Obstacles;
-use crate::msg::Stamped;
-use crate::msg::{Clock, Stamp};
-use crate::msg::{FaultReason, SafeCmd, VelocityCmd};
+use crate::msg::{Clock, FaultReason, Obstacles, Odometry, SafeCmd, Stamp, Stamped, VelocityCmd};
 use crate::safety::{Supervisor, SupervisorInputs};
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -289,7 +286,7 @@ pub async fn run_control_stand_in(c: ControlStandIn) -> Supervisor {
                 let obstacles = Stamped::new(now, Obstacles { points_base: Vec::new() });
                 let out = supervisor.step(now, &SupervisorInputs {
                     obstacles: Some(&obstacles),
-                    odometry_stamp: Some(now),
+                    odometry: Some(&Stamped::new(now, Odometry::default())),
                     command: last_planner.as_ref(),
                 });
                 commands.send_replace(Some(out));
