@@ -115,16 +115,7 @@ pub fn run(config: Option<&std::path::Path>, args: RunArgs) -> Result<(), Failur
         let tx = input_tx.clone();
         std::thread::Builder::new()
             .name("stdin".into())
-            .spawn(move || {
-                let stdin = std::io::stdin();
-                let mut line = String::new();
-                while stdin.read_line(&mut line).is_ok_and(|n| n > 0) {
-                    if tx.blocking_send(UserInput::parse(&line)).is_err() {
-                        return;
-                    }
-                    line.clear();
-                }
-            })
+            .spawn(move || read_words(std::io::stdin().lock(), &tx))
             .map_err(failed)?;
     }
     drop(input_tx);
@@ -198,4 +189,75 @@ pub fn run(config: Option<&std::path::Path>, args: RunArgs) -> Result<(), Failur
         std::process::exit(1);
     }
     std::process::exit(0);
+}
+
+/// Words from a stream, one a line, until it ends. Bytes that are not
+/// UTF-8 are replaced, never fatal. The end of the stream or a read error
+/// is a stop (this is the only input), with a log line.
+fn read_words(mut input: impl std::io::BufRead, tx: &mpsc::Sender<UserInput>) {
+    let mut line = Vec::new();
+    loop {
+        line.clear();
+        let input = match input.read_until(b'\n', &mut line) {
+            Ok(0) => {
+                tracing::warn!("stdin closed: no more words can come; stopping the chair");
+                UserInput::Stop
+            }
+            Ok(_) => UserInput::parse(&String::from_utf8_lossy(&line)),
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+            Err(e) => {
+                tracing::error!(error = %e, "stdin cannot be read: stopping the chair");
+                UserInput::Stop
+            }
+        };
+        let last = input == UserInput::Stop && line.is_empty();
+        // the daemon gone: nobody left to tell
+        if tx.blocking_send(input).is_err() || last {
+            return;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn words(bytes: &[u8]) -> Vec<UserInput> {
+        let (tx, mut rx) = mpsc::channel(16);
+        read_words(bytes, &tx);
+        drop(tx);
+        let mut out = Vec::new();
+        while let Ok(w) = rx.try_recv() {
+            out.push(w);
+        }
+        out
+    }
+
+    #[test]
+    fn bad_bytes_do_not_end_the_words_and_the_end_of_input_stops() {
+        assert_eq!(
+            words(b"chair\n\xff\xfe desk\nSTOP!\n"),
+            vec![
+                UserInput::Goto("chair".into()),
+                UserInput::Goto("desk".into()),
+                UserInput::Stop,
+                UserInput::Stop,
+            ]
+        );
+        assert_eq!(words(b""), vec![UserInput::Stop]);
+    }
+
+    struct Broken;
+    impl std::io::Read for Broken {
+        fn read(&mut self, _: &mut [u8]) -> std::io::Result<usize> {
+            Err(std::io::Error::other("device gone"))
+        }
+    }
+
+    #[test]
+    fn a_read_error_stops() {
+        let (tx, mut rx) = mpsc::channel(4);
+        read_words(std::io::BufReader::new(Broken), &tx);
+        assert_eq!(rx.try_recv().ok(), Some(UserInput::Stop));
+    }
 }

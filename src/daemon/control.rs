@@ -73,6 +73,10 @@ pub struct Control {
     planner_cmd: Option<Stamped<VelocityCmd>>,
     said: Vec<String>,
     done: Option<Outcome>,
+    /// Stopped by the user (a stop, the joystick): only "go" clears it.
+    latched: bool,
+    /// The word to go to once "go" clears the stop.
+    pending: Option<String>,
 }
 
 impl Control {
@@ -92,7 +96,19 @@ impl Control {
             planner_cmd: None,
             said: Vec::new(),
             done: None,
+            latched: false,
+            pending: None,
         }
+    }
+
+    /// Stopped by the user: the goal is put aside until "go".
+    fn latch(&mut self) {
+        self.latched = true;
+        if let Some(label) = self.goal.state().label() {
+            self.pending = Some(label.to_string());
+        }
+        self.goal.clear();
+        self.planner_cmd = None;
     }
 
     fn say(&mut self, s: String) {
@@ -102,20 +118,35 @@ impl Control {
     /// A word, a stop or a quit from the user.
     pub fn on_input(&mut self, input: UserInput) {
         match input {
+            UserInput::Goto(word) if self.latched => {
+                // a word alone does not clear a stop
+                self.say(format!("Stopped. Say go to go to the {word}."));
+                self.pending = Some(word);
+            }
             UserInput::Goto(word) => {
-                self.supervisor.resume();
                 self.goal.set_prompt(&word);
                 self.say(format!("Looking for a {word}."));
             }
             UserInput::Stop => {
                 self.supervisor.user_stop();
-                self.goal.clear();
-                self.planner_cmd = None;
+                self.latch();
                 self.say("Stopped.".into());
                 if self.exit_on_arrival {
                     self.done.get_or_insert(Outcome::Stopped);
                 }
             }
+            UserInput::Go if self.latched => {
+                self.latched = false;
+                self.supervisor.resume();
+                match self.pending.take() {
+                    Some(word) => {
+                        self.goal.set_prompt(&word);
+                        self.say(format!("Going on. Looking for a {word}."));
+                    }
+                    None => self.say("Going on. Say a word.".into()),
+                }
+            }
+            UserInput::Go => tracing::info!("\"go\" while not stopped: nothing to clear"),
             UserInput::Quit => {
                 self.done.get_or_insert(Outcome::Quit);
             }
@@ -132,8 +163,8 @@ impl Control {
             }
             ActuatorEvent::UserDeflection { .. } => {
                 self.supervisor.user_takeover();
-                self.goal.clear();
-                self.say("You have the joystick.".into());
+                self.latch();
+                self.say("You have the joystick. Say go to let me drive again.".into());
             }
             other => tracing::info!(event = ?other, "actuator"),
         }
@@ -330,6 +361,58 @@ mod tests {
         assert_eq!(out.said, vec!["Stopped.".to_string()]);
         assert!(out.wanted.is_empty());
         assert_eq!(out.done, None, "the daemon goes on after a stop");
+    }
+
+    #[test]
+    fn a_stop_latches_until_go_and_a_word_alone_does_not_clear_it() {
+        let mut c = control(false);
+        let tracker = Tracker::new(crate::config::Settings::defaults().tracker);
+        let turn = |c: &mut Control, ms_: u64| {
+            let now = at(ms_);
+            let (o, odo) = fresh(now);
+            c.step(
+                now,
+                ControlInputs {
+                    obstacles: Some(&o),
+                    odometry: Some(&odo),
+                    tracker: &tracker,
+                },
+            )
+        };
+        c.on_input(UserInput::Goto("chair".into()));
+        turn(&mut c, 0);
+        assert!(turn(&mut c, 50).cmd.cmd.omega_radps > 0.0, "searching");
+        c.on_input(UserInput::Stop);
+        assert_eq!(turn(&mut c, 100).cmd.cmd, VelocityCmd::default());
+        // a new word: remembered, but the chair stays stopped
+        c.on_input(UserInput::Goto("desk".into()));
+        for k in 3..10 {
+            let out = turn(&mut c, 50 * k);
+            assert_eq!(out.cmd.cmd, VelocityCmd::default());
+            assert_eq!(
+                out.cmd.state,
+                SupervisorState::Stopped(crate::msg::StopReason::UserStop)
+            );
+        }
+        // "go": the desk is looked for
+        c.on_input(UserInput::Go);
+        let out = turn(&mut c, 600);
+        assert!(
+            out.said
+                .iter()
+                .any(|s| s == "Going on. Looking for a desk."),
+            "{:?}",
+            out.said
+        );
+        assert_eq!(out.wanted, vec!["desk".to_string()]);
+        assert!(
+            turn(&mut c, 650).cmd.cmd.omega_radps > 0.0,
+            "searching again"
+        );
+        // the joystick takes over: latched the same way
+        c.on_actuator_event(&ActuatorEvent::UserDeflection { x: 0, y: 40 });
+        c.on_input(UserInput::Goto("desk".into()));
+        assert_eq!(turn(&mut c, 700).cmd.cmd, VelocityCmd::default());
     }
 
     #[test]

@@ -42,22 +42,60 @@ pub struct Odometry {
 pub enum UserInput {
     /// Go to an object of this word.
     Goto(String),
-    /// Stop now (voice "stop", a switch).
+    /// Stop now (voice "stop", a switch); latched until [`UserInput::Go`].
     Stop,
+    /// Go on after a stop (the explicit word that clears it).
+    Go,
     /// Quit the daemon.
     Quit,
 }
 
+/// Words that stop the chair wherever they appear in what was said.
+const STOP_WORDS: [&str; 5] = ["stop", "halt", "switch", "wait", "freeze"];
+/// What may come before the object's word.
+const GOTO_PREFIXES: [&[&str]; 5] = [
+    &["go", "to"],
+    &["take", "me", "to"],
+    &["drive", "to"],
+    &["find"],
+    &["to"],
+];
+const ARTICLES: [&str; 4] = ["the", "a", "an", "my"];
+
 impl UserInput {
-    /// A line of text: `stop`/`halt` (also a bare switch press, an empty
-    /// line), `quit`/`exit`, else a word to go to.
+    /// A line of text, normalised (case, punctuation, spacing): a stop word
+    /// anywhere ("STOP!", "stop please", "halt") or an empty line — a bare
+    /// switch press — stops; `go`, `go on`, `continue`, `resume` go on
+    /// after a stop; `quit`/`exit` quits; anything else is the word to go
+    /// to, with "go to / take me to / find" and an article taken off.
     pub fn parse(line: &str) -> UserInput {
-        let w = line.trim().to_lowercase();
-        match w.as_str() {
-            "" | "stop" | "halt" | "switch" => UserInput::Stop,
-            "quit" | "exit" => UserInput::Quit,
-            _ => UserInput::Goto(w),
+        let words: Vec<String> = line
+            .split(|c: char| !(c.is_alphanumeric() || c == '\'' || c == '-'))
+            .filter(|w| !w.is_empty())
+            .map(str::to_lowercase)
+            .collect();
+        if words.is_empty() || words.iter().any(|w| STOP_WORDS.contains(&w.as_str())) {
+            return UserInput::Stop;
         }
+        let w: Vec<&str> = words.iter().map(String::as_str).collect();
+        match w.as_slice() {
+            ["quit"] | ["exit"] => return UserInput::Quit,
+            ["go"] | ["go", "on"] | ["continue"] | ["resume"] | ["carry", "on"] => {
+                return UserInput::Go
+            }
+            _ => {}
+        }
+        let mut rest: &[&str] = &w;
+        if let Some(p) = GOTO_PREFIXES
+            .iter()
+            .find(|p| rest.starts_with(p) && rest.len() > p.len())
+        {
+            rest = &rest[p.len()..];
+        }
+        if rest.len() > 1 && ARTICLES.contains(&rest[0]) {
+            rest = &rest[1..];
+        }
+        UserInput::Goto(rest.join(" "))
     }
 }
 
@@ -78,5 +116,32 @@ mod tests {
             "a bare switch press stops"
         );
         assert_eq!(UserInput::parse("quit"), UserInput::Quit);
+    }
+
+    #[test]
+    fn stop_words_are_normalised_and_win_anywhere() {
+        for s in [
+            "STOP!",
+            "stop please",
+            "please stop",
+            "Halt.",
+            "  wait ",
+            "...",
+            "\t",
+        ] {
+            assert_eq!(UserInput::parse(s), UserInput::Stop, "{s:?}");
+        }
+        for s in ["go", "Go on!", "continue", "resume"] {
+            assert_eq!(UserInput::parse(s), UserInput::Go, "{s:?}");
+        }
+        for (s, w) in [
+            ("Go to the chair.", "chair"),
+            ("take me to my desk", "desk"),
+            ("find a person", "person"),
+            ("dining table", "dining table"),
+            ("the", "the"),
+        ] {
+            assert_eq!(UserInput::parse(s), UserInput::Goto(w.into()), "{s:?}");
+        }
     }
 }
