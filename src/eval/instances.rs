@@ -90,6 +90,12 @@ pub enum EvalError {
     },
     #[error("scene `{0}` appears twice")]
     DuplicateScene(String),
+    #[error("scene `{scene}`: point {point}: {reason}")]
+    Label {
+        scene: String,
+        point: usize,
+        reason: String,
+    },
     #[error("prediction {index}: {reason}")]
     Prediction { index: usize, reason: String },
 }
@@ -167,17 +173,28 @@ pub struct EvalResult {
 /// Ground-truth id per point: `sem*1000 + inst + 1`, 0 where `inst + 1 < 0`;
 /// negative `sem` counts as 0. (A point with `inst = -1` and a valid `sem`
 /// gets `sem*1000`, and counts: Open3DIS's quirk, kept.)
-pub fn gt_ids(sem: &[i64], inst: &[i64]) -> Vec<i64> {
+/// A label too large for the encoding is an error naming the point.
+pub fn gt_ids(sem: &[i64], inst: &[i64]) -> Result<Vec<i64>, (usize, String)> {
     sem.iter()
         .zip(inst)
-        .map(|(&s, &i)| {
+        .enumerate()
+        .map(|(k, (&s, &i))| {
             let s = s.max(0);
-            let ins = i + 1;
+            let Some(ins) = i.checked_add(1) else {
+                return Err((k, format!("instance id {i} is out of range")));
+            };
             if ins < 0 {
-                0
-            } else {
-                s * 1000 + ins
+                return Ok(0);
             }
+            if ins >= 1000 {
+                return Err((
+                    k,
+                    format!("instance id {i}: at most 998 per class (ids are sem*1000 + inst + 1)"),
+                ));
+            }
+            s.checked_mul(1000)
+                .and_then(|v| v.checked_add(ins))
+                .ok_or_else(|| (k, format!("semantic id {s} is out of range")))
         })
         .collect()
 }
@@ -274,8 +291,14 @@ pub fn evaluate(case: &EvalCase, mode: ScoreMode) -> Result<EvalResult, EvalErro
     let ids: Vec<Vec<i64>> = case
         .scenes
         .iter()
-        .map(|s| gt_ids(&s.sem, &s.inst))
-        .collect();
+        .map(|s| {
+            gt_ids(&s.sem, &s.inst).map_err(|(point, reason)| EvalError::Label {
+                scene: s.id.clone(),
+                point,
+                reason,
+            })
+        })
+        .collect::<Result<_, _>>()?;
     let mut matches: Vec<SceneMatches> = ids
         .iter()
         .map(|gt| {
@@ -526,6 +549,17 @@ pub fn average_precision(y_true: &[bool], y_score: &[f64], hard_fn: usize) -> (f
 mod tests {
     use super::*;
 
+    #[test]
+    fn labels_too_large_for_the_id_encoding_are_errors_naming_the_point() {
+        assert_eq!(
+            gt_ids(&[i64::MAX], &[0]),
+            Err((0, "semantic id 9223372036854775807 is out of range".into()))
+        );
+        assert!(gt_ids(&[3, 3], &[0, i64::MAX]).is_err_and(|(k, _)| k == 1));
+        assert!(gt_ids(&[3], &[999]).is_err());
+        assert_eq!(gt_ids(&[3], &[998]), Ok(vec![3999]));
+    }
+
     fn rle(ranges: &[(usize, usize)], n: usize) -> Rle {
         Rle {
             length: n,
@@ -657,7 +691,7 @@ mod tests {
     #[test]
     fn gt_encoding_quirks() {
         assert_eq!(
-            gt_ids(&[14, 14, -3, 14], &[0, -1, 5, -100]),
+            gt_ids(&[14, 14, -3, 14], &[0, -1, 5, -100]).expect("in range"),
             vec![14001, 14000, 6, 0]
         );
     }

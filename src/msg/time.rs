@@ -18,8 +18,10 @@ impl serde::Serialize for Stamp {
 impl Stamp {
     pub const ZERO: Stamp = Stamp(Duration::ZERO);
 
+    /// Saturating: negative and NaN give zero, beyond `Duration`'s range
+    /// its maximum (outside data is checked for range before it gets here).
     pub fn from_secs_f64(secs: f64) -> Stamp {
-        Stamp(Duration::from_secs_f64(secs.max(0.0)))
+        Stamp(Duration::try_from_secs_f64(secs.max(0.0)).unwrap_or(Duration::MAX))
     }
 
     pub fn as_secs_f64(self) -> f64 {
@@ -80,6 +82,13 @@ impl<T> Stamped<T> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn seconds_out_of_range_saturate_instead_of_panicking() {
+        assert_eq!(Stamp::from_secs_f64(1e300).0, Duration::MAX);
+        assert_eq!(Stamp::from_secs_f64(f64::NAN), Stamp::ZERO);
+        assert_eq!(Stamp::from_secs_f64(-1.0), Stamp::ZERO);
+    }
 
     #[test]
     fn age_saturates_at_zero() {

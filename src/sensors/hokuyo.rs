@@ -313,8 +313,21 @@ impl HokuyoDriver {
         let pp = self.command(&Command::Pp)?;
         self.expect_ok(&Command::Pp, &pp)?;
         let params = parse_pp(&pp).map_err(|e| HokuyoError::Protocol(e, self.port_name()))?;
-        self.request.start = params.amin as u16;
-        self.request.end = params.amax as u16;
+        // parse_pp keeps AMAX within 4 digits
+        let port = self.port_name();
+        let step = |v: u32, key: &'static str| {
+            u16::try_from(v).map_err(|_| {
+                HokuyoError::Protocol(
+                    ScipError::Parameter {
+                        key: key.into(),
+                        reason: format!("{v} beyond a scan request's range"),
+                    },
+                    port.clone(),
+                )
+            })
+        };
+        self.request.start = step(params.amin, "AMIN")?;
+        self.request.end = step(params.amax, "AMAX")?;
         self.params = Some(params);
         self.start_stream()?;
         Ok(params)

@@ -469,8 +469,12 @@ pub fn parse_pp(reply: &Reply) -> Result<SensorParams, ScipError> {
     if p.ares == 0 {
         return bad("ARES", "zero steps per turn");
     }
-    if p.amin > p.amax || p.amax >= p.ares.max(1) * 2 {
+    if p.amin > p.amax || u64::from(p.amax) >= u64::from(p.ares) * 2 {
         return bad("AMAX", "step range empty or beyond a turn");
+    }
+    if p.amax > 9999 {
+        // MD/MS address steps with 4 decimal digits
+        return bad("AMAX", "beyond the 4 digits a scan request can address");
     }
     if p.dmin_mm >= p.dmax_mm {
         return bad("DMAX", "not above DMIN");
@@ -592,6 +596,49 @@ mod tests {
         assert!(r.status.is_ok());
         assert_eq!(r.timestamp, None);
         assert!(r.data.is_empty());
+    }
+
+    /// A PP reply with these values (checksums right).
+    fn pp_block(values: &[(&str, &str)]) -> Vec<u8> {
+        let mut block = b"PP\n00P\n".to_vec();
+        for (k, v) in values {
+            let kv = format!("{k}:{v}");
+            block.extend_from_slice(kv.as_bytes());
+            block.push(b';');
+            block.push(checksum(kv.as_bytes()));
+            block.push(b'\n');
+        }
+        block.push(b'\n');
+        block
+    }
+
+    #[test]
+    fn pp_values_out_of_range_are_errors_not_overflows() {
+        let base = [
+            ("DMIN", "20"),
+            ("DMAX", "5600"),
+            ("ARES", "1024"),
+            ("AMIN", "44"),
+            ("AMAX", "725"),
+            ("AFRT", "384"),
+            ("SCAN", "600"),
+        ];
+        let with = |k: &str, v: &'static str| {
+            let vals: Vec<(&str, &str)> = base
+                .iter()
+                .map(|&(bk, bv)| if bk == k { (bk, v) } else { (bk, bv) })
+                .collect();
+            parse_pp(&parse_reply(&pp_block(&vals)).expect("reply"))
+        };
+        assert!(with("AMIN", "44").is_ok());
+        // ARES · 2 beyond u32: no overflow, AMAX within a turn is fine
+        assert!(with("ARES", "4294967295").is_ok());
+        // AMAX beyond what a 4-digit scan request addresses
+        let e = with("ARES", "4294967295").and_then(|_| with("AMAX", "70000"));
+        assert!(
+            matches!(e, Err(ScipError::Parameter { ref key, .. }) if key == "AMAX"),
+            "{e:?}"
+        );
     }
 
     #[test]

@@ -20,6 +20,10 @@ use crate::msg::{Stamp, Stamped};
 /// Largest colour/depth time difference accepted as a pair, seconds.
 pub const MAX_PAIR_DT_S: f64 = 0.02;
 
+/// Timestamps beyond this (seconds; Unix time in the year 33 658) are
+/// refused: a broken list, not a recording.
+pub const MAX_TIMESTAMP_S: f64 = 1e12;
+
 fn rerr(path: &Path, reason: impl std::fmt::Display) -> CameraError {
     CameraError::Recording {
         path: path.display().to_string(),
@@ -52,6 +56,15 @@ pub fn parse_list(text: &str, path: &Path) -> Result<Vec<(f64, String)>, CameraE
                     format!("line {}: timestamp `{t}` is not a number", i + 1),
                 )
             })?;
+        if !(0.0..=MAX_TIMESTAMP_S).contains(&t) {
+            return Err(rerr(
+                path,
+                format!(
+                    "line {}: timestamp `{t}` is out of range (0 to {MAX_TIMESTAMP_S:e} s)",
+                    i + 1
+                ),
+            ));
+        }
         if f.contains("..") {
             return Err(rerr(
                 path,
@@ -160,5 +173,22 @@ impl CameraSource for ReplaySource {
                 depth_stamp: Stamp::from_secs_f64((dt - self.t0).max(0.0)),
             },
         )))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_timestamp_out_of_range_is_an_error_naming_its_line() {
+        let p = Path::new("rgb.txt");
+        assert!(parse_list("1.5 rgb/1.png\n", p).is_ok());
+        for t in ["1e300", "-3", "inf", "nan"] {
+            let e = parse_list(&format!("# a list\n1.0 rgb/0.png\n{t} rgb/1.png\n"), p)
+                .expect_err(t)
+                .to_string();
+            assert!(e.contains("rgb.txt") && e.contains("line 3"), "{t}: {e}");
+        }
     }
 }
