@@ -131,7 +131,10 @@ async fn starts_up_drives_exact_values_and_releases_centred() {
     sleep_ms(600).await;
     assert_eq!(
         r.drain_events(),
-        vec![ActuatorEvent::Ready { joystick_id: None }]
+        vec![
+            ActuatorEvent::Ready { joystick_id: None },
+            ActuatorEvent::Active
+        ]
     );
     let log = r.chip.log();
     assert_eq!(log.startups, 1);
@@ -181,7 +184,10 @@ async fn nacks_withheld_acks_garbage_and_chipset_data_are_survived() {
     let events = r.drain_events();
     assert_eq!(
         events,
-        vec![ActuatorEvent::Ready { joystick_id: None }],
+        vec![
+            ActuatorEvent::Ready { joystick_id: None },
+            ActuatorEvent::Active
+        ],
         "fewer than 5 failures in a row keep the link up"
     );
     let st = r.status.borrow().clone();
@@ -208,12 +214,14 @@ async fn five_unanswered_packets_are_a_fault_then_the_link_restarts() {
     r.chip.inject(ChipsetFault::WithholdAcks(5));
     sleep_ms(900).await;
     let events = r.drain_events();
-    assert_eq!(events.len(), 3, "{events:?}");
+    // up, driving; the fault; up and driving again
+    assert_eq!(events.len(), 5, "{events:?}");
     assert!(
-        matches!(&events[1], ActuatorEvent::Fault { reason } if reason.contains("5 packets in a row")),
+        matches!(&events[2], ActuatorEvent::Fault { reason } if reason.contains("5 packets in a row")),
         "{events:?}"
     );
-    assert_eq!(events[2], ActuatorEvent::Ready { joystick_id: None });
+    assert_eq!(events[3], ActuatorEvent::Ready { joystick_id: None });
+    assert_eq!(events[4], ActuatorEvent::Active);
     let log = r.chip.log();
     assert_eq!(log.startups, 2, "start-up retried");
     // after the restart: centred first, then the command again

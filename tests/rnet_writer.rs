@@ -433,3 +433,54 @@ async fn check_listen_reports_ids_heartbeats_and_battery() {
     assert_eq!(r.error_frames, 1);
     assert_eq!(r.errors, vec!["bus-off".to_string()]);
 }
+
+/// `check rnet --drive` on the simulated chair (the writer on its own
+/// thread, real time): a JSM that keeps talking after the silence request
+/// makes a JSMerror takeover fail, and that is an error naming why; a JSM
+/// that honours it is taken over.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn check_drive_fails_when_the_takeover_does_not_happen() {
+    for ignores_silence in [true, false] {
+        let clock: Arc<dyn Clock> = Arc::new(TokioClock::new());
+        let bus = MemoryBus::new();
+        let chair = Arc::new(Mutex::new(SimChair::new(
+            SimChairSettings {
+                joystick_id: JSM_ID,
+                ignores_silence,
+                ..Default::default()
+            },
+            clock.now(),
+        )));
+        let stop_chair = CancellationToken::new();
+        tokio::spawn(run_sim_chair(
+            bus.endpoint(),
+            chair.clone(),
+            clock,
+            stop_chair.clone(),
+        ));
+        let endpoint = bus.endpoint();
+        let r = opennav::actuation::check::drive(
+            move || Ok(endpoint),
+            RnetSettings::new(TakeoverMode::JsmError, MAPPING),
+            (0, 20),
+            Duration::from_millis(600),
+            CancellationToken::new(),
+        )
+        .await;
+        stop_chair.cancel();
+        if ignores_silence {
+            let e = r.expect_err("no takeover").to_string();
+            assert!(e.contains("the takeover did not happen"), "{e}");
+            assert!(e.contains("kept talking"), "{e}");
+            // the JSM's own frames went on; ours never drove
+            let c = chair.lock().expect("chair");
+            assert!(c.silence_frames > 0);
+            assert!(c.drive_log.iter().all(|d| d.from_jsm), "we drove");
+        } else {
+            let r = r.expect("taken over");
+            assert!(r.events.contains(&ActuatorEvent::Active), "{:?}", r.events);
+            let c = chair.lock().expect("chair");
+            assert!(c.drive_log.iter().any(|d| !d.from_jsm && d.y == 20));
+        }
+    }
+}

@@ -13,7 +13,7 @@ use tokio::sync::{mpsc, watch};
 use tokio_util::sync::CancellationToken;
 
 use super::can::{BusEvent, CanBus, CanBusError};
-use super::rnet::{decode, RnetMessage};
+use super::rnet::{decode, RnetMessage, TakeoverMode};
 use super::writer::{RnetActuator, RnetSettings};
 use super::{spawn_actuator_thread, ActuatorError, ActuatorEvent, ActuatorIo, ActuatorStatus};
 use crate::msg::{Clock, TokioClock};
@@ -114,6 +114,7 @@ where
 {
     let clock: Arc<dyn Clock> = Arc::new(TokioClock::new());
     let (v_mps, omega_radps) = settings.mapping.to_velocity(joystick.0, joystick.1);
+    let settings_mode = settings.mode;
     let (cmd_tx, cmd_rx) = watch::channel(None);
     let (ev_tx, mut ev_rx) = mpsc::channel(64);
     let (status_tx, _status_rx) = watch::channel(ActuatorStatus::default());
@@ -177,6 +178,21 @@ where
         .map_err(|_| ActuatorError::Task("writer thread panicked".into()))??;
     while let Ok(e) = ev_rx.try_recv() {
         events.push(e);
+    }
+    // a drive whose takeover never happened drove nothing: an error
+    if !stop.is_cancelled() && !events.iter().any(|e| matches!(e, ActuatorEvent::Active)) {
+        let why = match (settings_mode, status.joystick_id) {
+            (_, None) => "no joystick module answered (is the chair on, the bus up?)".to_string(),
+            (TakeoverMode::JsmError, Some(_)) => format!(
+                "the joystick module kept talking through {} frames of ours (silence \
+                 requests): it does not honour JSMerror (try --mode followjsm)",
+                status.sent
+            ),
+            (TakeoverMode::FollowJsm, Some(_)) => {
+                "the joystick module's frames were never followed".to_string()
+            }
+        };
+        return Err(ActuatorError::Takeover(why));
     }
     Ok(DriveReport {
         joystick,

@@ -111,6 +111,8 @@ pub enum ActuatorError {
     Rebus(String),
     #[error("actuator task: {0}")]
     Task(String),
+    #[error("the takeover did not happen: {0}")]
+    Takeover(String),
 }
 
 /// A motor interface: runs until cancelled (then centres and releases) or

@@ -371,7 +371,11 @@ impl RebusActuator {
 
     fn link_event(&self, io: &ActuatorIo, event: Option<LinkEvent>) {
         match event {
-            Some(LinkEvent::Up) => emit(io, ActuatorEvent::Ready { joystick_id: None }),
+            Some(LinkEvent::Up) => {
+                emit(io, ActuatorEvent::Ready { joystick_id: None });
+                // the chipset drives from our packets once up: no takeover step
+                emit(io, ActuatorEvent::Active);
+            }
             Some(LinkEvent::Down(reason)) => emit(
                 io,
                 ActuatorEvent::Fault {

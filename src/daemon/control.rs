@@ -77,6 +77,25 @@ pub struct Control {
     latched: bool,
     /// The word to go to once "go" clears the stop.
     pending: Option<String>,
+    /// The motor interface: when it came up, whether it took over, and
+    /// what has been said about it.
+    motors: Motors,
+}
+
+/// The motor interface up but not driving this long: the takeover failed.
+const TAKEOVER_WITHIN: std::time::Duration = std::time::Duration::from_secs(1);
+/// No joystick module heard this long: said once.
+const JSM_WITHIN: std::time::Duration = std::time::Duration::from_secs(5);
+
+#[derive(Debug, Default)]
+struct Motors {
+    first_step: Option<Stamp>,
+    ready_at: Option<Stamp>,
+    /// When the Ready event arrived but no step has stamped it yet.
+    ready_pending: bool,
+    active: bool,
+    said_no_answer: bool,
+    said_no_takeover: bool,
 }
 
 impl Control {
@@ -98,6 +117,7 @@ impl Control {
             done: None,
             latched: false,
             pending: None,
+            motors: Motors::default(),
         }
     }
 
@@ -156,6 +176,8 @@ impl Control {
     /// What the motor interface reported.
     pub fn on_actuator_event(&mut self, ev: &ActuatorEvent) {
         match ev {
+            ActuatorEvent::Ready { .. } => self.motors.ready_pending = true,
+            ActuatorEvent::Active => self.motors.active = true,
             ActuatorEvent::Fault { reason } => {
                 self.supervisor.can_fault(FaultReason::CanBus);
                 self.goal.clear();
@@ -166,7 +188,9 @@ impl Control {
                 self.latch();
                 self.say("You have the joystick. Say go to let me drive again.".into());
             }
-            other => tracing::info!(event = ?other, "actuator"),
+            other @ (ActuatorEvent::JsmLost | ActuatorEvent::Released) => {
+                tracing::info!(event = ?other, "actuator")
+            }
         }
     }
 
@@ -181,8 +205,40 @@ impl Control {
         });
     }
 
+    /// A takeover that does not happen is said and latched as a fault; a
+    /// chair whose joystick module never answers is said once.
+    fn watch_motors(&mut self, now: Stamp) {
+        let m = &mut self.motors;
+        let first = *m.first_step.get_or_insert(now);
+        if m.ready_pending {
+            m.ready_pending = false;
+            m.ready_at.get_or_insert(now);
+        }
+        if m.active {
+            return;
+        }
+        match m.ready_at {
+            Some(t) if t.age_at(now) > TAKEOVER_WITHIN && !m.said_no_takeover => {
+                m.said_no_takeover = true;
+                self.supervisor.can_fault(FaultReason::Takeover);
+                self.goal.clear();
+                self.say(
+                    "I cannot take over the chair's joystick: its joystick module keeps \
+                     control. Stopped."
+                        .into(),
+                );
+            }
+            None if first.age_at(now) > JSM_WITHIN && !m.said_no_answer => {
+                m.said_no_answer = true;
+                self.say("The chair's joystick module does not answer: I cannot drive.".into());
+            }
+            _ => {}
+        }
+    }
+
     /// One step at `now`.
     pub fn step(&mut self, now: Stamp, inputs: ControlInputs) -> ControlOutput {
+        self.watch_motors(now);
         if let (Some(o), Some(odo)) = (inputs.obstacles, inputs.odometry) {
             self.plan(now, o, odo, inputs.tracker);
         }
@@ -413,6 +469,56 @@ mod tests {
         c.on_actuator_event(&ActuatorEvent::UserDeflection { x: 0, y: 40 });
         c.on_input(UserInput::Goto("desk".into()));
         assert_eq!(turn(&mut c, 700).cmd.cmd, VelocityCmd::default());
+    }
+
+    #[test]
+    fn a_takeover_that_does_not_happen_is_said_and_latched() {
+        let mut c = control(false);
+        let tracker = Tracker::new(crate::config::Settings::defaults().tracker);
+        let step = |c: &mut Control, ms_: u64| {
+            let now = at(ms_);
+            let (o, odo) = fresh(now);
+            c.step(
+                now,
+                ControlInputs {
+                    obstacles: Some(&o),
+                    odometry: Some(&odo),
+                    tracker: &tracker,
+                },
+            )
+        };
+        c.on_input(UserInput::Goto("chair".into()));
+        step(&mut c, 0);
+        // the writer learned the joystick id, but never became active
+        c.on_actuator_event(&ActuatorEvent::Ready {
+            joystick_id: Some(0x0200_0100),
+        });
+        let mut said = Vec::new();
+        for k in 1..40 {
+            said.extend(step(&mut c, 50 * k).said);
+        }
+        assert!(
+            said.iter()
+                .any(|s| s.starts_with("I cannot take over the chair's joystick")),
+            "{said:?}"
+        );
+        let out = step(&mut c, 2000);
+        assert_eq!(out.cmd.state, SupervisorState::Fault(FaultReason::Takeover));
+        assert_eq!(out.cmd.cmd, VelocityCmd::default());
+        // taken over in time: nothing said
+        let mut c = control(false);
+        step(&mut c, 0);
+        c.on_actuator_event(&ActuatorEvent::Ready { joystick_id: None });
+        c.on_actuator_event(&ActuatorEvent::Active);
+        let said: Vec<String> = (1..200).flat_map(|k| step(&mut c, 50 * k).said).collect();
+        assert!(said.is_empty(), "{said:?}");
+        // no joystick module at all: said once
+        let mut c = control(false);
+        let said: Vec<String> = (0..200).flat_map(|k| step(&mut c, 50 * k).said).collect();
+        assert_eq!(
+            said,
+            vec!["The chair's joystick module does not answer: I cannot drive.".to_string()]
+        );
     }
 
     #[test]

@@ -34,6 +34,9 @@ pub enum FaultReason {
     MotorLink,
     /// A task or thread of the daemon died.
     Task,
+    /// The motor interface came up but never took over the chair's
+    /// joystick (R-Net JSMerror: the joystick module kept talking).
+    Takeover,
     /// The chair moved faster than the caps (plus a margin) for longer
     /// than the overspeed window: something other than us drives it.
     Overspeed,

@@ -36,6 +36,9 @@ pub struct SimChairSettings {
     /// No joystick frame for longer than this → motors stop.
     pub motor_timeout: Duration,
     pub battery_percent: u8,
+    /// A JSM that keeps talking after the silence frame (one that does not
+    /// honour JSMerror): a takeover in that mode must fail loudly.
+    pub ignores_silence: bool,
 }
 
 impl Default for SimChairSettings {
@@ -47,6 +50,7 @@ impl Default for SimChairSettings {
             pm_period: Duration::from_secs(1),
             motor_timeout: Duration::from_millis(30),
             battery_percent: 80,
+            ignores_silence: false,
         }
     }
 }
@@ -148,7 +152,7 @@ impl SimChair {
     pub fn on_frame(&mut self, f: &CanFrame, now: Stamp) {
         if f.extended && f.id == JSM_SILENCE_ID && f.len == 0 {
             self.silence_frames += 1;
-            self.jsm_silenced = true;
+            self.jsm_silenced = !self.settings.ignores_silence;
             return;
         }
         if let RnetMessage::Joystick { id, x, y } = decode(f) {
