@@ -20,7 +20,6 @@ use super::replica::SimGtDetector;
 use super::rnet::{run_sim_chair, SimChair, SimChairSettings};
 use super::world::{SimReport, SimWorld};
 use crate::actuation::can::MemoryBus;
-use crate::actuation::rnet::TakeoverMode;
 use crate::actuation::writer::RnetActuator;
 use crate::actuation::{Actuator, ActuatorError};
 use crate::config::Settings;
@@ -135,7 +134,11 @@ pub fn devices(
         let (world, chair, clock, stop) =
             (world.clone(), chair.clone(), clock.clone(), stop.clone());
         async move {
-            let mut tick = tokio::time::interval(WORLD_STEP);
+            // half a step after the joystick module's frames: the motors
+            // act on the latest frame, which under FollowJSM is ours right
+            // after the JSM's, not on the JSM's in the instant it is sent
+            let mut tick =
+                tokio::time::interval_at(tokio::time::Instant::now() + WORLD_STEP / 2, WORLD_STEP);
             let mut k: u64 = 0;
             loop {
                 tokio::select! {
@@ -167,8 +170,8 @@ pub fn devices(
 
     // the motor interface: the real R-Net writer on the simulated bus,
     // ticking on tokio's clock (real or paused)
+    // the configured takeover mode, as on the chair
     let mut rnet = settings.rnet_settings();
-    rnet.mode = TakeoverMode::JsmError;
     rnet.precise_timer = false;
     let endpoint = bus.endpoint();
     let actuator: crate::daemon::devices::ActuatorStart = Box::new(move |io| {
