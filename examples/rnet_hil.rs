@@ -485,7 +485,7 @@ async fn bus_error_fault(iface: &str) -> Result<Verdict, String> {
     v.check(
         r.events()
             .iter()
-            .any(|e| matches!(e, ActuatorEvent::Fault { reason } if reason == "bus-off")),
+            .any(|e| matches!(e, ActuatorEvent::Fault { reason, .. } if reason == "bus-off")),
         "Fault event for the bus-off",
     );
     v.metric("bus_errors", json!(r.status.borrow().bus_errors));

@@ -13,6 +13,7 @@ use opennav::actuation::rnet::JoystickMapping;
 use opennav::actuation::{
     spawn_actuator_thread, ActuatorError, ActuatorEvent, ActuatorIo, ActuatorStatus,
 };
+use opennav::msg::FaultReason;
 use opennav::msg::{Clock, TokioClock};
 use opennav::msg::{SafeCmd, SupervisorState, VelocityCmd};
 use opennav::sim::rebus::{ChipsetFault, RebusChipset};
@@ -217,7 +218,7 @@ async fn five_unanswered_packets_are_a_fault_then_the_link_restarts() {
     // up, driving; the fault; up and driving again
     assert_eq!(events.len(), 5, "{events:?}");
     assert!(
-        matches!(&events[2], ActuatorEvent::Fault { reason } if reason.contains("5 packets in a row")),
+        matches!(&events[2], ActuatorEvent::Fault { kind: FaultReason::MotorLink, reason } if reason.contains("5 packets in a row")),
         "{events:?}"
     );
     assert_eq!(events[3], ActuatorEvent::Ready { joystick_id: None });

@@ -347,7 +347,7 @@ async fn bus_off_latches_a_fault_and_centres_at_once() {
     assert!(r
         .events()
         .iter()
-        .any(|e| matches!(e, ActuatorEvent::Fault { reason } if reason == "bus-off")));
+        .any(|e| matches!(e, ActuatorEvent::Fault { reason, .. } if reason == "bus-off")));
     assert_eq!(finish(r).await, SupervisorState::Fault(FaultReason::CanBus));
 }
 

@@ -13,7 +13,7 @@ use tokio::sync::{mpsc, watch};
 use tokio_util::sync::CancellationToken;
 
 use crate::msg::Clock;
-use crate::msg::SafeCmd;
+use crate::msg::{FaultReason, SafeCmd};
 
 pub mod can;
 pub mod check;
@@ -32,8 +32,9 @@ pub enum ActuatorEvent {
     Active,
     /// The user moved the real joystick: autonomy yields (supervisor stop).
     UserDeflection { x: i8, y: i8 },
-    /// A bus or link fault: the supervisor latches a fault.
-    Fault { reason: String },
+    /// A bus or link fault: the supervisor latches a fault of this kind
+    /// (CAN bus for R-Net, motor link for Rebus).
+    Fault { kind: FaultReason, reason: String },
     /// The JSM's heartbeat is gone (chair switched off?).
     JsmLost,
     /// Shutdown finished: centred frames sent, then nothing.

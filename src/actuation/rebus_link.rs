@@ -20,7 +20,7 @@ use tokio::sync::mpsc::error::TrySendError;
 use super::rebus::{Decoder, Kind, Packet};
 use super::rnet::JoystickMapping;
 use super::{Actuator, ActuatorError, ActuatorEvent, ActuatorIo, ActuatorStatus};
-use crate::msg::Stamp;
+use crate::msg::{FaultReason, Stamp};
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RebusSettings {
@@ -343,6 +343,7 @@ impl RebusActuator {
                     emit(
                         &io,
                         ActuatorEvent::Fault {
+                            kind: FaultReason::MotorLink,
                             reason: format!("{}: read: {e}", self.port),
                         },
                     );
@@ -379,6 +380,7 @@ impl RebusActuator {
             Some(LinkEvent::Down(reason)) => emit(
                 io,
                 ActuatorEvent::Fault {
+                    kind: FaultReason::MotorLink,
                     reason: format!("Rebus {}: {reason}", self.port),
                 },
             ),

@@ -27,8 +27,7 @@ use super::rnet::{
     CanFrame, JoystickMapping, Takeover, TakeoverEvent, TakeoverMode, TakeoverState,
 };
 use super::{Actuator, ActuatorError, ActuatorEvent, ActuatorIo, ActuatorStatus, PeriodStats};
-use crate::msg::Stamp;
-use crate::msg::SupervisorState;
+use crate::msg::{FaultReason, Stamp, SupervisorState};
 
 /// R-Net writer settings (config `[actuation.rnet]`).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -318,13 +317,13 @@ impl<B: CanBus> Actuator for RnetActuator<B> {
                                 tracing::error!(error = %e.describe(), "CAN bus fault");
                                 w.fault_at = Some(now);
                                 tk.clear_command();
-                                emit(&io, ActuatorEvent::Fault { reason: e.describe() });
+                                emit(&io, ActuatorEvent::Fault { kind: FaultReason::CanBus, reason: e.describe() });
                             } else {
                                 tracing::warn!(error = %e.describe(), "CAN bus error");
                             }
                         }
                         Err(e @ (CanBusError::Closed | CanBusError::Io { .. })) => {
-                            emit(&io, ActuatorEvent::Fault { reason: e.to_string() });
+                            emit(&io, ActuatorEvent::Fault { kind: FaultReason::CanBus, reason: e.to_string() });
                             w.status.state = "failed".into();
                             io.status.send_replace(w.status.clone());
                             return Err(e.into());

@@ -178,8 +178,8 @@ impl Control {
         match ev {
             ActuatorEvent::Ready { .. } => self.motors.ready_pending = true,
             ActuatorEvent::Active => self.motors.active = true,
-            ActuatorEvent::Fault { reason } => {
-                self.supervisor.can_fault(FaultReason::CanBus);
+            ActuatorEvent::Fault { kind, reason } => {
+                self.supervisor.can_fault(*kind);
                 self.goal.clear();
                 self.say(format!("Motor interface fault: {reason}. Stopped."));
             }
@@ -519,6 +519,32 @@ mod tests {
             said,
             vec!["The chair's joystick module does not answer: I cannot drive.".to_string()]
         );
+    }
+
+    #[test]
+    fn a_motor_link_fault_is_latched_as_one_and_a_bus_fault_as_a_bus_fault() {
+        for kind in [FaultReason::MotorLink, FaultReason::CanBus] {
+            let mut c = control(false);
+            let tracker = Tracker::new(crate::config::Settings::defaults().tracker);
+            c.on_actuator_event(&ActuatorEvent::Fault {
+                kind,
+                reason: "link down".into(),
+            });
+            let (o, odo) = fresh(at(0));
+            let out = c.step(
+                at(0),
+                ControlInputs {
+                    obstacles: Some(&o),
+                    odometry: Some(&odo),
+                    tracker: &tracker,
+                },
+            );
+            assert_eq!(out.cmd.state, SupervisorState::Fault(kind));
+            assert_eq!(
+                out.said,
+                vec!["Motor interface fault: link down. Stopped.".to_string()]
+            );
+        }
     }
 
     #[test]

@@ -23,7 +23,7 @@ use crate::actuation::rnet::{
     decode, joystick_frame, CanFrame, RnetMessage, JSM_HEARTBEAT_ID, JSM_SILENCE_ID,
 };
 use crate::actuation::ActuatorEvent;
-use crate::msg::{Clock, FaultReason, Obstacles, Odometry, SafeCmd, Stamp, Stamped, VelocityCmd};
+use crate::msg::{Clock, Obstacles, Odometry, SafeCmd, Stamp, Stamped, VelocityCmd};
 use crate::safety::{Supervisor, SupervisorInputs};
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -274,7 +274,7 @@ pub async fn run_control_stand_in(c: ControlStandIn) -> Supervisor {
             ev = events.recv() => {
                 let Some(ev) = ev else { return supervisor };
                 match ev {
-                    ActuatorEvent::Fault { .. } => supervisor.can_fault(FaultReason::CanBus),
+                    ActuatorEvent::Fault { kind, .. } => supervisor.can_fault(kind),
                     ActuatorEvent::UserDeflection { .. } => supervisor.user_takeover(),
                     _ => {}
                 }
