@@ -162,6 +162,7 @@ pub struct RuntimeSection {
     pub execution_provider: ExecutionProviderKind,
     pub intra_threads: usize,
     pub inter_threads: usize,
+    pub lock_file: String,
 }
 
 #[derive(Debug, Clone, Deserialize, PartialEq)]
@@ -659,6 +660,22 @@ impl Settings {
             reached_within_m: g.reached_within_m,
             search_turn_radps: g.search_turn_radps,
         }
+    }
+
+    /// The instance lock's path (`runtime.lock_file`, or the runtime
+    /// directory's).
+    pub fn lock_path(&self) -> PathBuf {
+        if !self.runtime.lock_file.is_empty() {
+            return PathBuf::from(&self.runtime.lock_file);
+        }
+        for var in ["RUNTIME_DIRECTORY", "XDG_RUNTIME_DIR"] {
+            if let Some(d) = std::env::var_os(var).filter(|d| !d.is_empty()) {
+                return PathBuf::from(d).join("opennav.lock");
+            }
+        }
+        // SAFETY: getuid has no preconditions
+        let uid = unsafe { libc::getuid() };
+        std::env::temp_dir().join(format!("opennav-{uid}.lock"))
     }
 
     /// The chair's joystick calibration.

@@ -228,6 +228,10 @@ fn without_sim_and_without_devices_it_exits_1_naming_them() {
         .arg(&cfg)
         .args(["run", "--no-stdin", "--no-camera"])
         .env("NOTIFY_SOCKET", &notify)
+        .env(
+            "OPENNAV_RUNTIME__LOCK_FILE",
+            dir.path().join("opennav.lock"),
+        )
         .output()
         .expect("runs");
     assert_eq!(out.status.code(), Some(1));
@@ -243,6 +247,50 @@ fn without_sim_and_without_devices_it_exits_1_naming_them() {
     assert_eq!(err.trim().lines().count(), 1, "one line: {err}");
     let mut buf = [0u8; 256];
     assert!(sock.recv(&mut buf).is_err(), "no notify message (no READY)");
+}
+
+#[test]
+fn a_second_opennav_driving_the_chair_refuses_to_start() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let lock = dir.path().join("opennav.lock");
+    let _held = opennav::daemon::lock::InstanceLock::acquire(&lock).expect("lock");
+    for args in [
+        &["run", "--no-stdin", "--no-camera"][..],
+        &[
+            "check",
+            "rnet",
+            "--iface",
+            "nonexistent0",
+            "--drive",
+            "0,10",
+            "--for",
+            "1s",
+        ][..],
+    ] {
+        let out = Command::new(env!("CARGO_BIN_EXE_opennav"))
+            .args(args)
+            .env("OPENNAV_RUNTIME__LOCK_FILE", &lock)
+            .output()
+            .expect("runs");
+        assert_eq!(out.status.code(), Some(1), "{args:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.contains("another opennav drives the chair"),
+            "{args:?}: {err}"
+        );
+        assert!(
+            err.contains(&format!("pid {}", std::process::id())),
+            "{err}"
+        );
+        assert_eq!(err.trim().lines().count(), 1, "one line: {err}");
+    }
+    // the simulator drives no chair: it does not need the lock
+    let out = opennav()
+        .args(["--no-stdin", "--max-duration", "1s"])
+        .env("OPENNAV_RUNTIME__LOCK_FILE", &lock)
+        .output()
+        .expect("runs");
+    assert!(out.status.success());
 }
 
 #[test]

@@ -222,6 +222,13 @@ pub fn check_rnet(
             TakeoverArg::Followjsm => TakeoverMode::FollowJsm,
         };
     }
+    // driving: the one writer on the bus (held until the process ends)
+    let _lock = match joystick {
+        Some(_) => Some(
+            opennav::daemon::lock::InstanceLock::acquire(&settings.lock_path()).map_err(failed)?,
+        ),
+        None => None,
+    };
     let rt = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()

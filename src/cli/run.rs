@@ -137,6 +137,13 @@ pub fn run(config: Option<&std::path::Path>, args: RunArgs) -> Result<(), Failur
         (None, false) => CameraChoice::RealSense,
     };
     let sim = args.sim;
+    // on the chair: the one opennav driving it (held until the process
+    // ends; the kernel lets go however it ends)
+    let _lock = if sim {
+        None
+    } else {
+        Some(opennav::daemon::lock::InstanceLock::acquire(&settings.lock_path()).map_err(failed)?)
+    };
     let (report, summary) = rt.block_on(async move {
         let cancel = CancellationToken::new();
         let c = cancel.clone();

@@ -30,6 +30,7 @@ pub mod control;
 pub mod control_task;
 pub mod devices;
 pub mod estimation;
+pub mod lock;
 pub mod notify;
 pub mod perception;
 pub mod recorder;
