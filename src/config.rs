@@ -163,6 +163,7 @@ pub struct RuntimeSection {
     pub intra_threads: usize,
     pub inter_threads: usize,
     pub lock_file: String,
+    pub state_dir: String,
 }
 
 #[derive(Debug, Clone, Deserialize, PartialEq)]
@@ -676,6 +677,22 @@ impl Settings {
         // SAFETY: getuid has no preconditions
         let uid = unsafe { libc::getuid() };
         std::env::temp_dir().join(format!("opennav-{uid}.lock"))
+    }
+
+    /// Where latched faults are kept (`runtime.state_dir`, or systemd's
+    /// state directory, or the user's); None when no such place is known.
+    pub fn state_dir(&self) -> Option<PathBuf> {
+        if !self.runtime.state_dir.is_empty() {
+            return Some(PathBuf::from(&self.runtime.state_dir));
+        }
+        let var = |v: &str| {
+            std::env::var_os(v)
+                .filter(|d| !d.is_empty())
+                .map(PathBuf::from)
+        };
+        var("STATE_DIRECTORY")
+            .or_else(|| var("XDG_STATE_HOME").map(|d| d.join("opennav")))
+            .or_else(|| var("HOME").map(|h| h.join(".local/state/opennav")))
     }
 
     /// The chair's joystick calibration.

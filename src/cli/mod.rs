@@ -31,6 +31,9 @@ pub enum Command {
     Run(run::RunArgs),
     /// Detect prompted objects in one RGB(-D) image: 2D boxes, and 3D objects with depth.
     Detect(detect::DetectArgs),
+    /// A person checked the chair after a latched fault (CAN bus, motor
+    /// link, overspeed): clears it so the daemon may drive again.
+    AckFault,
 }
 
 /// An error with its exit code.
@@ -121,5 +124,19 @@ fn dispatch(cli: Cli) -> Result<(), Failure> {
         Command::Check(cmd) => check::run(config, cmd),
         Command::Run(args) => run::run(config, args),
         Command::Detect(args) => detect::run(Settings::load(config).map_err(bad_input)?, args),
+        Command::AckFault => ack_fault(&Settings::load(config).map_err(bad_input)?),
     }
+}
+
+/// `opennav ack-fault`: what was latched, cleared; one JSON line.
+fn ack_fault(settings: &Settings) -> Result<(), Failure> {
+    let dir = settings.state_dir().ok_or_else(|| {
+        failed(anyhow::anyhow!(
+            "no state directory: set runtime.state_dir (or $STATE_DIRECTORY, $HOME)"
+        ))
+    })?;
+    let cleared = opennav::daemon::latch::acknowledge(&dir).map_err(failed)?;
+    let line = serde_json::json!({ "state_dir": dir, "acknowledged": cleared });
+    println!("{line}");
+    Ok(())
 }

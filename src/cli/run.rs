@@ -103,6 +103,19 @@ pub fn run(config: Option<&std::path::Path>, args: RunArgs) -> Result<(), Failur
         max_duration: args.max_duration,
         record: args.record.clone(),
         speech: Some(speech_tx),
+        // the simulator's faults are not the chair's
+        state_dir: if args.sim {
+            None
+        } else {
+            let dir = settings.state_dir();
+            if dir.is_none() {
+                tracing::warn!(
+                    "no state directory (runtime.state_dir, $STATE_DIRECTORY, $HOME): \
+                     a latched fault will not survive a restart"
+                );
+            }
+            dir
+        },
         inject_panic,
     };
     let (input_tx, input_rx) = mpsc::channel::<UserInput>(16);

@@ -80,6 +80,8 @@ pub struct Control {
     /// The motor interface: when it came up, whether it took over, and
     /// what has been said about it.
     motors: Motors,
+    /// What the latest fault was, in words.
+    fault_reason: Option<String>,
 }
 
 /// The motor interface up but not driving this long: the takeover failed.
@@ -118,7 +120,30 @@ impl Control {
             latched: false,
             pending: None,
             motors: Motors::default(),
+            fault_reason: None,
         }
+    }
+
+    /// What the latest fault was, in words.
+    pub fn fault_reason(&self) -> Option<String> {
+        match self.supervisor.state() {
+            SupervisorState::Fault(FaultReason::Overspeed) => {
+                Some("the chair moved faster than its speed caps".into())
+            }
+            _ => self.fault_reason.clone(),
+        }
+    }
+
+    /// A fault latched before this start (a restart): stopped until a
+    /// person acknowledges it.
+    pub fn on_latched_fault(&mut self, f: &super::latch::LatchedFault) {
+        self.supervisor.can_fault(f.fault);
+        self.fault_reason = Some(f.reason.clone());
+        self.say(format!(
+            "A fault from before the restart holds: {}. A person must check the chair and \
+             acknowledge it (opennav ack-fault). Stopped.",
+            f.reason
+        ));
     }
 
     /// Stopped by the user: the goal is put aside until "go".
@@ -180,6 +205,7 @@ impl Control {
             ActuatorEvent::Active => self.motors.active = true,
             ActuatorEvent::Fault { kind, reason } => {
                 self.supervisor.can_fault(*kind);
+                self.fault_reason = Some(reason.clone());
                 self.goal.clear();
                 self.say(format!("Motor interface fault: {reason}. Stopped."));
             }

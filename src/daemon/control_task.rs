@@ -12,6 +12,7 @@ use tokio::sync::{mpsc, watch};
 use tokio_util::sync::CancellationToken;
 
 use super::control::{Control, ControlInputs, Outcome};
+use super::latch;
 use super::notify::sd_notify;
 use crate::actuation::ActuatorEvent;
 use crate::estimation::tracker::Tracker;
@@ -34,6 +35,8 @@ pub struct ControlTaskIo {
     pub commands: watch::Sender<Option<SafeCmd>>,
     pub prompts: watch::Sender<Vec<String>>,
     pub speech: Option<mpsc::UnboundedSender<String>>,
+    /// Where a latched fault is written (None: nowhere).
+    pub state_dir: Option<std::path::PathBuf>,
     pub clock: Arc<dyn Clock>,
     pub cancel: CancellationToken,
     pub start: Stamp,
@@ -59,6 +62,7 @@ pub async fn run(mut control: Control, mut io: ControlTaskIo) -> ControlEnd {
     let mut tick = tokio::time::interval(CONTROL_PERIOD);
     tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     let mut ready = false;
+    let mut persisted: Option<crate::msg::FaultReason> = None;
     let mut status_sent = String::new();
     let mut inputs_open = true;
     let outcome = loop {
@@ -108,6 +112,23 @@ pub async fn run(mut control: Control, mut io: ControlTaskIo) -> ControlEnd {
                 tx.send(s.clone()).ok();
             }
             said.push(s);
+        }
+        // a fault a restart must not clear: on disk at once
+        if let (SupervisorState::Fault(kind), Some(dir)) = (out.cmd.state, &io.state_dir) {
+            if latch::persists(kind) && persisted != Some(kind) {
+                persisted = Some(kind);
+                let record = latch::LatchedFault {
+                    fault: kind,
+                    reason: control
+                        .fault_reason()
+                        .unwrap_or_else(|| format!("{kind:?}")),
+                    since_unix_s: latch::now_unix_s(),
+                };
+                if let Err(e) = latch::store(dir, &record) {
+                    // the fault holds in this run; a restart would not know it
+                    tracing::error!(error = %e, "the latched fault could not be written");
+                }
+            }
         }
         if !ready {
             if io.waiting.is_empty() {

@@ -30,6 +30,7 @@ pub mod control;
 pub mod control_task;
 pub mod devices;
 pub mod estimation;
+pub mod latch;
 pub mod lock;
 pub mod notify;
 pub mod perception;
@@ -76,6 +77,9 @@ pub struct RunOptions {
     /// What the chair says goes here too, as it is said (the command line
     /// prints it; the voice output will speak it).
     pub speech: Option<mpsc::UnboundedSender<String>>,
+    /// Where a latched fault is kept across restarts (the chair); None:
+    /// nowhere (the simulator).
+    pub state_dir: Option<std::path::PathBuf>,
     /// Fault-injection tests: this task panics after this long.
     pub inject_panic: Option<(String, Duration)>,
 }
@@ -443,7 +447,10 @@ pub async fn run(
     );
 
     // the control task, watched together with the others
-    let control = new_control(settings, view, opts.exit_on_arrival);
+    let mut control = new_control(settings, view, opts.exit_on_arrival);
+    if let Some(f) = opts.state_dir.as_deref().and_then(latch::load) {
+        control.on_latched_fault(&f);
+    }
     let (fault_tx, faults) = mpsc::unbounded_channel::<(String, String)>();
     let control_panic = injected_panic_after(&opts.inject_panic, "control");
     let mut control_task = tokio::spawn(panic_after(
@@ -462,6 +469,7 @@ pub async fn run(
                 commands: cmd_tx,
                 prompts: prompts_tx,
                 speech: opts.speech.clone(),
+                state_dir: opts.state_dir.clone(),
                 clock: clock.clone(),
                 cancel: shutdown.clone(),
                 start,

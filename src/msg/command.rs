@@ -26,7 +26,7 @@ pub enum StopReason {
     UserTakeover,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize)]
 pub enum FaultReason {
     /// Bus-off, error-passive or controller problems on CAN.
     CanBus,
