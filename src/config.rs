@@ -93,6 +93,7 @@ pub struct ActuationSection {
 pub struct RnetSection {
     pub iface: String,
     pub mode: crate::actuation::rnet::TakeoverMode,
+    pub max_speed_percent: u8,
 }
 
 #[derive(Debug, Clone, Deserialize, PartialEq)]
@@ -553,6 +554,12 @@ impl Settings {
             10.0,
         )?;
         let a = &self.actuation;
+        range(
+            "actuation.rnet.max_speed_percent",
+            a.rnet.max_speed_percent,
+            0,
+            100,
+        )?;
         finite_range("actuation.forward_full_mps", a.forward_full_mps, 0.1, 5.0)?;
         finite_range("actuation.reverse_full_mps", a.reverse_full_mps, 0.05, 5.0)?;
         finite_range("actuation.turn_full_radps", a.turn_full_radps, 0.1, 6.0)?;
@@ -712,6 +719,7 @@ impl Settings {
         let mut s =
             crate::actuation::writer::RnetSettings::new(a.rnet.mode, self.joystick_mapping());
         s.command_max_age = std::time::Duration::from_secs_f64(a.command_max_age_s);
+        s.max_speed_percent = Some(a.rnet.max_speed_percent);
         s.release_after = std::time::Duration::from_secs_f64(a.release_s);
         s
     }

@@ -60,6 +60,9 @@ fn limits() -> SafetyLimits {
     }
 }
 
+/// The speed setting the rig's writer pins.
+const MAX_SPEED_PERCENT: u8 = 40;
+
 fn rig(mode: TakeoverMode) -> Rig {
     let clock: Arc<dyn Clock> = Arc::new(TokioClock::new());
     let bus = MemoryBus::new();
@@ -102,6 +105,7 @@ fn rig(mode: TakeoverMode) -> Rig {
             settings: RnetSettings {
                 // tokio's timer: these tests run on its paused clock
                 precise_timer: false,
+                max_speed_percent: Some(MAX_SPEED_PERCENT),
                 ..RnetSettings::new(mode, MAPPING)
             },
         }
@@ -482,5 +486,20 @@ async fn check_drive_fails_when_the_takeover_does_not_happen() {
             let c = chair.lock().expect("chair");
             assert!(c.drive_log.iter().any(|d| !d.from_jsm && d.y == 20));
         }
+    }
+}
+
+#[tokio::test(start_paused = true)]
+async fn the_speed_setting_is_pinned_at_takeover_and_every_second_in_both_modes() {
+    for mode in [TakeoverMode::FollowJsm, TakeoverMode::JsmError] {
+        let r = rig(mode);
+        sleep_ms(300).await;
+        let first = r.chair.lock().expect("chair").max_speed_log.clone();
+        assert_eq!(first, vec![MAX_SPEED_PERCENT], "{mode:?}: at takeover");
+        sleep_ms(3000).await;
+        let log = r.chair.lock().expect("chair").max_speed_log.clone();
+        assert!((3..=5).contains(&log.len()), "{mode:?}: {log:?}");
+        assert!(log.iter().all(|&p| p == MAX_SPEED_PERCENT));
+        finish(r).await;
     }
 }

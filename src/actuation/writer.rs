@@ -24,7 +24,8 @@ use tokio::time::MissedTickBehavior;
 
 use super::can::{BusEvent, CanBus, CanBusError};
 use super::rnet::{
-    CanFrame, JoystickMapping, Takeover, TakeoverEvent, TakeoverMode, TakeoverState,
+    device_of, max_speed_frame, CanFrame, JoystickMapping, Takeover, TakeoverEvent, TakeoverMode,
+    TakeoverState,
 };
 use super::{Actuator, ActuatorError, ActuatorEvent, ActuatorIo, ActuatorStatus, PeriodStats};
 use crate::msg::{FaultReason, Stamp, SupervisorState};
@@ -46,6 +47,9 @@ pub struct RnetSettings {
     /// clock (nanosecond timers) instead of tokio's millisecond timer
     /// wheel. On for the chair; off where tests control tokio's clock.
     pub precise_timer: bool,
+    /// The chair's speed setting, pinned at takeover and every second
+    /// after (R-Net max-speed frame, %); None leaves it alone.
+    pub max_speed_percent: Option<u8>,
 }
 
 impl RnetSettings {
@@ -58,6 +62,7 @@ impl RnetSettings {
             release_after: Duration::from_millis(200),
             jsm_lost_after: Duration::from_millis(500),
             precise_timer: true,
+            max_speed_percent: None,
         }
     }
 }
@@ -276,6 +281,15 @@ impl<B: CanBus> Actuator for RnetActuator<B> {
                         emit(&io, ActuatorEvent::JsmLost);
                     }
                     jsm_lost_reported = lost;
+                    // the speed setting again every second (a turned dial,
+                    // a changed profile)
+                    if let (Some(p), Some(id), true) =
+                        (s.max_speed_percent, tk.joystick_id(), ticks.is_multiple_of(100))
+                    {
+                        if release_at.is_none() {
+                            w.send(&self.bus, &max_speed_frame(device_of(id), p), now, false);
+                        }
+                    }
                     if ticks.is_multiple_of(10) {
                         w.status.state = state_name(tk.state).into();
                         w.status.joystick_id = tk.joystick_id();
@@ -299,6 +313,9 @@ impl<B: CanBus> Actuator for RnetActuator<B> {
                             match event {
                                 Some(TakeoverEvent::Learned(id)) => {
                                     w.status.joystick_id = Some(id);
+                                    if let Some(p) = s.max_speed_percent {
+                                        w.send(&self.bus, &max_speed_frame(device_of(id), p), now, false);
+                                    }
                                     emit(&io, ActuatorEvent::Ready { joystick_id: Some(id) });
                                     if s.mode == TakeoverMode::FollowJsm {
                                         emit(&io, ActuatorEvent::Active);

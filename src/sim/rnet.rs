@@ -80,6 +80,8 @@ pub struct SimChair {
     /// Every drive frame seen by the PM, in order.
     pub drive_log: Vec<DriveFrame>,
     pub jsm_frames_sent: u64,
+    /// Max-speed settings received (%), in order.
+    pub max_speed_log: Vec<u8>,
 }
 
 impl SimChair {
@@ -95,6 +97,7 @@ impl SimChair {
             last_drive: None,
             drive_log: Vec::new(),
             jsm_frames_sent: 0,
+            max_speed_log: Vec::new(),
         }
     }
 
@@ -153,6 +156,12 @@ impl SimChair {
         if f.extended && f.id == JSM_SILENCE_ID && f.len == 0 {
             self.silence_frames += 1;
             self.jsm_silenced = !self.settings.ignores_silence;
+            return;
+        }
+        if let RnetMessage::MaxSpeed { device, percent } = decode(f) {
+            if u32::from(device) == self.device() {
+                self.max_speed_log.push(percent);
+            }
             return;
         }
         if let RnetMessage::Joystick { id, x, y } = decode(f) {
