@@ -196,7 +196,11 @@ async fn nacks_withheld_acks_garbage_and_chipset_data_are_survived() {
     assert!(st.bus_errors >= 1, "garbage counted: {st:?}");
     assert_eq!(st.state, "up");
     let log = r.chip.log();
-    assert_eq!(log.host_acks, 1, "the host ACKs the chipset's DATA");
+    assert_eq!(
+        log.host_acks, 2,
+        "the host ACKs the start-up handshake and the chipset's DATA"
+    );
+    assert_eq!(log.before_handshake, 0);
     let n = log.velocity.len();
     sleep_ms(200).await;
     let log = r.chip.log();

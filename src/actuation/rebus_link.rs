@@ -2,7 +2,8 @@
 //!
 //! Stop-and-wait as the chipset expects: one DATA packet outstanding at a
 //! time; each waits at most `ack_timeout` (50 ms) for its ACK. Start-up
-//! sends DATA `[01]` with the start-up flag; its ACK brings the link up.
+//! sends DATA `[01]` with the start-up flag; its ACK, answered with ours,
+//! brings the link up.
 //! Every 10 ms tick sends a velocity packet `[0B 00 00 vx vy]` carrying the
 //! supervisor's command while younger than `command_max_age` (100 ms),
 //! else centred; the first packet after start-up is centred. NACKs and
@@ -237,7 +238,9 @@ impl RebusLink {
                 if o.startup && self.state == LinkState::Starting {
                     self.state = LinkState::Up;
                     self.sent_since_up = 0;
-                    return (None, Some(LinkEvent::Up));
+                    // the handshake ends with our ACK of the chipset's
+                    // (rnet-serial-interface's Connect)
+                    return (Some(Packet::ack(p.seq)), Some(LinkEvent::Up));
                 }
                 (None, None)
             }
@@ -419,8 +422,10 @@ mod tests {
         let p = p.expect("startup");
         assert_eq!(p, Packet::startup(0));
         assert_eq!(p.encode(), vec![0x55, 0x06, 0x01, 0xBF, 0x01, 0x7A, 0xAF]);
-        let (_, ev) = l.on_packet(&Packet::ack(0), ms(2));
+        let (reply, ev) = l.on_packet(&Packet::ack(0), ms(2));
         assert_eq!(ev, Some(LinkEvent::Up));
+        // the handshake's last step: our ACK of the chipset's ACK
+        assert_eq!(reply, Some(Packet::ack(0)));
         assert_eq!(l.state, LinkState::Up);
     }
 

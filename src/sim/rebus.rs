@@ -42,8 +42,11 @@ pub struct VelocityPacket {
 pub struct ChipsetLog {
     pub startups: u32,
     pub velocity: Vec<VelocityPacket>,
-    /// ACKs from the host for our own DATA.
+    /// ACKs from the host (for our own DATA, and the start-up handshake's).
     pub host_acks: u32,
+    /// Velocity packets refused because the host never finished the
+    /// start-up handshake (no ACK after ours).
+    pub before_handshake: u32,
     pub decode_errors: u32,
 }
 
@@ -112,6 +115,10 @@ fn run(
     let mut decoder = Decoder::default();
     let (mut withhold, mut nack) = (0u32, 0u32);
     let mut own_seq = 0u8;
+    // the start-up handshake: our ACK of the host's start-up is answered
+    // by the host's ACK; until then its velocity packets are not ours to
+    // act on (they go unacknowledged)
+    let mut handshake_done = false;
     let mut buf = [0u8; 256];
     while !stop.load(Ordering::SeqCst) {
         while let Ok(f) = faults.try_recv() {
@@ -160,9 +167,18 @@ fn run(
                 }
             };
             match p.kind {
-                Kind::Ack => l.host_acks += 1,
+                Kind::Ack => {
+                    l.host_acks += 1;
+                    handshake_done = true;
+                }
                 Kind::Nack => {}
                 Kind::Data => {
+                    if p.startup {
+                        handshake_done = false;
+                    } else if !handshake_done {
+                        l.before_handshake += 1;
+                        continue;
+                    }
                     let reply = if withhold > 0 {
                         withhold -= 1;
                         None
