@@ -381,6 +381,21 @@ mod tests {
         )
     }
 
+    /// One step at `ms_` in an empty room, nothing tracked.
+    fn step_empty(c: &mut Control, ms_: u64) -> ControlOutput {
+        let tracker = Tracker::new(crate::config::Settings::defaults().tracker);
+        let now = at(ms_);
+        let (o, odo) = fresh(now);
+        c.step(
+            now,
+            ControlInputs {
+                obstacles: Some(&o),
+                odometry: Some(&odo),
+                tracker: &tracker,
+            },
+        )
+    }
+
     fn at(ms: u64) -> Stamp {
         Stamp(Duration::from_millis(ms))
     }
@@ -448,28 +463,18 @@ mod tests {
     #[test]
     fn a_stop_latches_until_go_and_a_word_alone_does_not_clear_it() {
         let mut c = control(false);
-        let tracker = Tracker::new(crate::config::Settings::defaults().tracker);
-        let turn = |c: &mut Control, ms_: u64| {
-            let now = at(ms_);
-            let (o, odo) = fresh(now);
-            c.step(
-                now,
-                ControlInputs {
-                    obstacles: Some(&o),
-                    odometry: Some(&odo),
-                    tracker: &tracker,
-                },
-            )
-        };
         c.on_input(UserInput::Goto("chair".into()));
-        turn(&mut c, 0);
-        assert!(turn(&mut c, 50).cmd.cmd.omega_radps > 0.0, "searching");
+        step_empty(&mut c, 0);
+        assert!(
+            step_empty(&mut c, 50).cmd.cmd.omega_radps > 0.0,
+            "searching"
+        );
         c.on_input(UserInput::Stop);
-        assert_eq!(turn(&mut c, 100).cmd.cmd, VelocityCmd::default());
+        assert_eq!(step_empty(&mut c, 100).cmd.cmd, VelocityCmd::default());
         // a new word: remembered, but the chair stays stopped
         c.on_input(UserInput::Goto("desk".into()));
         for k in 3..10 {
-            let out = turn(&mut c, 50 * k);
+            let out = step_empty(&mut c, 50 * k);
             assert_eq!(out.cmd.cmd, VelocityCmd::default());
             assert_eq!(
                 out.cmd.state,
@@ -478,7 +483,7 @@ mod tests {
         }
         // "go": the desk is looked for
         c.on_input(UserInput::Go);
-        let out = turn(&mut c, 600);
+        let out = step_empty(&mut c, 600);
         assert!(
             out.said
                 .iter()
@@ -488,59 +493,50 @@ mod tests {
         );
         assert_eq!(out.wanted, vec!["desk".to_string()]);
         assert!(
-            turn(&mut c, 650).cmd.cmd.omega_radps > 0.0,
+            step_empty(&mut c, 650).cmd.cmd.omega_radps > 0.0,
             "searching again"
         );
         // the joystick takes over: latched the same way
         c.on_actuator_event(&ActuatorEvent::UserDeflection { x: 0, y: 40 });
         c.on_input(UserInput::Goto("desk".into()));
-        assert_eq!(turn(&mut c, 700).cmd.cmd, VelocityCmd::default());
+        assert_eq!(step_empty(&mut c, 700).cmd.cmd, VelocityCmd::default());
     }
 
     #[test]
     fn a_takeover_that_does_not_happen_is_said_and_latched() {
         let mut c = control(false);
-        let tracker = Tracker::new(crate::config::Settings::defaults().tracker);
-        let step = |c: &mut Control, ms_: u64| {
-            let now = at(ms_);
-            let (o, odo) = fresh(now);
-            c.step(
-                now,
-                ControlInputs {
-                    obstacles: Some(&o),
-                    odometry: Some(&odo),
-                    tracker: &tracker,
-                },
-            )
-        };
         c.on_input(UserInput::Goto("chair".into()));
-        step(&mut c, 0);
+        step_empty(&mut c, 0);
         // the writer learned the joystick id, but never became active
         c.on_actuator_event(&ActuatorEvent::Ready {
             joystick_id: Some(0x0200_0100),
         });
         let mut said = Vec::new();
         for k in 1..40 {
-            said.extend(step(&mut c, 50 * k).said);
+            said.extend(step_empty(&mut c, 50 * k).said);
         }
         assert!(
             said.iter()
                 .any(|s| s.starts_with("I cannot take over the chair's joystick")),
             "{said:?}"
         );
-        let out = step(&mut c, 2000);
+        let out = step_empty(&mut c, 2000);
         assert_eq!(out.cmd.state, SupervisorState::Fault(FaultReason::Takeover));
         assert_eq!(out.cmd.cmd, VelocityCmd::default());
         // taken over in time: nothing said
         let mut c = control(false);
-        step(&mut c, 0);
+        step_empty(&mut c, 0);
         c.on_actuator_event(&ActuatorEvent::Ready { joystick_id: None });
         c.on_actuator_event(&ActuatorEvent::Active);
-        let said: Vec<String> = (1..200).flat_map(|k| step(&mut c, 50 * k).said).collect();
+        let said: Vec<String> = (1..200)
+            .flat_map(|k| step_empty(&mut c, 50 * k).said)
+            .collect();
         assert!(said.is_empty(), "{said:?}");
         // no joystick module at all: said once
         let mut c = control(false);
-        let said: Vec<String> = (0..200).flat_map(|k| step(&mut c, 50 * k).said).collect();
+        let said: Vec<String> = (0..200)
+            .flat_map(|k| step_empty(&mut c, 50 * k).said)
+            .collect();
         assert_eq!(
             said,
             vec!["The chair's joystick module does not answer: I cannot drive.".to_string()]

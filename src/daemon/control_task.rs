@@ -170,14 +170,6 @@ pub async fn run(mut control: Control, mut io: ControlTaskIo) -> ControlEnd {
     sd_notify("STOPPING=1");
     // the channels stay open until the daemon shuts the tasks down: a
     // closed channel means a dead task
-    // the last word to the actuator: zero
-    let now = io.clock.now();
-    io.commands.send_replace(Some(SafeCmd {
-        cmd: Default::default(),
-        state: control.state(),
-        stamp: now,
-    }));
-    sd_notify("STOPPING=1");
     ControlEnd {
         control,
         outcome,
