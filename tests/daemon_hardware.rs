@@ -61,9 +61,8 @@ fn wait_for(p: &std::path::Path) {
     }
 }
 
-#[test]
-fn runs_on_emulated_devices_turns_to_search_and_stops_on_the_word() {
-    let dir = tempfile::tempdir().expect("tmp");
+/// Both URG-04LX emulators streaming real indoor scans, on ptys in `dir`.
+fn lasers(dir: &std::path::Path) -> (HokuyoEmulator, HokuyoEmulator) {
     let scans: Vec<Vec<u32>> = load_sena_csv(&common::asset(
         common::shared().join("data/laser/sena_2006_laser_scans.csv"),
     ))
@@ -73,34 +72,48 @@ fn runs_on_emulated_devices_turns_to_search_and_stops_on_the_word() {
     .map(|s| resample_to_urg(s, &SensorParams::URG_04LX))
     .collect();
     let left = HokuyoEmulator::spawn(
-        &dir.path().join("hokuyo_left"),
+        &dir.join("hokuyo_left"),
         scans.clone(),
         Duration::from_millis(100),
         0,
     )
     .expect("left laser");
     let right = HokuyoEmulator::spawn(
-        &dir.path().join("hokuyo_right"),
+        &dir.join("hokuyo_right"),
         scans,
         Duration::from_millis(100),
         5000,
     )
     .expect("right laser");
-    let stop = Arc::new(AtomicBool::new(false));
-    let board = encoder_board(dir.path().join("encoders"), stop.clone());
-    let chip = RebusChipset::spawn(&dir.path().join("rebus")).expect("chipset");
-    wait_for(&dir.path().join("encoders"));
+    (left, right)
+}
 
-    let p = |n: &str| dir.path().join(n).display().to_string();
-    let mut child = Command::new(env!("CARGO_BIN_EXE_opennav"))
-        .args(["run", "--no-camera"])
-        .env("OPENNAV_LASERS__LEFT__PORT", p("hokuyo_left"))
+/// `opennav` on the emulated devices in `dir` (the Rebus backend), with
+/// its own lock and state directory.
+fn opennav_on(dir: &std::path::Path) -> Command {
+    let p = |n: &str| dir.join(n);
+    let mut c = Command::new(env!("CARGO_BIN_EXE_opennav"));
+    c.env("OPENNAV_LASERS__LEFT__PORT", p("hokuyo_left"))
         .env("OPENNAV_LASERS__RIGHT__PORT", p("hokuyo_right"))
         .env("OPENNAV_ENCODERS__PORT", p("encoders"))
         .env("OPENNAV_ACTUATION__BACKEND", "rebus")
         .env("OPENNAV_ACTUATION__REBUS__PORT", p("rebus"))
         .env("OPENNAV_RUNTIME__LOCK_FILE", p("opennav.lock"))
-        .env("OPENNAV_RUNTIME__STATE_DIR", p("state"))
+        .env("OPENNAV_RUNTIME__STATE_DIR", p("state"));
+    c
+}
+
+#[test]
+fn runs_on_emulated_devices_turns_to_search_and_stops_on_the_word() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let (left, right) = lasers(dir.path());
+    let stop = Arc::new(AtomicBool::new(false));
+    let board = encoder_board(dir.path().join("encoders"), stop.clone());
+    let chip = RebusChipset::spawn(&dir.path().join("rebus")).expect("chipset");
+    wait_for(&dir.path().join("encoders"));
+
+    let mut child = opennav_on(dir.path())
+        .args(["run", "--no-camera"])
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
@@ -154,28 +167,7 @@ fn runs_on_emulated_devices_turns_to_search_and_stops_on_the_word() {
 #[test]
 fn ready_only_after_every_device_gave_a_first_reading() {
     let dir = tempfile::tempdir().expect("tmp");
-    let scans: Vec<Vec<u32>> = load_sena_csv(&common::asset(
-        common::shared().join("data/laser/sena_2006_laser_scans.csv"),
-    ))
-    .expect("scans")
-    .iter()
-    .take(20)
-    .map(|s| resample_to_urg(s, &SensorParams::URG_04LX))
-    .collect();
-    let _left = HokuyoEmulator::spawn(
-        &dir.path().join("hokuyo_left"),
-        scans.clone(),
-        Duration::from_millis(100),
-        0,
-    )
-    .expect("left laser");
-    let _right = HokuyoEmulator::spawn(
-        &dir.path().join("hokuyo_right"),
-        scans,
-        Duration::from_millis(100),
-        5000,
-    )
-    .expect("right laser");
+    let (_left, _right) = lasers(dir.path());
     let stop = Arc::new(AtomicBool::new(false));
     let silent = Duration::from_secs(3);
     let started = Instant::now();
@@ -186,16 +178,8 @@ fn ready_only_after_every_device_gave_a_first_reading() {
     let sock = std::os::unix::net::UnixDatagram::bind(&notify).expect("bind");
     sock.set_read_timeout(Some(Duration::from_secs(20)))
         .expect("timeout");
-    let p = |n: &str| dir.path().join(n).display().to_string();
-    let child = Command::new(env!("CARGO_BIN_EXE_opennav"))
+    let child = opennav_on(dir.path())
         .args(["run", "--no-camera", "--no-stdin", "--max-duration", "5s"])
-        .env("OPENNAV_LASERS__LEFT__PORT", p("hokuyo_left"))
-        .env("OPENNAV_LASERS__RIGHT__PORT", p("hokuyo_right"))
-        .env("OPENNAV_ENCODERS__PORT", p("encoders"))
-        .env("OPENNAV_ACTUATION__BACKEND", "rebus")
-        .env("OPENNAV_ACTUATION__REBUS__PORT", p("rebus"))
-        .env("OPENNAV_RUNTIME__LOCK_FILE", p("opennav.lock"))
-        .env("OPENNAV_RUNTIME__STATE_DIR", p("state"))
         .env("NOTIFY_SOCKET", &notify)
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
