@@ -90,7 +90,8 @@ pub struct RunReport {
     pub duration_s: f64,
     pub goal: GoalState,
     pub supervisor: SupervisorState,
-    pub odometry: Odometry,
+    /// The last odometry (None: the wheels never reported).
+    pub odometry: Option<Odometry>,
     pub planner: PlannerStats,
     pub estimation: EstimationStats,
     pub actuator: ActuatorStatus,
@@ -220,6 +221,7 @@ async fn pump<T: Clone + Send + Sync + 'static>(
         };
         if !announced {
             announced = true;
+            // the control task gone: nobody waits for READY any more
             first.send(label).ok();
         }
         if let Some((sink, item)) = &rec {
@@ -492,6 +494,7 @@ pub async fn run(
                 };
                 tracing::error!(task = %name, reason = %reason, "task failed: stopping the chair");
                 failure.get_or_insert((name.clone(), reason.clone()));
+                // the control task gone too: the failure above still ends the run
                 fault_tx.send((name, reason)).ok();
             }
             r = &mut actuator_task, if actuator_result.is_none() => {
@@ -580,7 +583,7 @@ pub async fn run(
         ),
         None => None,
     };
-    let odometry = odo_report.borrow().map(|o| o.value).unwrap_or_default();
+    let odometry = odo_report.borrow().map(|o| o.value);
     Ok(RunReport {
         outcome,
         duration_s: end.0.saturating_sub(start.0).as_secs_f64(),
