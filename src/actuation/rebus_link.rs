@@ -155,10 +155,19 @@ impl RebusLink {
         if self.failures >= self.settings.max_failures
             && matches!(self.state, LinkState::Up | LinkState::Starting)
         {
+            let starting = self.state == LinkState::Starting;
             self.state = LinkState::Down;
             self.down_since = Some(now);
             let n = self.failures;
             self.failures = 0;
+            if starting {
+                // the chipset accepts one controlling program per power-up
+                // (rnet-serial-interface's README): retrying will not help
+                return Some(LinkEvent::Down(format!(
+                    "the chipset does not answer start-up ({n} tries, last: {why}): restart it \
+                     with its button (it must be restarted whenever its controlling program is)"
+                )));
+            }
             return Some(LinkEvent::Down(format!(
                 "{n} packets in a row not acknowledged (last: {why})"
             )));
@@ -446,6 +455,25 @@ mod tests {
         assert_eq!(l.tick(ms(105)).0, Some(Packet::velocity(3, 0, 20)));
         l.on_packet(&Packet::ack(3), ms(106));
         assert_eq!(l.tick(ms(106)).0, Some(Packet::velocity(4, 0, 0)));
+    }
+
+    #[test]
+    fn a_chipset_that_never_answers_start_up_asks_for_its_restart_button() {
+        let mut l = link();
+        let mut down = None;
+        for k in 0..40 {
+            if let (_, Some(ev)) = l.tick(ms(10 * k)) {
+                down = Some(ev);
+                break;
+            }
+        }
+        match down {
+            Some(LinkEvent::Down(r)) => {
+                assert!(r.contains("does not answer start-up"), "{r}");
+                assert!(r.contains("restart it with its button"), "{r}");
+            }
+            other => panic!("{other:?}"),
+        }
     }
 
     #[test]
