@@ -383,9 +383,14 @@ mod tests {
 
     /// One step at `ms_` in an empty room, nothing tracked.
     fn step_empty(c: &mut Control, ms_: u64) -> ControlOutput {
+        step_with_inputs_of(c, ms_, ms_)
+    }
+
+    /// One step at `ms_` with the empty room's inputs stamped `inputs_ms`.
+    fn step_with_inputs_of(c: &mut Control, inputs_ms: u64, ms_: u64) -> ControlOutput {
         let tracker = Tracker::new(crate::config::Settings::defaults().tracker);
         let now = at(ms_);
-        let (o, odo) = fresh(now);
+        let (o, odo) = fresh(at(inputs_ms));
         c.step(
             now,
             ControlInputs {
@@ -572,29 +577,12 @@ mod tests {
     #[test]
     fn stale_inputs_give_zero_and_a_dead_task_latches_a_fault() {
         let mut c = control(true);
-        let tracker = Tracker::new(crate::config::Settings::defaults().tracker);
         c.on_input(UserInput::Goto("chair".into()));
         // odometry 300 ms old: nothing moves
-        let (o, odo) = fresh(at(0));
-        let out = c.step(
-            at(300),
-            ControlInputs {
-                obstacles: Some(&o),
-                odometry: Some(&odo),
-                tracker: &tracker,
-            },
-        );
+        let out = step_with_inputs_of(&mut c, 0, 300);
         assert_eq!(out.cmd.cmd, VelocityCmd::default());
         c.on_task_failure("perception", "panicked");
-        let (o, odo) = fresh(at(350));
-        let out = c.step(
-            at(350),
-            ControlInputs {
-                obstacles: Some(&o),
-                odometry: Some(&odo),
-                tracker: &tracker,
-            },
-        );
+        let out = step_empty(&mut c, 350);
         assert_eq!(out.cmd.cmd, VelocityCmd::default());
         assert_eq!(out.cmd.state, SupervisorState::Fault(FaultReason::Task));
         assert_eq!(
@@ -610,15 +598,7 @@ mod tests {
         );
         // a word does not clear the fault
         c.on_input(UserInput::Goto("chair".into()));
-        let (o, odo) = fresh(at(400));
-        let out = c.step(
-            at(400),
-            ControlInputs {
-                obstacles: Some(&o),
-                odometry: Some(&odo),
-                tracker: &tracker,
-            },
-        );
+        let out = step_empty(&mut c, 400);
         assert_eq!(out.cmd.cmd, VelocityCmd::default());
     }
 }

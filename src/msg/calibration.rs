@@ -280,10 +280,11 @@ pub fn vec3(a: [f64; 3]) -> Vector3<f64> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
-    fn intr() -> Intrinsics {
+    /// A small pinhole camera for tests (64×48, f 50).
+    pub(crate) fn intr() -> Intrinsics {
         Intrinsics {
             width: 64,
             height: 48,

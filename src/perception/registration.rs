@@ -47,17 +47,7 @@ pub fn register_depth_to_color(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn intr() -> Intrinsics {
-        Intrinsics {
-            width: 64,
-            height: 48,
-            fx: 50.0,
-            fy: 50.0,
-            cx: 32.0,
-            cy: 24.0,
-        }
-    }
+    use crate::msg::calibration::tests::intr;
 
     #[test]
     fn identity_registration_keeps_depth() {
