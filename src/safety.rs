@@ -41,6 +41,9 @@ pub struct SafetyLimits {
     pub overspeed_margin_mps: f64,
     pub overspeed_margin_radps: f64,
     pub overspeed_window: Duration,
+    /// The depth camera's obstacles older than this stop the chair; None:
+    /// no depth camera (the lasers alone, said at start).
+    pub camera_max_age: Option<Duration>,
 }
 
 /// The latest inputs, each with its acquisition stamp.
@@ -50,6 +53,9 @@ pub struct SupervisorInputs<'a> {
     /// The chair's measured motion.
     pub odometry: Option<&'a Stamped<Odometry>>,
     pub command: Option<&'a Stamped<VelocityCmd>>,
+    /// The depth camera's obstacles and drop-offs in `base_link` now,
+    /// stamped with their newest frame.
+    pub camera: Option<&'a Stamped<Obstacles>>,
 }
 
 /// Below this the chair counts as not moving along / not turning (m/s,
@@ -75,6 +81,11 @@ enum GoalState {
     None,
     Active,
     Holding,
+}
+
+/// Obstacles and drop-offs alike: places the chair must not enter.
+fn all_points(o: &Obstacles) -> impl Iterator<Item = &[f32; 2]> {
+    o.points_base.iter().chain(o.drop_offs_base.iter())
 }
 
 fn fresh(stamp: Option<Stamp>, now: Stamp, max: Duration) -> bool {
@@ -135,21 +146,35 @@ impl Supervisor {
     /// when an obstacle point lies inside the circle the footprint's
     /// corners sweep, plus the corridor margin.
     pub fn turn_blocked(&self, obstacles: &Obstacles, v_mps: f64, omega_radps: f64) -> bool {
+        self.turn_hits(all_points(obstacles), v_mps, omega_radps)
+    }
+
+    fn turn_hits<'p>(
+        &self,
+        mut points: impl Iterator<Item = &'p [f32; 2]>,
+        v_mps: f64,
+        omega_radps: f64,
+    ) -> bool {
         if v_mps.abs() >= 0.05 || omega_radps.abs() <= 0.05 {
             return false;
         }
         let l = &self.limits;
         let reach = l.front_offset_m.max(l.rear_offset_m);
         let r = reach.hypot(l.chair_width_m / 2.0) + l.corridor_margin_m;
-        obstacles
-            .points_base
-            .iter()
-            .any(|p| (p[0] as f64).hypot(p[1] as f64) < r)
+        points.any(|p| (p[0] as f64).hypot(p[1] as f64) < r)
     }
 
     /// True when an obstacle point lies in the corridor ahead (v > 0) or
     /// behind (v < 0).
     pub fn corridor_blocked(&self, obstacles: &Obstacles, v_mps: f64) -> bool {
+        self.corridor_hits(all_points(obstacles), v_mps)
+    }
+
+    fn corridor_hits<'p>(
+        &self,
+        mut points: impl Iterator<Item = &'p [f32; 2]>,
+        v_mps: f64,
+    ) -> bool {
         let l = &self.limits;
         let half = l.chair_width_m / 2.0 + l.corridor_margin_m;
         let (lo, hi) = if v_mps > 0.0 {
@@ -159,7 +184,7 @@ impl Supervisor {
         } else {
             return false;
         };
-        obstacles.points_base.iter().any(|p| {
+        points.any(|p| {
             let (x, y) = (p[0] as f64, p[1] as f64);
             x >= lo && x <= hi && y.abs() <= half
         })
@@ -214,6 +239,11 @@ impl Supervisor {
             SupervisorState::Stopped(StopReason::OdometryStale)
         } else if !fresh(inputs.command.map(|c| c.stamp), now, l.command_max_age) {
             SupervisorState::Stopped(StopReason::CommandStale)
+        } else if l
+            .camera_max_age
+            .is_some_and(|max| !fresh(inputs.camera.map(|c| c.stamp), now, max))
+        {
+            SupervisorState::Stopped(StopReason::CameraStale)
         } else {
             SupervisorState::Navigating
         };
@@ -243,13 +273,29 @@ impl Supervisor {
                     .unwrap_or((0.0, 0.0));
                 let v_last = self.last.map(|(c, _)| c.v_mps).unwrap_or(0.0);
                 let rolling = |x: f64| if x.abs() >= MOVING_MPS { x } else { 0.0 };
-                let blocked = [v, rolling(v_now), rolling(v_last)]
-                    .into_iter()
-                    .any(|d| self.corridor_blocked(&obs.value, d))
-                    || self.turn_blocked(&obs.value, v, w)
-                    || (w_now.abs() > TURNING_RADPS && self.turn_blocked(&obs.value, v_now, w_now));
-                if blocked {
-                    state = SupervisorState::Stopped(StopReason::Obstacle);
+                let blocked_by = |pts: &[&[[f32; 2]]]| {
+                    let all = || pts.iter().flat_map(|p| p.iter());
+                    [v, rolling(v_now), rolling(v_last)]
+                        .into_iter()
+                        .any(|d| self.corridor_hits(all(), d))
+                        || self.turn_hits(all(), v, w)
+                        || (w_now.abs() > TURNING_RADPS && self.turn_hits(all(), v_now, w_now))
+                };
+                let camera = inputs.camera.map(|c| &c.value);
+                let no_points: &[[f32; 2]] = &[];
+                let blocked = if blocked_by(&[
+                    &obs.value.points_base,
+                    &obs.value.drop_offs_base,
+                    camera.map_or(no_points, |c| &c.points_base),
+                ]) {
+                    Some(StopReason::Obstacle)
+                } else if blocked_by(&[camera.map_or(no_points, |c| &c.drop_offs_base)]) {
+                    Some(StopReason::DropOff)
+                } else {
+                    None
+                };
+                if let Some(reason) = blocked {
+                    state = SupervisorState::Stopped(reason);
                 } else {
                     // acceleration limits from the last output
                     let (prev, dt) = match self.last {
@@ -291,6 +337,8 @@ mod tests {
         /// The chair's measured motion: at rest unless a test says.
         odom: Stamped<Odometry>,
         cmd: Stamped<VelocityCmd>,
+        /// The depth camera's obstacles: none, fresh.
+        camera: Stamped<Obstacles>,
     }
 
     impl World {
@@ -300,9 +348,11 @@ mod tests {
                     ms(t),
                     Obstacles {
                         points_base: vec![[3.0, 0.0]],
+                        ..Default::default()
                     },
                 ),
                 odom: Stamped::new(ms(t), Odometry::default()),
+                camera: Stamped::new(ms(t), Obstacles::default()),
                 cmd: Stamped::new(
                     ms(t),
                     VelocityCmd {
@@ -317,6 +367,7 @@ mod tests {
                 obstacles: Some(&self.obstacles),
                 odometry: Some(&self.odom),
                 command: Some(&self.cmd),
+                camera: Some(&self.camera),
             }
         }
     }
@@ -519,6 +570,66 @@ mod tests {
             s.step(ms(20), &w.inputs()).state,
             SupervisorState::Stopped(StopReason::Obstacle)
         );
+    }
+
+    #[test]
+    fn the_depth_cameras_obstacles_and_drop_offs_stop_like_the_lasers() {
+        // a box under the lasers' plane, seen only by the camera
+        let mut s = moving(0.2);
+        let mut w = World::new(20, 0.2, 0.0);
+        w.camera.value.points_base = vec![[0.8, 0.0]];
+        let c = s.step(ms(20), &w.inputs());
+        assert_eq!(c.state, SupervisorState::Stopped(StopReason::Obstacle));
+        assert_eq!(c.cmd, VelocityCmd::default());
+        // a step down ahead
+        let mut s = moving(0.2);
+        w.camera.value = Obstacles {
+            points_base: Vec::new(),
+            drop_offs_base: vec![[0.8, 0.3]],
+        };
+        let c = s.step(ms(20), &w.inputs());
+        assert_eq!(c.state, SupervisorState::Stopped(StopReason::DropOff));
+        assert_eq!(c.cmd, VelocityCmd::default());
+        // and a turn on the spot next to it
+        let mut s = moving(0.0);
+        let mut w = World::new(20, 0.0, 0.5);
+        w.camera.value.drop_offs_base = vec![[0.0, 0.7]];
+        assert_eq!(
+            s.step(ms(20), &w.inputs()).state,
+            SupervisorState::Stopped(StopReason::DropOff)
+        );
+    }
+
+    #[test]
+    fn a_stale_or_missing_depth_camera_stops_when_one_is_configured() {
+        let mut s = moving(0.2);
+        let mut w = World::new(0, 0.2, 0.0);
+        w.odom.stamp = ms(1000);
+        w.cmd.stamp = ms(1000);
+        w.obstacles.stamp = ms(1000);
+        // 1.0 s old: on its deadline, still fresh
+        assert_eq!(
+            s.step(ms(1000), &w.inputs()).state,
+            SupervisorState::Navigating
+        );
+        let c = s.step(
+            Stamp(Duration::from_millis(1000) + Duration::from_nanos(1)),
+            &w.inputs(),
+        );
+        assert_eq!(c.state, SupervisorState::Stopped(StopReason::CameraStale));
+        assert_eq!(c.cmd, VelocityCmd::default());
+        // no frame at all
+        let mut s = moving(0.2);
+        let w = World::new(20, 0.2, 0.0);
+        let mut inputs = w.inputs();
+        inputs.camera = None;
+        assert_eq!(
+            s.step(ms(20), &inputs).state,
+            SupervisorState::Stopped(StopReason::CameraStale)
+        );
+        // without a depth camera (camera_max_age None) the lasers decide
+        s.limits.camera_max_age = None;
+        assert_eq!(s.step(ms(30), &inputs).state, SupervisorState::Navigating);
     }
 
     #[test]

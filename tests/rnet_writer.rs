@@ -56,6 +56,8 @@ fn limits() -> SafetyLimits {
     SafetyLimits {
         a_linear_max_mps2: 100.0,
         a_angular_max_radps2: 100.0,
+        // no camera in this harness
+        camera_max_age: None,
         ..opennav::config::Settings::defaults().safety_limits()
     }
 }

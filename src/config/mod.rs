@@ -50,6 +50,7 @@ pub struct Settings {
     pub mpc: crate::navigation::mpc::MpcParams,
     pub field: crate::navigation::apf::ApfParams,
     pub tracker: crate::estimation::tracker::TrackerParams,
+    pub depth_obstacles: crate::perception::depth_obstacles::DepthObstacleSettings,
 }
 
 #[derive(Debug, Clone, Deserialize, PartialEq)]
@@ -125,6 +126,7 @@ pub struct SafetySection {
     pub overspeed_margin_mps: f64,
     pub overspeed_margin_radps: f64,
     pub overspeed_window_s: f64,
+    pub camera_max_age_s: f64,
 }
 
 #[derive(Debug, Clone, Deserialize, PartialEq)]
@@ -324,6 +326,7 @@ impl Settings {
             overspeed_margin_mps: s.overspeed_margin_mps,
             overspeed_margin_radps: s.overspeed_margin_radps,
             overspeed_window: d(s.overspeed_window_s),
+            camera_max_age: self.depth_obstacles.enabled.then(|| d(s.camera_max_age_s)),
         }
     }
 

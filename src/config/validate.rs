@@ -131,6 +131,7 @@ impl Settings {
             0.05,
             2.0,
         )?;
+        finite_range("safety.camera_max_age_s", sf.camera_max_age_s, 0.05, 3.0)?;
         // the corridor must reach far enough to stop in: what the chair
         // covers at full speed while the newest scan ages to its deadline,
         // the command to its own, one control period and the writer's
@@ -294,6 +295,20 @@ impl Settings {
             "tracker.measurement_noise_m2",
             t.measurement_noise_m2,
             1e-6,
+            10.0,
+        )?;
+        let o = &self.depth_obstacles;
+        range("depth_obstacles.stride_px", o.stride_px, 1, 16)?;
+        finite_range("depth_obstacles.floor_band_m", o.floor_band_m, 0.01, 0.2)?;
+        finite_range("depth_obstacles.max_height_m", o.max_height_m, 0.5, 2.5)?;
+        finite_range("depth_obstacles.max_range_m", o.max_range_m, 0.5, 6.0)?;
+        finite_range("depth_obstacles.drop_min_m", o.drop_min_m, 0.02, 0.5)?;
+        finite_range("depth_obstacles.cell_m", o.cell_m, 0.02, 0.2)?;
+        range("depth_obstacles.min_hits", o.min_hits, 1, 100)?;
+        finite_range(
+            "depth_obstacles.memory_radius_m",
+            o.memory_radius_m,
+            1.0,
             10.0,
         )?;
         let a = &self.actuation;

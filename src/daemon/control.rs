@@ -12,8 +12,8 @@ use crate::estimation::goal::{GoalEvent, GoalKeeper, GoalState};
 use crate::estimation::tracker::Tracker;
 use crate::estimation::view::CameraView;
 use crate::msg::{
-    FaultReason, Obstacles, Odometry, SafeCmd, Stamp, Stamped, SupervisorState, UserInput,
-    VelocityCmd,
+    FaultReason, MapObstacles, Obstacles, Odometry, SafeCmd, Stamp, Stamped, SupervisorState,
+    UserInput, VelocityCmd,
 };
 use crate::navigation::mpc::UnicycleState;
 use crate::navigation::planner::Planner;
@@ -47,6 +47,8 @@ pub struct ControlInputs<'a> {
     pub obstacles: Option<&'a Stamped<Obstacles>>,
     pub odometry: Option<&'a Stamped<Odometry>>,
     pub tracker: &'a Tracker,
+    /// The depth camera's remembered obstacles and drop-offs (odom).
+    pub camera: Option<&'a Stamped<MapObstacles>>,
 }
 
 /// What one step decided.
@@ -160,6 +162,12 @@ impl Control {
         self.said.push(s);
     }
 
+    /// A sentence for the user before the first step (a limitation of
+    /// this configuration).
+    pub fn say_at_start(&mut self, s: &str) {
+        self.say(s.to_string());
+    }
+
     /// A word, a stop or a quit from the user.
     pub fn on_input(&mut self, input: UserInput) {
         match input {
@@ -265,8 +273,14 @@ impl Control {
     /// One step at `now`.
     pub fn step(&mut self, now: Stamp, inputs: ControlInputs) -> ControlOutput {
         self.watch_motors(now);
+        // the camera's cells where the chair is now (its stamp stays the
+        // frame's: the deadline is about what the camera last saw)
+        let camera = inputs
+            .camera
+            .zip(inputs.odometry)
+            .map(|(c, odo)| Stamped::new(c.stamp, c.value.to_base(&odo.value.pose)));
         if let (Some(o), Some(odo)) = (inputs.obstacles, inputs.odometry) {
-            self.plan(now, o, odo, inputs.tracker);
+            self.plan(now, o, camera.as_ref(), odo, inputs.tracker);
         }
         let mut cmd = self.supervisor.step(
             now,
@@ -274,6 +288,7 @@ impl Control {
                 obstacles: inputs.obstacles,
                 odometry: inputs.odometry,
                 command: self.planner_cmd.as_ref(),
+                camera: camera.as_ref(),
             },
         );
         if self.done.is_some() {
@@ -291,17 +306,28 @@ impl Control {
     fn plan(
         &mut self,
         now: Stamp,
-        o: &Stamped<Obstacles>,
+        lasers: &Stamped<Obstacles>,
+        camera: Option<&Stamped<Obstacles>>,
         odo: &Stamped<Odometry>,
         tracker: &Tracker,
     ) {
+        // everything the chair must not enter, in base_link: the lasers'
+        // points, the camera's obstacles and its drop-offs
+        let mut points_base = lasers.value.points_base.clone();
+        if let Some(c) = camera {
+            points_base.extend(&c.value.points_base);
+            points_base.extend(&c.value.drop_offs_base);
+        }
+        let o = Obstacles {
+            points_base,
+            drop_offs_base: Vec::new(),
+        };
         let Odometry {
             pose,
             v_mps,
             omega_radps,
         } = odo.value;
         let obstacles_odom: Vec<[f64; 2]> = o
-            .value
             .points_base
             .iter()
             .map(|q| {
@@ -333,7 +359,7 @@ impl Control {
                     omega_radps,
                 },
                 [a.x_m, a.y_m],
-                &o.value,
+                &o,
             );
             Some(Stamped::new(now, out.cmd))
         } else {
@@ -370,7 +396,11 @@ mod tests {
 
     fn control(exit_on_arrival: bool) -> Control {
         Control::new(
-            Supervisor::new(crate::config::Settings::defaults().safety_limits()),
+            // no depth camera in these tests: the lasers decide
+            Supervisor::new(crate::safety::SafetyLimits {
+                camera_max_age: None,
+                ..crate::config::Settings::defaults().safety_limits()
+            }),
             GoalKeeper::new(crate::config::Settings::defaults().goal_settings()),
             Planner::new(
                 crate::config::Settings::defaults().mpc,
@@ -397,6 +427,7 @@ mod tests {
                 obstacles: Some(&o),
                 odometry: Some(&odo),
                 tracker: &tracker,
+                camera: None,
             },
         )
     }
@@ -413,6 +444,7 @@ mod tests {
                 now,
                 Obstacles {
                     points_base: vec![[4.0, 0.0]],
+                    ..Default::default()
                 },
             ),
             Stamped::new(
@@ -441,6 +473,7 @@ mod tests {
                     obstacles: Some(&o),
                     odometry: Some(&odo),
                     tracker: &tracker,
+                    camera: None,
                 },
             );
             assert_eq!(out.wanted, vec!["chair".to_string()]);
@@ -457,6 +490,7 @@ mod tests {
                 obstacles: Some(&o),
                 odometry: Some(&odo),
                 tracker: &tracker,
+                camera: None,
             },
         );
         assert_eq!(out.cmd.cmd, VelocityCmd::default());
@@ -564,6 +598,7 @@ mod tests {
                     obstacles: Some(&o),
                     odometry: Some(&odo),
                     tracker: &tracker,
+                    camera: None,
                 },
             );
             assert_eq!(out.cmd.state, SupervisorState::Fault(kind));

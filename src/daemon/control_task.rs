@@ -16,7 +16,9 @@ use super::latch;
 use super::notify::sd_notify;
 use crate::actuation::ActuatorEvent;
 use crate::estimation::tracker::Tracker;
-use crate::msg::{Clock, Obstacles, Odometry, SafeCmd, Stamp, Stamped, SupervisorState, UserInput};
+use crate::msg::{
+    Clock, MapObstacles, Obstacles, Odometry, SafeCmd, Stamp, Stamped, SupervisorState, UserInput,
+};
 
 pub use crate::config::CONTROL_PERIOD;
 
@@ -31,6 +33,8 @@ pub struct ControlTaskIo {
     pub waiting: BTreeSet<&'static str>,
     pub obstacles: watch::Receiver<Option<Stamped<Obstacles>>>,
     pub odometry: watch::Receiver<Option<Stamped<Odometry>>>,
+    /// The depth camera's remembered obstacles (odom).
+    pub camera: watch::Receiver<Option<Stamped<MapObstacles>>>,
     pub tracks: watch::Receiver<Tracker>,
     pub commands: watch::Sender<Option<SafeCmd>>,
     pub prompts: watch::Sender<Vec<String>>,
@@ -86,6 +90,7 @@ pub async fn run(mut control: Control, mut io: ControlTaskIo) -> ControlEnd {
         let now = io.clock.now();
         let obstacles = io.obstacles.borrow().clone();
         let odometry = *io.odometry.borrow();
+        let camera = io.camera.borrow().clone();
         let out = {
             let tracker = io.tracks.borrow();
             control.step(
@@ -94,6 +99,7 @@ pub async fn run(mut control: Control, mut io: ControlTaskIo) -> ControlEnd {
                     obstacles: obstacles.as_ref(),
                     odometry: odometry.as_ref(),
                     tracker: &tracker,
+                    camera: camera.as_ref(),
                 },
             )
         };

@@ -13,9 +13,11 @@ use tokio_util::sync::CancellationToken;
 
 use crate::estimation::ekf::PoseHistory;
 use crate::estimation::fusion::Estimator;
+use crate::estimation::obstacle_map::{CellKind, FootprintM, ObstacleMap};
 use crate::estimation::tracker::Tracker;
 use crate::estimation::view::CameraView;
-use crate::msg::{Frame, Object3D, Obstacles, Odometry, Stamp, Stamped, WheelTicks};
+use crate::msg::{Frame, MapObstacles, Object3D, Obstacles, Odometry, Stamp, Stamped, WheelTicks};
+use crate::perception::depth_obstacles::DepthScan;
 
 /// Counters for the report.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
@@ -29,6 +31,12 @@ pub struct EstimationStats {
     /// Views dropped: no pose at their stamp (odometry starting or
     /// behind; said in the log).
     pub views_without_pose: u64,
+    /// Depth frames placed into the obstacle memory, and dropped (no pose
+    /// at their stamp).
+    pub depth_frames_placed: u64,
+    pub depth_frames_without_pose: u64,
+    /// Cells in the obstacle memory now.
+    pub depth_cells: u64,
 }
 
 pub struct EstimationIo {
@@ -37,6 +45,10 @@ pub struct EstimationIo {
     pub gyro: watch::Receiver<Option<Stamped<f64>>>,
     /// Objects in `base_link`, stamped with their frame's acquisition.
     pub objects: mpsc::Receiver<Stamped<Vec<Object3D>>>,
+    /// Each depth frame's cells in `base_link`.
+    pub depth_scans: mpsc::Receiver<Stamped<DepthScan>>,
+    /// The remembered cells in `odom`, stamped with the newest frame.
+    pub camera_obstacles: watch::Sender<Option<Stamped<MapObstacles>>>,
     pub odometry: watch::Sender<Option<Stamped<Odometry>>>,
     pub tracks: watch::Sender<Tracker>,
     pub stats: watch::Sender<EstimationStats>,
@@ -52,6 +64,11 @@ pub struct Estimation {
     pub tracker: Tracker,
     pub view: Option<CameraView>,
     pending: VecDeque<Stamped<Vec<Object3D>>>,
+    /// The depth camera's memory (None: no depth obstacles).
+    pub map: Option<(ObstacleMap, FootprintM)>,
+    pending_scans: VecDeque<Stamped<DepthScan>>,
+    /// The newest frame placed into the map.
+    map_stamp: Option<Stamp>,
     pub stats: EstimationStats,
 }
 
@@ -63,8 +80,68 @@ impl Estimation {
             tracker,
             view,
             pending: VecDeque::new(),
+            map: None,
+            pending_scans: VecDeque::new(),
+            map_stamp: None,
             stats: EstimationStats::default(),
         }
+    }
+
+    /// Remember the depth camera's cells (`cell_m`, `radius_m`), clearing
+    /// those under `footprint`.
+    pub fn with_obstacle_map(mut self, cell_m: f64, radius_m: f64, footprint: FootprintM) -> Self {
+        self.map = Some((ObstacleMap::new(cell_m, radius_m), footprint));
+        self
+    }
+
+    /// Queues a depth frame's cells; returns the memory when it changed.
+    pub fn on_depth_scan(&mut self, scan: Stamped<DepthScan>) -> Option<Stamped<MapObstacles>> {
+        if self.pending_scans.len() == MAX_PENDING_VIEWS {
+            self.pending_scans.pop_front();
+            self.stats.depth_frames_without_pose += 1;
+            tracing::warn!("depth obstacles: frames wait for odometry; the oldest dropped");
+        }
+        self.pending_scans.push_back(scan);
+        self.place_scans()
+    }
+
+    /// Places the depth frames the pose history now covers.
+    pub fn place_scans(&mut self) -> Option<Stamped<MapObstacles>> {
+        let mut changed = false;
+        while let Some(front) = self.pending_scans.front() {
+            let stamp = front.stamp;
+            match self.history.pose_at(stamp) {
+                Some(pose) => {
+                    let Some(scan) = self.pending_scans.pop_front() else {
+                        break;
+                    };
+                    if let Some((map, footprint)) = &mut self.map {
+                        map.insert(pose, &scan.value, *footprint);
+                        self.stats.depth_frames_placed += 1;
+                        self.stats.depth_cells = map.len() as u64;
+                        self.map_stamp = Some(stamp);
+                        changed = true;
+                    }
+                }
+                None if self.history_covers_after(stamp) => {
+                    self.pending_scans.pop_front();
+                    self.stats.depth_frames_without_pose += 1;
+                    tracing::info!("depth obstacles: no pose at the frame's stamp; frame skipped");
+                }
+                None => break,
+            }
+        }
+        if !changed {
+            return None;
+        }
+        let (map, _) = self.map.as_ref()?;
+        Some(Stamped::new(
+            self.map_stamp?,
+            MapObstacles {
+                obstacles_odom: map.points(CellKind::Obstacle),
+                drop_offs_odom: map.points(CellKind::DropOff),
+            },
+        ))
     }
 
     pub fn on_ticks(&mut self, t: &Stamped<WheelTicks>) -> Stamped<Odometry> {
@@ -159,6 +236,7 @@ pub async fn run(
     // no camera, or one without an IMU: the gyro's sender goes away
     let mut gyro_open = true;
     let mut objects_open = true;
+    let mut scans_open = true;
     loop {
         tokio::select! {
             biased;
@@ -180,6 +258,9 @@ pub async fn run(
                 if est.place_pending() {
                     io.tracks.send_replace(est.tracker.clone());
                 }
+                if let Some(m) = est.place_scans() {
+                    io.camera_obstacles.send_replace(Some(m));
+                }
                 io.stats.send_replace(est.stats);
             }
             r = io.obstacles.changed() => {
@@ -196,6 +277,15 @@ pub async fn run(
                 }
                 // no camera: perception never sends
                 None => objects_open = false,
+            },
+            v = io.depth_scans.recv(), if scans_open => match v {
+                Some(v) => {
+                    if let Some(m) = est.on_depth_scan(v) {
+                        io.camera_obstacles.send_replace(Some(m));
+                    }
+                    io.stats.send_replace(est.stats);
+                }
+                None => scans_open = false,
             },
         }
     }

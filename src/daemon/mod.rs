@@ -49,12 +49,15 @@ use crate::actuation::{ActuatorIo, ActuatorStatus};
 use crate::config::Settings;
 use crate::estimation::fusion::Estimator;
 use crate::estimation::goal::{GoalKeeper, GoalState};
+use crate::estimation::obstacle_map::FootprintM;
 use crate::estimation::tracker::Tracker;
 use crate::estimation::view::CameraView;
 use crate::msg::{
-    Clock, LaserScan, Obstacles, Odometry, SafeCmd, Stamped, SupervisorState, UserInput, WheelTicks,
+    Clock, LaserScan, MapObstacles, Obstacles, Odometry, SafeCmd, Stamped, SupervisorState,
+    UserInput, WheelTicks,
 };
 use crate::navigation::planner::{Planner, PlannerStats};
+use crate::perception::depth_obstacles::DepthScan;
 use crate::perception::pipeline::Pipeline;
 use crate::safety::Supervisor;
 use crate::sensors::laser::merge_scans;
@@ -361,6 +364,11 @@ pub async fn run(
     // perception and estimation
     let (objects_tx, objects_rx) = mpsc::channel::<Stamped<Vec<crate::msg::Object3D>>>(4);
     let (prompts_tx, prompts_rx) = watch::channel::<Vec<String>>(Vec::new());
+    let (scans_tx, scans_rx) = mpsc::channel::<Stamped<DepthScan>>(4);
+    let depth_obstacles = settings
+        .depth_obstacles
+        .enabled
+        .then_some(settings.depth_obstacles);
     let base_from_camera = settings
         .camera
         .base_from_camera
@@ -390,6 +398,7 @@ pub async fn run(
                 restamp,
                 period,
                 latency,
+                depth_obstacles,
             };
             let pipeline = Pipeline::new(
                 detector,
@@ -407,6 +416,7 @@ pub async fn run(
                     perception::PerceptionIo {
                         prompts: prompts_rx,
                         objects: objects_tx,
+                        depth_scans: scans_tx,
                         gyro: camera_gyro,
                         first_frame: first_tx.clone(),
                         record: sink.clone(),
@@ -418,28 +428,50 @@ pub async fn run(
             Some(view)
         }
         None => {
-            drop((objects_tx, prompts_rx, camera_gyro));
+            drop((objects_tx, scans_tx, prompts_rx, camera_gyro));
             None
         }
     };
+    // obstacles from the depth camera: only with a camera and when enabled
+    let depth_map = depth_obstacles.filter(|_| view.is_some());
     drop(sink);
     let (odo_tx, odo_rx) = watch::channel::<Option<Stamped<Odometry>>>(None);
+    let (camera_obst_tx, camera_obst_rx) = watch::channel::<Option<Stamped<MapObstacles>>>(None);
     let odo_report = odo_rx.clone();
     let (tracks_tx, tracks_rx) = watch::channel(Tracker::new(settings.tracker));
     let (stats_tx, stats_rx) = watch::channel(EstimationStats::default());
     tasks.spawn(
         "estimation",
         estimation::run(
-            estimation::Estimation::new(
-                Estimator::new(settings.drive_params()),
-                Tracker::new(settings.tracker),
-                view,
-            ),
+            {
+                let est = estimation::Estimation::new(
+                    Estimator::new(settings.drive_params()),
+                    Tracker::new(settings.tracker),
+                    view,
+                );
+                match depth_map {
+                    Some(d) => {
+                        let sf = &settings.safety;
+                        est.with_obstacle_map(
+                            d.cell_m,
+                            d.memory_radius_m,
+                            FootprintM {
+                                front_m: sf.front_offset_m,
+                                rear_m: sf.rear_offset_m,
+                                half_width_m: sf.chair_width_m / 2.0,
+                            },
+                        )
+                    }
+                    None => est,
+                }
+            },
             estimation::EstimationIo {
                 ticks: ticks_rx,
                 obstacles: obst_rx.clone(),
                 gyro: gyro_rx,
                 objects: objects_rx,
+                depth_scans: scans_rx,
+                camera_obstacles: camera_obst_tx,
                 odometry: odo_tx,
                 tracks: tracks_tx,
                 stats: stats_tx,
@@ -450,6 +482,15 @@ pub async fn run(
 
     // the control task, watched together with the others
     let mut control = new_control(settings, view, opts.exit_on_arrival);
+    if depth_map.is_none() {
+        // the lasers alone decide: nothing below their plane is seen
+        control.supervisor.limits.camera_max_age = None;
+        control.say_at_start(if view.is_none() {
+            "No depth camera: I cannot see low obstacles or steps down; the lasers alone watch the way."
+        } else {
+            "Depth obstacles are off: I cannot see low obstacles or steps down; the lasers alone watch the way."
+        });
+    }
     if let Some(f) = opts.state_dir.as_deref().and_then(latch::load) {
         control.on_latched_fault(&f);
     }
@@ -467,6 +508,7 @@ pub async fn run(
                 waiting,
                 obstacles: obst_rx,
                 odometry: odo_rx,
+                camera: camera_obst_rx,
                 tracks: tracks_rx,
                 commands: cmd_tx,
                 prompts: prompts_tx,

@@ -13,6 +13,7 @@ use tokio_util::sync::CancellationToken;
 
 use super::recorder::{record, RecordItem, RecordSink};
 use crate::msg::{Clock, Object3D, Stamped};
+use crate::perception::depth_obstacles::{self, DepthObstacleSettings, DepthScan};
 use crate::perception::pipeline::Pipeline;
 use crate::sensors::camera::CameraSource;
 
@@ -20,6 +21,8 @@ pub struct PerceptionIo {
     /// The words to look for (the goal's), from the control task.
     pub prompts: watch::Receiver<Vec<String>>,
     pub objects: mpsc::Sender<Stamped<Vec<Object3D>>>,
+    /// Every frame's obstacle and drop-off cells in `base_link`.
+    pub depth_scans: mpsc::Sender<Stamped<DepthScan>>,
     /// The camera IMU's yaw rate about base z, rad/s.
     pub gyro: watch::Sender<Option<Stamped<f64>>>,
     /// The first frame arrived (for READY).
@@ -34,6 +37,8 @@ pub struct CameraLoop {
     pub restamp: bool,
     pub period: Duration,
     pub latency: Duration,
+    /// Obstacles and drop-offs from every depth frame (None: off).
+    pub depth_obstacles: Option<DepthObstacleSettings>,
 }
 
 /// Camera errors in a row for this long: the camera is gone (a fault).
@@ -41,14 +46,17 @@ const CAMERA_GIVE_UP: Duration = Duration::from_secs(5);
 
 /// What one blocking round returns.
 enum Round {
-    View {
-        frame: Box<Stamped<crate::msg::RgbdFrame>>,
-        /// None: nothing to look for.
-        result: Result<Option<crate::perception::pipeline::ViewResult>, String>,
-        gyro: Option<Stamped<[f64; 3]>>,
-    },
+    View(Box<ViewRound>),
     CameraError(String),
     Ended,
+}
+
+struct ViewRound {
+    frame: Stamped<crate::msg::RgbdFrame>,
+    /// None: nothing to look for.
+    result: Result<Option<crate::perception::pipeline::ViewResult>, String>,
+    depth_scan: Option<DepthScan>,
+    gyro: Option<Stamped<[f64; 3]>>,
 }
 
 /// Runs until cancelled. `source` is the opened camera, `pipeline` built
@@ -62,6 +70,12 @@ pub async fn run(
     cancel: CancellationToken,
 ) -> Result<(), String> {
     let base_from_camera: Isometry3<f64> = pipeline.calibration.base_from_camera;
+    // the depth image's own camera in base_link
+    let (depth_k, base_from_depth) = match pipeline.calibration.depth {
+        Some((k, color_from_depth)) => (k, base_from_camera * color_from_depth),
+        None => (pipeline.calibration.color, base_from_camera),
+    };
+    let depth_settings = camera.depth_obstacles;
     let mut words: Vec<String> = Vec::new();
     // the words the detector has now
     let mut active: Vec<String> = Vec::new();
@@ -103,6 +117,9 @@ pub async fn run(
                     Ok(None) => return Round::Ended,
                     Err(e) => return Round::CameraError(e.to_string()),
                 };
+                let depth_scan = depth_settings.map(|s| {
+                    depth_obstacles::scan(&frame.value.depth, &depth_k, &base_from_depth, &s)
+                });
                 let result = if look {
                     pipeline
                         .process(&frame.value.color, Some(&frame.value.depth))
@@ -111,11 +128,12 @@ pub async fn run(
                 } else {
                     Ok(None)
                 };
-                Round::View {
+                Round::View(Box::new(ViewRound {
                     gyro: source.gyro(),
-                    frame: Box::new(frame),
+                    frame,
                     result,
-                }
+                    depth_scan,
+                }))
             })();
             (source, pipeline, round)
         };
@@ -145,11 +163,13 @@ pub async fn run(
                     return Err(format!("camera: failing for {:?}: {e}", CAMERA_GIVE_UP));
                 }
             }
-            Round::View {
-                frame,
-                result,
-                gyro,
-            } => {
+            Round::View(round) => {
+                let ViewRound {
+                    frame,
+                    result,
+                    gyro,
+                    depth_scan,
+                } = *round;
                 failing_since = None;
                 if first {
                     first = false;
@@ -162,6 +182,12 @@ pub async fn run(
                     io.gyro.send_replace(Some(Stamped::new(g.stamp, r.z)));
                 }
                 let stamp = if camera.restamp { now } else { frame.stamp };
+                if let Some(scan) = depth_scan {
+                    io.depth_scans
+                        .send(Stamped::new(stamp, scan))
+                        .await
+                        .map_err(|_| "the estimation task is gone".to_string())?;
+                }
                 let view = match result {
                     Ok(Some(v)) => v,
                     Ok(None) => continue,

@@ -10,6 +10,7 @@
 pub mod ekf;
 pub mod fusion;
 pub mod goal;
+pub mod obstacle_map;
 pub mod odometry;
 pub mod scan_match;
 pub mod tracker;

@@ -18,8 +18,12 @@ pub enum StopReason {
     LaserStale,
     OdometryStale,
     CommandStale,
+    /// The depth camera's obstacles are older than their deadline.
+    CameraStale,
     /// Something inside the stop corridor.
     Obstacle,
+    /// A drop-off (a step down) inside the stop corridor.
+    DropOff,
     /// A stop from any input (socket, switch, voice).
     UserStop,
     /// The user deflected the real joystick.

@@ -46,6 +46,35 @@ pub enum Reading {
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Obstacles {
     pub points_base: Vec<[f32; 2]>,
+    /// Where the floor is missing (a step down, a kerb): cells the chair
+    /// must not enter, same frame. The lasers never report any.
+    pub drop_offs_base: Vec<[f32; 2]>,
+}
+
+/// The depth camera's remembered obstacles and drop-offs, cell centres in
+/// `odom` (metres), stamped with the newest frame that went into them.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct MapObstacles {
+    pub obstacles_odom: Vec<[f64; 2]>,
+    pub drop_offs_odom: Vec<[f64; 2]>,
+}
+
+impl MapObstacles {
+    /// In `base_link` at `odom_from_base`.
+    pub fn to_base(&self, odom_from_base: &super::Pose2) -> Obstacles {
+        let (c, s) = (
+            odom_from_base.theta_rad.cos(),
+            odom_from_base.theta_rad.sin(),
+        );
+        let to_base = |p: &[f64; 2]| {
+            let (dx, dy) = (p[0] - odom_from_base.x_m, p[1] - odom_from_base.y_m);
+            [(c * dx + s * dy) as f32, (-s * dx + c * dy) as f32]
+        };
+        Obstacles {
+            points_base: self.obstacles_odom.iter().map(to_base).collect(),
+            drop_offs_base: self.drop_offs_odom.iter().map(to_base).collect(),
+        }
+    }
 }
 
 /// Counts from the board, with the unwrapped MCU time.

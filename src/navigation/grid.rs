@@ -88,6 +88,7 @@ mod tests {
         let mut g = ProximityGrid::paper();
         g.update(&Obstacles {
             points_base: vec![[2.0, 0.0], [1.0, 0.0], [0.0, 3.0], [7.0, 0.0], [-1.0, 0.0]],
+            ..Default::default()
         });
         assert_eq!(g.ranges_m[13], 1.0);
         // 90° left: sector (90 + 120) / 8.889 = 23.6 → 23

@@ -185,6 +185,7 @@ mod tests {
         };
         let obstacles = Obstacles {
             points_base: vec![[0.3, 0.0]],
+            ..Default::default()
         };
         let mut sources = Vec::new();
         for _ in 0..6 {

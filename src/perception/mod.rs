@@ -8,6 +8,7 @@
 
 pub mod boxes;
 pub mod cloud;
+pub mod depth_obstacles;
 pub mod detector;
 pub mod image;
 pub mod masks;

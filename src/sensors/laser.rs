@@ -28,7 +28,13 @@ pub fn merge_scans(scans: &[(&Stamped<LaserScan>, &Isometry3<f64>)]) -> Option<S
     for (s, pose) in scans {
         points_base.extend(scan_to_base(&s.value, pose));
     }
-    Some(Stamped::new(stamp, Obstacles { points_base }))
+    Some(Stamped::new(
+        stamp,
+        Obstacles {
+            points_base,
+            drop_offs_base: Vec::new(),
+        },
+    ))
 }
 
 #[cfg(test)]

@@ -296,11 +296,13 @@ pub async fn run_control_stand_in(c: ControlStandIn) -> Supervisor {
                 if let Some(v) = *planner.borrow() {
                     last_planner = Some(Stamped::new(now, v));
                 }
-                let obstacles = Stamped::new(now, Obstacles { points_base: Vec::new() });
+                let obstacles = Stamped::new(now, Obstacles::default());
                 let out = supervisor.step(now, &SupervisorInputs {
                     obstacles: Some(&obstacles),
                     odometry: Some(&Stamped::new(now, Odometry::default())),
                     command: last_planner.as_ref(),
+                    // this harness checks the writer, not perception
+                    camera: None,
                 });
                 commands.send_replace(Some(out));
             }

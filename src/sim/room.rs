@@ -22,10 +22,28 @@ pub struct SimObject {
     pub color: [u8; 3],
 }
 
+/// A step down: the floor inside `[min_m, max_m]` (x, y) lies `depth_m`
+/// lower, with vertical sides (a sunken area, a stairwell, a kerb).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Pit {
+    pub min_m: [f64; 2],
+    pub max_m: [f64; 2],
+    pub depth_m: f64,
+}
+
+impl Pit {
+    pub fn contains(&self, x: f64, y: f64) -> bool {
+        x > self.min_m[0] && x < self.max_m[0] && y > self.min_m[1] && y < self.max_m[1]
+    }
+}
+
 #[derive(Debug, Clone, PartialEq)]
 pub struct Room {
     pub size_m: [f64; 3],
     pub objects: Vec<SimObject>,
+    /// Steps down in the floor (the lasers' plane is above them: only the
+    /// depth camera sees them).
+    pub pits: Vec<Pit>,
 }
 
 /// One rendered view.
@@ -101,6 +119,7 @@ impl Room {
                 ),
                 obj(4, "bin", [0.0, 0.0, 0.0], [0.35, 0.35, 0.45], [90, 90, 90]),
             ],
+            pits: Vec::new(),
         }
     }
 
@@ -179,6 +198,29 @@ impl Room {
             let t = (wall - o[a]) / d[a];
             if t > 0.0 && t < best.0 {
                 best = (t, a, -1);
+            }
+        }
+        // the floor hit inside a pit: on through its open top to the pit's
+        // floor or one of its sides
+        if best.1 == 2 && d.z < 0.0 && best.0.is_finite() {
+            let hit = o + d * best.0;
+            if let Some(pit) = self.pits.iter().find(|p| p.contains(hit.x, hit.y)) {
+                let lo = [pit.min_m[0], pit.min_m[1], -pit.depth_m];
+                let hi = [pit.max_m[0], pit.max_m[1], 0.0];
+                let mut exit = (f64::INFINITY, 2usize);
+                for a in 0..3 {
+                    if d[a].abs() < 1e-12 {
+                        continue;
+                    }
+                    let bound = if d[a] > 0.0 { hi[a] } else { lo[a] };
+                    let t = (bound - o[a]) / d[a];
+                    if t > best.0 && t < exit.0 {
+                        exit = (t, a);
+                    }
+                }
+                if exit.0.is_finite() {
+                    best = (exit.0, exit.1, -1);
+                }
             }
         }
         for (idx, ob) in self.objects.iter().enumerate() {
@@ -313,6 +355,7 @@ mod tests {
         let room = Room {
             size_m: [4.0, 4.0, 3.0],
             objects: vec![],
+            pits: vec![],
         };
         // at (1, 2, 1.5) looking along +x: the far wall is 3 m ahead
         let pose = look_direction(Vector3::new(1.0, 2.0, 1.5), 0.0, 0.0);
@@ -320,6 +363,42 @@ mod tests {
         let c = r.depth.at(31, 17).unwrap();
         assert!((c - 3.0).abs() < 0.01, "{c}");
         assert!(r.instance.iter().all(|&i| i == -1));
+    }
+
+    #[test]
+    fn a_pit_shows_its_lower_floor_and_its_far_side() {
+        let room = Room {
+            size_m: [6.0, 4.0, 3.0],
+            objects: vec![],
+            pits: vec![Pit {
+                min_m: [3.0, 0.0],
+                max_m: [4.0, 4.0],
+                depth_m: 0.2,
+            }],
+        };
+        // 1 m up at x = 1 looking down 45°: the floor would be hit 1 m
+        // ahead (x = 2, before the pit): unchanged
+        let pose = look_direction(Vector3::new(1.0, 2.0, 1.0), 0.0, -45f64.to_radians());
+        let r = room.render(&k(), &pose).unwrap();
+        let c = r.depth.at(31, 17).unwrap() as f64;
+        // (pixel 31, 17 is half a pixel off the optical axis: 3 %)
+        assert!((c / 2f64.sqrt() - 1.0).abs() < 0.03, "{c}");
+        // from x = 2.5: the floor at x = 3.5 is in the pit: the ray goes on
+        // to z = -0.2 at x = 3.7
+        let pose = look_direction(Vector3::new(2.5, 2.0, 1.0), 0.0, -45f64.to_radians());
+        let r = room.render(&k(), &pose).unwrap();
+        let c = r.depth.at(31, 17).unwrap() as f64;
+        assert!((c / (1.2 * 2f64.sqrt()) - 1.0).abs() < 0.03, "{c}");
+        // looking down more steeply into the pit's far side (x = 4)
+        let pose = look_direction(Vector3::new(3.2, 2.0, 1.0), 0.0, -60f64.to_radians());
+        let r = room.render(&k(), &pose).unwrap();
+        let c = r.depth.at(31, 17).unwrap() as f64;
+        // along the ray: z = 1 - t·sin60, x = 3.2 + t·cos60; the pit's
+        // floor at t = 1.2/sin60 = 1.386 (x = 3.89 < 4)
+        assert!(
+            (c / (1.2 / 60f64.to_radians().sin()) - 1.0).abs() < 0.03,
+            "{c}"
+        );
     }
 
     #[test]
@@ -333,6 +412,7 @@ mod tests {
                 [0.5, 1.0, 1.0],
                 [1, 2, 3],
             )],
+            pits: vec![],
         };
         let pose = look_direction(Vector3::new(1.0, 2.0, 1.5), 0.0, 0.0);
         let r = room.render(&k(), &pose).unwrap();

@@ -40,6 +40,11 @@ pub struct SimReport {
     pub collision_steps: u64,
     /// Smallest distance from the footprint to an obstacle, m.
     pub min_clearance_m: f64,
+    /// Steps in which part of the footprint was over a step down.
+    pub fell_steps: u64,
+    /// Smallest distance from the footprint to a step down's edge, m
+    /// (infinite without one; negative: over it).
+    pub min_drop_clearance_m: f64,
     pub distance_travelled_m: f64,
 }
 
@@ -137,6 +142,8 @@ impl SimWorld {
                 omega_radps: 0.0,
                 collision_steps: 0,
                 min_clearance_m: f64::INFINITY,
+                fell_steps: 0,
+                min_drop_clearance_m: f64::INFINITY,
                 distance_travelled_m: 0.0,
             },
             now: crate::msg::Stamp::ZERO,
@@ -173,6 +180,57 @@ impl SimWorld {
         if c <= 0.0 {
             self.report.collision_steps += 1;
         }
+        let dc = self.drop_clearance();
+        self.report.min_drop_clearance_m = self.report.min_drop_clearance_m.min(dc);
+        if dc <= 0.0 {
+            self.report.fell_steps += 1;
+        }
+    }
+
+    /// The footprint's outline in the world, sampled.
+    fn outline_world(&self) -> Vec<[f64; 2]> {
+        let f = self.footprint;
+        let (c, s) = (self.truth.theta_rad.cos(), self.truth.theta_rad.sin());
+        let mut outline = Vec::new();
+        for i in 0..=10 {
+            let u = i as f64 / 10.0;
+            let x = -f.rear_m + u * (f.front_m + f.rear_m);
+            let y = -f.half_width_m + u * 2.0 * f.half_width_m;
+            outline.extend([
+                [x, f.half_width_m],
+                [x, -f.half_width_m],
+                [f.front_m, y],
+                [-f.rear_m, y],
+            ]);
+        }
+        outline
+            .into_iter()
+            .map(|q| {
+                [
+                    self.truth.x_m + c * q[0] - s * q[1],
+                    self.truth.y_m + s * q[0] + c * q[1],
+                ]
+            })
+            .collect()
+    }
+
+    /// Smallest distance from the footprint to the edge of a step down
+    /// (negative: part of the chair is over it).
+    pub fn drop_clearance(&self) -> f64 {
+        let mut best = f64::INFINITY;
+        for p in self.outline_world() {
+            for pit in &self.room.pits {
+                let dx = (pit.min_m[0] - p[0]).max(p[0] - pit.max_m[0]);
+                let dy = (pit.min_m[1] - p[1]).max(p[1] - pit.max_m[1]);
+                let d = if dx <= 0.0 && dy <= 0.0 {
+                    dx.max(dy)
+                } else {
+                    dx.max(0.0).hypot(dy.max(0.0))
+                };
+                best = best.min(d);
+            }
+        }
+        best
     }
 
     /// What the encoder board would send now.
@@ -246,28 +304,9 @@ impl SimWorld {
     /// Smallest distance from the chair's footprint to the walls and to
     /// objects taller than 5 cm (negative: overlapping).
     pub fn clearance(&self) -> f64 {
-        let f = self.footprint;
-        let (c, s) = (self.truth.theta_rad.cos(), self.truth.theta_rad.sin());
-        // sample the footprint's outline
-        let mut outline = Vec::new();
-        for i in 0..=10 {
-            let u = i as f64 / 10.0;
-            let x = -f.rear_m + u * (f.front_m + f.rear_m);
-            let y = -f.half_width_m + u * 2.0 * f.half_width_m;
-            outline.extend([
-                [x, f.half_width_m],
-                [x, -f.half_width_m],
-                [f.front_m, y],
-                [-f.rear_m, y],
-            ]);
-        }
         let [sx, sy, _] = self.room.size_m;
         let mut best = f64::INFINITY;
-        for q in outline {
-            let p = [
-                self.truth.x_m + c * q[0] - s * q[1],
-                self.truth.y_m + s * q[0] + c * q[1],
-            ];
+        for p in self.outline_world() {
             best = best.min(p[0]).min(p[1]).min(sx - p[0]).min(sy - p[1]);
             for o in self.room.objects.iter().filter(|o| o.max_m[2] > 0.05) {
                 let dx = (o.min_m[0] - p[0]).max(p[0] - o.max_m[0]);

@@ -1,0 +1,192 @@
+//! The depth camera's obstacles and drop-offs remembered in `odom`. A
+//! level camera sees a 0.3 m box from about 1.4 m away and loses it as the
+//! chair comes closer (it drops below the image): the cell stays an
+//! obstacle in `odom` and the supervisor keeps stopping before it. A cell
+//! is forgotten when the floor is seen there again (what moved away, a
+//! person who walked on), when the chair stands on it (nothing can be
+//! inside the chair), or when it is farther than the memory radius.
+//! Pure: each frame's cells and the chair's pose at its stamp in.
+
+use std::collections::BTreeMap;
+
+use crate::msg::Pose2;
+use crate::perception::depth_obstacles::{cell_centre, DepthScan};
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CellKind {
+    Obstacle,
+    DropOff,
+}
+
+/// Cells in `odom`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ObstacleMap {
+    cell_m: f64,
+    radius_m: f64,
+    cells: BTreeMap<(i32, i32), CellKind>,
+}
+
+/// The chair's footprint about base_link (metres): cells under it are
+/// cleared.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FootprintM {
+    pub front_m: f64,
+    pub rear_m: f64,
+    pub half_width_m: f64,
+}
+
+impl ObstacleMap {
+    pub fn new(cell_m: f64, radius_m: f64) -> Self {
+        ObstacleMap {
+            cell_m,
+            radius_m,
+            cells: BTreeMap::new(),
+        }
+    }
+
+    fn cell(&self, p: [f64; 2]) -> Option<(i32, i32)> {
+        let (i, j) = ((p[0] / self.cell_m).floor(), (p[1] / self.cell_m).floor());
+        let ok = |v: f64| v.is_finite() && v.abs() < 1e6;
+        (ok(i) && ok(j)).then_some((i as i32, j as i32))
+    }
+
+    /// Adds one frame seen from `pose` (odom_from_base at the frame's
+    /// stamp): seen floor clears, obstacles and drop-offs are set, then
+    /// cells under the footprint and beyond the radius are dropped.
+    pub fn insert(&mut self, pose: Pose2, scan: &DepthScan, footprint: FootprintM) {
+        let (c, s) = (pose.theta_rad.cos(), pose.theta_rad.sin());
+        let to_odom = |q: &[f32; 2]| {
+            let (x, y) = (q[0] as f64, q[1] as f64);
+            [pose.x_m + c * x - s * y, pose.y_m + s * x + c * y]
+        };
+        for q in &scan.floor_base {
+            if let Some(k) = self.cell(to_odom(q)) {
+                self.cells.remove(&k);
+            }
+        }
+        for (list, kind) in [
+            (&scan.drop_offs_base, CellKind::DropOff),
+            (&scan.obstacles_base, CellKind::Obstacle),
+        ] {
+            for q in list {
+                if let Some(k) = self.cell(to_odom(q)) {
+                    self.cells.insert(k, kind);
+                }
+            }
+        }
+        self.forget(pose, footprint);
+    }
+
+    /// Drops the cells under the footprint at `pose` and beyond the radius.
+    pub fn forget(&mut self, pose: Pose2, f: FootprintM) {
+        let (c, s) = (pose.theta_rad.cos(), pose.theta_rad.sin());
+        let (cell_m, r) = (self.cell_m, self.radius_m);
+        self.cells.retain(|k, _| {
+            let p = cell_centre(*k, cell_m);
+            let (dx, dy) = (p[0] - pose.x_m, p[1] - pose.y_m);
+            if dx.hypot(dy) > r {
+                return false;
+            }
+            // in base_link
+            let (x, y) = (c * dx + s * dy, -s * dx + c * dy);
+            !(x >= -f.rear_m && x <= f.front_m && y.abs() <= f.half_width_m)
+        });
+    }
+
+    /// The remembered cells' centres in `odom`, of one kind.
+    pub fn points(&self, kind: CellKind) -> Vec<[f64; 2]> {
+        self.cells
+            .iter()
+            .filter(|(_, k)| **k == kind)
+            .map(|(c, _)| cell_centre(*c, self.cell_m))
+            .collect()
+    }
+
+    pub fn len(&self) -> usize {
+        self.cells.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.cells.is_empty()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const F: FootprintM = FootprintM {
+        front_m: 0.55,
+        rear_m: 0.45,
+        half_width_m: 0.35,
+    };
+
+    fn at(x: f64, y: f64, th: f64) -> Pose2 {
+        Pose2 {
+            x_m: x,
+            y_m: y,
+            theta_rad: th,
+        }
+    }
+
+    fn scan(obstacles: &[[f32; 2]], floor: &[[f32; 2]]) -> DepthScan {
+        DepthScan {
+            obstacles_base: obstacles.to_vec(),
+            drop_offs_base: Vec::new(),
+            floor_base: floor.to_vec(),
+        }
+    }
+
+    #[test]
+    fn an_obstacle_out_of_view_is_remembered_in_odom() {
+        let mut m = ObstacleMap::new(0.05, 4.0);
+        // seen 1.5 m ahead from a chair at (1, 0) facing +y
+        m.insert(
+            at(1.0, 0.0, std::f64::consts::FRAC_PI_2),
+            &scan(&[[1.525, 0.025]], &[]),
+            F,
+        );
+        let p = m.points(CellKind::Obstacle);
+        assert_eq!(p.len(), 1);
+        assert!(
+            (p[0][0] - 0.975).abs() < 0.03 && (p[0][1] - 1.525).abs() < 0.03,
+            "{p:?}"
+        );
+        // the next frame does not see it (out of view): still there
+        m.insert(
+            at(1.0, 0.8, std::f64::consts::FRAC_PI_2),
+            &scan(&[], &[]),
+            F,
+        );
+        assert_eq!(m.points(CellKind::Obstacle).len(), 1);
+    }
+
+    #[test]
+    fn seen_floor_clears_and_the_radius_forgets() {
+        let mut m = ObstacleMap::new(0.05, 2.0);
+        m.insert(at(0.0, 0.0, 0.0), &scan(&[[1.525, 0.025]], &[]), F);
+        // the person walked on: floor seen there
+        m.insert(at(0.0, 0.0, 0.0), &scan(&[], &[[1.525, 0.025]]), F);
+        assert!(m.is_empty());
+        m.insert(at(0.0, 0.0, 0.0), &scan(&[[1.525, 0.025]], &[]), F);
+        // an obstacle in the same frame as floor in its cell wins
+        m.insert(
+            at(0.0, 0.0, 0.0),
+            &scan(&[[1.525, 0.025]], &[[1.525, 0.025]]),
+            F,
+        );
+        assert_eq!(m.len(), 1);
+        // 2 m past it: beyond the radius
+        m.insert(at(-1.0, 0.0, 0.0), &scan(&[], &[]), F);
+        assert!(m.is_empty());
+    }
+
+    #[test]
+    fn nothing_is_kept_under_the_chair() {
+        let mut m = ObstacleMap::new(0.05, 4.0);
+        m.insert(at(0.0, 0.0, 0.0), &scan(&[[0.2, 0.0], [0.8, 0.0]], &[]), F);
+        let p = m.points(CellKind::Obstacle);
+        assert_eq!(p.len(), 1, "{p:?}");
+        assert!(p[0][0] > 0.55);
+    }
+}

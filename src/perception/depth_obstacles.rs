@@ -1,0 +1,314 @@
+//! What the lasers miss, from one depth frame: points above the floor and
+//! below the chair's height (a box, a bed edge, a footstool under the
+//! lasers' 0.66 m plane) and drop-offs — where the floor should be and is
+//! not (a step down, a kerb, an open stair). Pure: the depth image, its
+//! intrinsics and its pose in `base_link` in; cells on the floor plane of
+//! `base_link` out.
+//!
+//! Each sampled pixel's point in `base_link` (z up, the floor at z = 0):
+//! - `floor_band_m < z ≤ max_height_m`: an obstacle at its (x, y);
+//! - `z < −drop_min_m`: the ray went through the floor, so the floor is
+//!   missing where the ray crosses z = 0 — a drop-off there;
+//! - `|z| ≤ floor_band_m`: floor, seen (used to forget what moved away).
+//!
+//! Pixels without depth are unknown, never free and never a drop-off (a
+//! real camera loses depth on shiny or dark floors; treating that as a
+//! step would stop the chair for nothing). Points are binned into
+//! `cell_m` cells; a cell needs `min_hits` points to count (one noisy
+//! pixel is not a box).
+
+use std::collections::BTreeMap;
+
+use nalgebra::{Isometry3, Point3};
+
+use crate::msg::{is_valid_depth, DepthImage, Intrinsics};
+
+/// Config `[depth_obstacles]`.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct DepthObstacleSettings {
+    /// Look at the depth camera at all (false: lasers only, said at start).
+    pub enabled: bool,
+    /// Every n-th pixel in each direction (count, 1..16).
+    pub stride_px: usize,
+    /// Points this close to the floor plane are floor (metres, 0.01..0.2).
+    pub floor_band_m: f64,
+    /// Points higher than this are above the chair (metres, 0.5..2.5).
+    pub max_height_m: f64,
+    /// Points farther than this, horizontally from base_link, are ignored
+    /// (metres, 0.5..6; depth noise grows with range).
+    pub max_range_m: f64,
+    /// A point this far below the floor plane means the floor is missing
+    /// (metres, 0.02..0.5).
+    pub drop_min_m: f64,
+    /// Cell size on the floor (metres, 0.02..0.2).
+    pub cell_m: f64,
+    /// Points a cell needs to count (count, 1..100).
+    pub min_hits: usize,
+    /// Cells are remembered (in odom) while within this distance of the
+    /// chair, so what leaves the camera's view near the chair stays an
+    /// obstacle (metres, 1..10).
+    pub memory_radius_m: f64,
+}
+
+impl Default for DepthObstacleSettings {
+    fn default() -> Self {
+        DepthObstacleSettings {
+            enabled: true,
+            stride_px: 2,
+            floor_band_m: 0.05,
+            max_height_m: 1.5,
+            max_range_m: 3.0,
+            drop_min_m: 0.06,
+            cell_m: 0.05,
+            min_hits: 2,
+            memory_radius_m: 4.0,
+        }
+    }
+}
+
+/// One frame's cells in `base_link` (centres, metres), each list sorted.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct DepthScan {
+    pub obstacles_base: Vec<[f32; 2]>,
+    pub drop_offs_base: Vec<[f32; 2]>,
+    pub floor_base: Vec<[f32; 2]>,
+}
+
+type Cell = (i32, i32);
+
+fn cell_of(x: f64, y: f64, cell_m: f64) -> Option<Cell> {
+    let (i, j) = ((x / cell_m).floor(), (y / cell_m).floor());
+    let ok = |v: f64| v.is_finite() && v.abs() < 1e6;
+    (ok(i) && ok(j)).then_some((i as i32, j as i32))
+}
+
+/// The centre of a cell, metres.
+pub fn cell_centre(c: Cell, cell_m: f64) -> [f64; 2] {
+    [(c.0 as f64 + 0.5) * cell_m, (c.1 as f64 + 0.5) * cell_m]
+}
+
+/// The cells of one depth frame. `base_from_depth` is the depth camera's
+/// optical frame (z forward, x right, y down) in `base_link`.
+pub fn scan(
+    depth: &DepthImage,
+    k: &Intrinsics,
+    base_from_depth: &Isometry3<f64>,
+    s: &DepthObstacleSettings,
+) -> DepthScan {
+    let stride = s.stride_px.max(1);
+    let origin = base_from_depth.translation.vector;
+    let mut obstacles: BTreeMap<Cell, usize> = BTreeMap::new();
+    let mut drops: BTreeMap<Cell, usize> = BTreeMap::new();
+    let mut floor: BTreeMap<Cell, usize> = BTreeMap::new();
+    let (w, h) = (depth.width().min(k.width), depth.height().min(k.height));
+    let data = depth.data();
+    for v in (0..h).step_by(stride) {
+        for u in (0..w).step_by(stride) {
+            let d = data[v * depth.width() + u];
+            if !is_valid_depth(d) {
+                continue;
+            }
+            let d = d as f64;
+            let p_cam = Point3::new(
+                (u as f64 - k.cx) / k.fx * d,
+                (v as f64 - k.cy) / k.fy * d,
+                d,
+            );
+            let p = base_from_depth * p_cam;
+            if p.x.hypot(p.y) > s.max_range_m {
+                continue;
+            }
+            let (map, at) = if p.z > s.floor_band_m && p.z <= s.max_height_m {
+                (&mut obstacles, (p.x, p.y))
+            } else if p.z < -s.drop_min_m {
+                // where the ray crossed the floor plane
+                let dz = origin.z - p.z;
+                if origin.z <= 0.0 || dz <= 0.0 {
+                    continue;
+                }
+                let t = origin.z / dz;
+                (
+                    &mut drops,
+                    (
+                        origin.x + t * (p.x - origin.x),
+                        origin.y + t * (p.y - origin.y),
+                    ),
+                )
+            } else if p.z.abs() <= s.floor_band_m {
+                (&mut floor, (p.x, p.y))
+            } else {
+                continue;
+            };
+            if let Some(c) = cell_of(at.0, at.1, s.cell_m) {
+                *map.entry(c).or_default() += 1;
+            }
+        }
+    }
+    let keep = |m: BTreeMap<Cell, usize>| -> Vec<[f32; 2]> {
+        m.into_iter()
+            .filter(|(_, n)| *n >= s.min_hits.max(1))
+            .map(|(c, _)| {
+                let p = cell_centre(c, s.cell_m);
+                [p[0] as f32, p[1] as f32]
+            })
+            .collect()
+    };
+    DepthScan {
+        obstacles_base: keep(obstacles),
+        drop_offs_base: keep(drops),
+        floor_base: keep(floor),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{Matrix3, Rotation3, Translation3, UnitQuaternion};
+
+    fn k() -> Intrinsics {
+        Intrinsics {
+            width: 160,
+            height: 120,
+            fx: 80.0,
+            fy: 80.0,
+            cx: 79.5,
+            cy: 59.5,
+        }
+    }
+
+    /// A camera 0.9 m up at base x = 0.3, pitched down by `pitch_deg`.
+    fn base_from_camera(pitch_deg: f64) -> Isometry3<f64> {
+        let level = Matrix3::new(0.0, 0.0, 1.0, -1.0, 0.0, 0.0, 0.0, -1.0, 0.0);
+        let level = Rotation3::from_matrix_unchecked(level);
+        let pitch =
+            Rotation3::from_axis_angle(&nalgebra::Vector3::y_axis(), pitch_deg.to_radians());
+        Isometry3::from_parts(
+            Translation3::new(0.3, 0.0, 0.9),
+            UnitQuaternion::from_rotation_matrix(&(pitch * level)),
+        )
+    }
+
+    /// Renders a floor at height `floor_z(x, y)` (a height field sampled
+    /// along each ray) and a box [x0, x1] × [y0, y1] × [0, top].
+    fn render(
+        t: &Isometry3<f64>,
+        floor_z: impl Fn(f64, f64) -> f64,
+        boxed: Option<([f64; 4], f64)>,
+    ) -> DepthImage {
+        let k = k();
+        let mut d = vec![0.0f32; k.width * k.height];
+        let o = t.translation.vector;
+        for v in 0..k.height {
+            for u in 0..k.width {
+                let dir_cam =
+                    nalgebra::Vector3::new((u as f64 - k.cx) / k.fx, (v as f64 - k.cy) / k.fy, 1.0);
+                let dir = t.rotation * dir_cam;
+                // march along the ray in optical-z steps of 5 mm
+                let mut z = 0.05;
+                while z < 6.0 {
+                    let p = o + dir * z;
+                    let hit_box = boxed.is_some_and(|(b, top)| {
+                        p.x >= b[0] && p.x <= b[1] && p.y >= b[2] && p.y <= b[3] && p.z <= top
+                    });
+                    if hit_box || p.z <= floor_z(p.x, p.y) {
+                        d[v * k.width + u] = z as f32;
+                        break;
+                    }
+                    z += 0.005;
+                }
+            }
+        }
+        DepthImage::new(k.width, k.height, d).expect("image")
+    }
+
+    fn any_in(cells: &[[f32; 2]], x: (f64, f64), y: (f64, f64)) -> bool {
+        cells.iter().any(|c| {
+            (c[0] as f64) >= x.0
+                && (c[0] as f64) <= x.1
+                && (c[1] as f64) >= y.0
+                && (c[1] as f64) <= y.1
+        })
+    }
+
+    #[test]
+    fn a_flat_floor_is_floor_and_nothing_else() {
+        let t = base_from_camera(30.0);
+        let s = scan(
+            &render(&t, |_, _| 0.0, None),
+            &k(),
+            &t,
+            &DepthObstacleSettings::default(),
+        );
+        assert!(s.obstacles_base.is_empty(), "{:?}", s.obstacles_base);
+        assert!(s.drop_offs_base.is_empty(), "{:?}", s.drop_offs_base);
+        assert!(s.floor_base.len() > 100);
+    }
+
+    #[test]
+    fn a_low_box_under_the_lasers_is_an_obstacle_where_it_stands() {
+        let t = base_from_camera(30.0);
+        let b = [1.5, 1.9, -0.2, 0.2];
+        let s = scan(
+            &render(&t, |_, _| 0.0, Some((b, 0.3))),
+            &k(),
+            &t,
+            &DepthObstacleSettings::default(),
+        );
+        assert!(any_in(&s.obstacles_base, (1.45, 1.95), (-0.25, 0.25)));
+        // nothing outside the box (its faces, within a cell)
+        for c in &s.obstacles_base {
+            assert!(
+                any_in(&[*c], (1.45, 1.95), (-0.25, 0.25)),
+                "obstacle outside the box at {c:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_step_down_is_a_drop_off_at_its_edge() {
+        let t = base_from_camera(30.0);
+        // the floor drops 0.15 m from x = 2.0 on
+        let s = scan(
+            &render(&t, |x, _| if x >= 2.0 { -0.15 } else { 0.0 }, None),
+            &k(),
+            &t,
+            &DepthObstacleSettings::default(),
+        );
+        assert!(!s.drop_offs_base.is_empty());
+        for c in &s.drop_offs_base {
+            assert!(c[0] >= 1.95, "drop-off before the edge at {c:?}");
+        }
+        // the first drop-off cells are at the edge
+        let nearest = s
+            .drop_offs_base
+            .iter()
+            .map(|c| c[0])
+            .fold(f32::INFINITY, f32::min);
+        assert!(nearest < 2.15, "nearest drop-off {nearest}");
+        assert!(s.obstacles_base.is_empty());
+    }
+
+    #[test]
+    fn missing_depth_is_unknown_and_single_pixels_do_not_count() {
+        let t = base_from_camera(30.0);
+        let k = k();
+        let mut d = vec![0.0f32; k.width * k.height];
+        // one pixel says something stands 0.3 m high 1.5 m ahead
+        let p_base = Point3::new(1.5, 0.0, 0.3);
+        let p_cam = t.inverse() * p_base;
+        let u = (p_cam.x / p_cam.z * k.fx + k.cx).round() as usize;
+        let v = (p_cam.y / p_cam.z * k.fy + k.cy).round() as usize;
+        let u = u - u % 2;
+        let v = v - v % 2;
+        d[v * k.width + u] = p_cam.z as f32;
+        let img = DepthImage::new(k.width, k.height, d).expect("image");
+        let s = scan(&img, &k, &t, &DepthObstacleSettings::default());
+        assert_eq!(s, DepthScan::default());
+        let one = DepthObstacleSettings {
+            min_hits: 1,
+            ..Default::default()
+        };
+        assert_eq!(scan(&img, &k, &t, &one).obstacles_base.len(), 1);
+    }
+}

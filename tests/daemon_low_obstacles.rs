@@ -1,0 +1,179 @@
+//! What the lasers miss, closed loop: in a 1.4 m wide hall the chair is
+//! sent to a cabinet at its far end, and across the way stands something
+//! under the lasers' 0.66 m plane — a box, a bed's edge, a footstool — or
+//! the floor steps down. The depth camera's obstacles and drop-offs stop
+//! the chair before each: no contact, no wheel over the edge. With the
+//! depth obstacles off, the same trips end in a collision or a fall (so
+//! these tests fail without the feature).
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use opennav::config::Settings;
+use opennav::daemon::{RunOptions, RunReport};
+use opennav::msg::{Clock, Pose2, StopReason, SupervisorState, TokioClock, UserInput};
+use opennav::sim::devices::SimSummary;
+use opennav::sim::room::{Pit, Room, SimObject};
+use opennav::sim::world::SimWorld;
+use tokio::sync::mpsc;
+use tokio_util::sync::CancellationToken;
+
+const HALL_WIDTH_M: f64 = 1.4;
+/// Where the obstacle's near face (or the step's edge) is, x in metres.
+const EDGE_X_M: f64 = 3.0;
+const START_X_M: f64 = 1.0;
+
+fn object(label: &str, min: [f64; 3], size: [f64; 3]) -> SimObject {
+    SimObject {
+        label_id: 0,
+        label: label.into(),
+        min_m: min,
+        max_m: [min[0] + size[0], min[1] + size[1], min[2] + size[2]],
+        color: [150, 120, 90],
+    }
+}
+
+#[derive(Debug, Clone, Copy)]
+enum Across {
+    Box,
+    BedEdge,
+    Footstool,
+    StepDown,
+}
+
+/// The hall: 7 m long, the cabinet at its far end, `across` in the way.
+fn hall(across: Across) -> Room {
+    let w = HALL_WIDTH_M;
+    let mut objects = vec![object("cabinet", [6.4, 0.2, 0.0], [0.5, 1.0, 1.8])];
+    let mut pits = Vec::new();
+    match across {
+        // a row of moving boxes, 0.3 m high
+        Across::Box => objects.push(object("box", [EDGE_X_M, 0.0, 0.0], [0.4, w, 0.3])),
+        // a bed standing across the hall, its edge 0.5 m high
+        Across::BedEdge => objects.push(object("bed", [EDGE_X_M, 0.0, 0.0], [2.0, w, 0.5])),
+        // a footstool in the middle: the gaps beside it (0.48 m) are
+        // narrower than the chair
+        Across::Footstool => objects.push(object(
+            "footstool",
+            [EDGE_X_M, (w - 0.45) / 2.0, 0.0],
+            [0.45, 0.45, 0.4],
+        )),
+        // the floor steps down 0.15 m for a metre, across the hall
+        Across::StepDown => pits.push(Pit {
+            min_m: [EDGE_X_M, -1.0],
+            max_m: [EDGE_X_M + 1.0, w + 1.0],
+            depth_m: 0.15,
+        }),
+    }
+    Room {
+        size_m: [7.0, w, 2.8],
+        objects,
+        pits,
+    }
+}
+
+async fn trip(across: Across, depth_obstacles: bool) -> (RunReport, SimSummary) {
+    let mut settings = Settings::load(None).expect("defaults");
+    settings.depth_obstacles.enabled = depth_obstacles;
+    let clock: Arc<dyn Clock> = Arc::new(TokioClock::new());
+    let mut world = SimWorld::living_room(settings.drive_params());
+    world.room = hall(across);
+    let start = Pose2 {
+        x_m: START_X_M,
+        y_m: HALL_WIDTH_M / 2.0,
+        theta_rad: 0.0,
+    };
+    world.truth = start;
+    world.start = start;
+    world.report.truth = start;
+    let (devices, sim) =
+        opennav::sim::devices::devices(&settings, world, clock.clone()).expect("devices");
+    let (tx, rx) = mpsc::channel(4);
+    tx.send(UserInput::Goto("cabinet".into()))
+        .await
+        .expect("send");
+    let report = opennav::daemon::run(
+        devices,
+        &settings,
+        RunOptions {
+            exit_on_arrival: true,
+            max_duration: Some(Duration::from_secs(40)),
+            ..Default::default()
+        },
+        rx,
+        clock,
+        CancellationToken::new(),
+    )
+    .await
+    .expect("runs");
+    drop(tx);
+    let summary = sim.summary(Some("cabinet")).expect("summary");
+    (report, summary)
+}
+
+/// The chair went towards the cabinet, stopped before the obstacle (no
+/// contact, no fall) and is at rest there, the supervisor saying why.
+fn check_stopped_before(across: Across, r: &RunReport, s: &SimSummary, reason: StopReason) {
+    let w = &s.world;
+    eprintln!(
+        "{across:?}: travelled {:.2} m, clearance {:.3} m, drop clearance {:.3} m, final x {:.2} m, state {:?}",
+        w.distance_travelled_m, w.min_clearance_m, w.min_drop_clearance_m, w.truth.x_m, r.supervisor
+    );
+    assert_eq!(w.collision_steps, 0, "{across:?}: {s:?}");
+    assert_eq!(w.fell_steps, 0, "{across:?}: {s:?}");
+    assert!(w.min_clearance_m > 0.05, "{across:?}: {s:?}");
+    assert!(w.min_drop_clearance_m > 0.05, "{across:?}: {s:?}");
+    // it drove up to the obstacle: the chair's front (0.55 m ahead of
+    // base_link) within a metre of the edge
+    let front_x = w.truth.x_m + 0.55;
+    assert!(
+        front_x > EDGE_X_M - 1.0 && front_x < EDGE_X_M,
+        "{across:?}: front at {front_x:.2} m, the edge at {EDGE_X_M} m"
+    );
+    assert!(w.v_mps.abs() < 0.02, "{across:?}: still moving {s:?}");
+    assert_eq!(
+        r.supervisor,
+        SupervisorState::Stopped(reason),
+        "{across:?}: {r:?}"
+    );
+    assert!(r.estimation.depth_frames_placed > 10, "{r:?}");
+}
+
+#[tokio::test(start_paused = true)]
+async fn stops_before_a_low_box() {
+    let (r, s) = trip(Across::Box, true).await;
+    check_stopped_before(Across::Box, &r, &s, StopReason::Obstacle);
+}
+
+#[tokio::test(start_paused = true)]
+async fn stops_before_a_bed_edge() {
+    let (r, s) = trip(Across::BedEdge, true).await;
+    check_stopped_before(Across::BedEdge, &r, &s, StopReason::Obstacle);
+}
+
+#[tokio::test(start_paused = true)]
+async fn stops_before_a_footstool() {
+    let (r, s) = trip(Across::Footstool, true).await;
+    check_stopped_before(Across::Footstool, &r, &s, StopReason::Obstacle);
+}
+
+#[tokio::test(start_paused = true)]
+async fn stops_before_a_step_down() {
+    let (r, s) = trip(Across::StepDown, true).await;
+    check_stopped_before(Across::StepDown, &r, &s, StopReason::DropOff);
+}
+
+#[tokio::test(start_paused = true)]
+async fn without_the_depth_camera_the_lasers_miss_them() {
+    let (r, s) = trip(Across::Box, false).await;
+    assert!(s.world.collision_steps > 0, "the box was not hit: {s:?}");
+    assert!(
+        r.said
+            .iter()
+            .any(|l| l.contains("cannot see low obstacles")),
+        "{:?}",
+        r.said
+    );
+    let (_, s) = trip(Across::StepDown, false).await;
+    assert!(s.world.fell_steps > 0, "no fall: {s:?}");
+}
