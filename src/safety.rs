@@ -44,6 +44,9 @@ pub struct SafetyLimits {
     /// The depth camera's obstacles older than this stop the chair; None:
     /// no depth camera (the lasers alone, said at start).
     pub camera_max_age: Option<Duration>,
+    /// Of the laser steps through the corridor (or the turn circle), the
+    /// fraction that may be blind before the way counts as not seen.
+    pub max_blind_fraction: f64,
 }
 
 /// The latest inputs, each with its acquisition stamp.
@@ -175,6 +178,17 @@ impl Supervisor {
         mut points: impl Iterator<Item = &'p [f32; 2]>,
         v_mps: f64,
     ) -> bool {
+        let Some((lo, hi)) = self.corridor_box(v_mps) else {
+            return false;
+        };
+        points.any(|p| {
+            let (x, y) = (p[0] as f64, p[1] as f64);
+            x >= lo[0] && x <= hi[0] && y >= lo[1] && y <= hi[1]
+        })
+    }
+
+    /// The corridor's box in `base_link` for travel at `v_mps` (None at 0).
+    fn corridor_box(&self, v_mps: f64) -> Option<([f64; 2], [f64; 2])> {
         let l = &self.limits;
         let half = l.chair_width_m / 2.0 + l.corridor_margin_m;
         let (lo, hi) = if v_mps > 0.0 {
@@ -182,12 +196,43 @@ impl Supervisor {
         } else if v_mps < 0.0 {
             (-l.rear_offset_m - l.stop_distance_m, -l.rear_offset_m)
         } else {
-            return false;
+            return None;
         };
-        points.any(|p| {
-            let (x, y) = (p[0] as f64, p[1] as f64);
-            x >= lo && x <= hi && y.abs() <= half
-        })
+        Some(([lo, -half], [hi, half]))
+    }
+
+    /// Whether more than `max_blind_fraction` of the laser steps through
+    /// `[lo, hi]` are blind.
+    fn blind(&self, rays: &[crate::msg::LaserRay], lo: [f64; 2], hi: [f64; 2]) -> bool {
+        let (mut through, mut blind) = (0usize, 0usize);
+        for r in rays.iter().filter(|r| r.crosses(lo, hi)) {
+            through += 1;
+            blind += r.blind as usize;
+        }
+        through > 0 && blind as f64 > self.limits.max_blind_fraction * through as f64
+    }
+
+    /// The lasers cannot vouch for the way: too many blind steps through
+    /// the corridor of any direction of travel, or through the turn circle
+    /// of a turn on the spot.
+    pub fn way_unseen(
+        &self,
+        rays: &[crate::msg::LaserRay],
+        travel: &[f64],
+        turns: &[(f64, f64)],
+    ) -> bool {
+        let l = &self.limits;
+        let corridor = travel
+            .iter()
+            .filter_map(|v| self.corridor_box(*v))
+            .any(|(lo, hi)| self.blind(rays, lo, hi));
+        let turning = turns.iter().any(|(v, w)| v.abs() < 0.05 && w.abs() > 0.05);
+        let r = l
+            .front_offset_m
+            .max(l.rear_offset_m)
+            .hypot(l.chair_width_m / 2.0)
+            + l.corridor_margin_m;
+        corridor || (turning && self.blind(rays, [-r, -r], [r, r]))
     }
 
     /// Watches the measured speed: above a cap (+ margin) for longer than
@@ -283,6 +328,12 @@ impl Supervisor {
                 };
                 let camera = inputs.camera.map(|c| &c.value);
                 let no_points: &[[f32; 2]] = &[];
+                let turns = [(v, w), (v_now, w_now)];
+                let turns = if w_now.abs() > TURNING_RADPS {
+                    &turns[..]
+                } else {
+                    &turns[..1]
+                };
                 let blocked = if blocked_by(&[
                     &obs.value.points_base,
                     &obs.value.drop_offs_base,
@@ -291,6 +342,12 @@ impl Supervisor {
                     Some(StopReason::Obstacle)
                 } else if blocked_by(&[camera.map_or(no_points, |c| &c.drop_offs_base)]) {
                     Some(StopReason::DropOff)
+                } else if self.way_unseen(
+                    &obs.value.rays_base,
+                    &[v, rolling(v_now), rolling(v_last)],
+                    turns,
+                ) {
+                    Some(StopReason::LaserBlind)
                 } else {
                     None
                 };
@@ -327,6 +384,7 @@ impl Supervisor {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::msg::LaserScan;
 
     fn ms(v: u64) -> Stamp {
         Stamp(Duration::from_millis(v))
@@ -584,8 +642,8 @@ mod tests {
         // a step down ahead
         let mut s = moving(0.2);
         w.camera.value = Obstacles {
-            points_base: Vec::new(),
             drop_offs_base: vec![[0.8, 0.3]],
+            ..Default::default()
         };
         let c = s.step(ms(20), &w.inputs());
         assert_eq!(c.state, SupervisorState::Stopped(StopReason::DropOff));
@@ -597,6 +655,87 @@ mod tests {
         assert_eq!(
             s.step(ms(20), &w.inputs()).state,
             SupervisorState::Stopped(StopReason::DropOff)
+        );
+    }
+
+    /// Both lasers (default mounts) with `values` per step.
+    fn scans_with(mut values: impl FnMut(&crate::msg::LaserRay) -> u32) -> Obstacles {
+        use crate::sensors::scip::SensorParams;
+        let p = SensorParams::URG_04LX;
+        let settings = crate::config::Settings::defaults();
+        let mut out = Obstacles::default();
+        for pose in [
+            settings.lasers.left.base_from_laser(),
+            settings.lasers.right.base_from_laser(),
+        ] {
+            let free = LaserScan::from_values(&p, p.amin, &vec![3000; 682], 0);
+            let rays = crate::sensors::laser::scan_rays(&free, &pose);
+            let vals: Vec<u32> = rays.iter().map(&mut values).collect();
+            let scan = Stamped::new(ms(20), LaserScan::from_values(&p, p.amin, &vals, 0));
+            let m = crate::sensors::laser::merge_scans(&[(&scan, &pose)]).expect("merged");
+            out.points_base.extend(m.value.points_base);
+            out.rays_base.extend(m.value.rays_base);
+        }
+        out
+    }
+
+    #[test]
+    fn no_returns_through_the_corridor_beyond_a_small_fraction_stop() {
+        // the front corridor's box: 0.55..0.85 m ahead, ±0.45 m
+        let (lo, hi) = ([0.55, -0.45], [0.85, 0.45]);
+        // every `n`-th step through the front corridor comes back "light
+        // too weak" (code 1), the others see a wall 3 m away
+        let every = |n: usize| {
+            let mut k = 0usize;
+            scans_with(move |r| {
+                if r.crosses(lo, hi) {
+                    k += 1;
+                    if k.is_multiple_of(n) {
+                        return 1;
+                    }
+                }
+                3000
+            })
+        };
+        let forward = |o: Obstacles| {
+            let mut s = moving(0.2);
+            let mut w = World::new(20, 0.2, 0.0);
+            w.obstacles.value = o;
+            s.step(ms(20), &w.inputs()).state
+        };
+        // 1 in 5 (20 %) blind: the way ahead is not seen
+        assert_eq!(
+            forward(every(5)),
+            SupervisorState::Stopped(StopReason::LaserBlind)
+        );
+        // 1 in 20 (5 %): within the fraction
+        assert_eq!(forward(every(20)), SupervisorState::Navigating);
+        // "nothing in range" (code 0) everywhere is free space, not blind
+        assert_eq!(forward(scans_with(|_| 0)), SupervisorState::Navigating);
+        // a blind front does not stop reversing away from it
+        let mut s = moving(-0.1);
+        let mut w = World::new(20, -0.1, 0.0);
+        w.obstacles.value = every(1);
+        assert_eq!(
+            s.step(ms(20), &w.inputs()).state,
+            SupervisorState::Navigating
+        );
+        // a turn on the spot with a fifth of all steps blind
+        let mut k = 0usize;
+        let o = scans_with(move |_| {
+            k += 1;
+            if k.is_multiple_of(5) {
+                1
+            } else {
+                3000
+            }
+        });
+        let mut s = moving(0.0);
+        let mut w = World::new(20, 0.0, 0.5);
+        w.obstacles.value = o;
+        assert_eq!(
+            s.step(ms(20), &w.inputs()).state,
+            SupervisorState::Stopped(StopReason::LaserBlind)
         );
     }
 

@@ -127,6 +127,7 @@ pub struct SafetySection {
     pub overspeed_margin_radps: f64,
     pub overspeed_window_s: f64,
     pub camera_max_age_s: f64,
+    pub max_blind_fraction: f64,
 }
 
 #[derive(Debug, Clone, Deserialize, PartialEq)]
@@ -327,6 +328,7 @@ impl Settings {
             overspeed_margin_radps: s.overspeed_margin_radps,
             overspeed_window: d(s.overspeed_window_s),
             camera_max_age: self.depth_obstacles.enabled.then(|| d(s.camera_max_age_s)),
+            max_blind_fraction: s.max_blind_fraction,
         }
     }
 

@@ -132,6 +132,7 @@ impl Settings {
             2.0,
         )?;
         finite_range("safety.camera_max_age_s", sf.camera_max_age_s, 0.05, 3.0)?;
+        finite_range("safety.max_blind_fraction", sf.max_blind_fraction, 0.0, 0.5)?;
         // the corridor must reach far enough to stop in: what the chair
         // covers at full speed while the newest scan ages to its deadline,
         // the command to its own, one control period and the writer's

@@ -320,7 +320,7 @@ impl Control {
         }
         let o = Obstacles {
             points_base,
-            drop_offs_base: Vec::new(),
+            ..Default::default()
         };
         let Odometry {
             pose,

@@ -24,6 +24,9 @@ pub enum StopReason {
     Obstacle,
     /// A drop-off (a step down) inside the stop corridor.
     DropOff,
+    /// Too many laser steps through the corridor (or the turn circle)
+    /// came back without a range that means "free": the way is not seen.
+    LaserBlind,
     /// A stop from any input (socket, switch, voice).
     UserStop,
     /// The user deflected the real joystick.

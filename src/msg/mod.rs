@@ -23,7 +23,9 @@ pub use calibration::{CalibrationError, Intrinsics, RgbdCalibration, TransformSp
 pub use command::{FaultReason, SafeCmd, StopReason, SupervisorState, VelocityCmd};
 pub use geometry::{wrap_angle, Frame, Pose2};
 pub use image::{is_valid_depth, DepthImage, ImageError, RgbImage};
-pub use sensors::{LaserScan, MapObstacles, NoReturn, Obstacles, Reading, RgbdFrame, WheelTicks};
+pub use sensors::{
+    LaserRay, LaserScan, MapObstacles, NoReturn, Obstacles, Reading, RgbdFrame, WheelTicks,
+};
 pub use time::{Clock, MonotonicClock, Stamp, Stamped, TokioClock};
 
 pub use crate::perception::boxes::Object3D;

@@ -49,6 +49,44 @@ pub struct Obstacles {
     /// Where the floor is missing (a step down, a kerb): cells the chair
     /// must not enter, same frame. The lasers never report any.
     pub drop_offs_base: Vec<[f32; 2]>,
+    /// Every laser step as a ray, to know what the lasers could not see.
+    pub rays_base: Vec<LaserRay>,
+}
+
+/// One laser step in `base_link`: from the scanner, along `dir` (unit).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LaserRay {
+    pub origin_m: [f32; 2],
+    pub dir: [f32; 2],
+    /// A no-return that does not mean "nothing in range" (light too weak
+    /// — a black or shiny surface, glass —, a saturating reflector, a step
+    /// not measurable): something may be there unseen.
+    pub blind: bool,
+}
+
+impl LaserRay {
+    /// Whether the ray (t ≥ 0) passes through the axis-aligned box
+    /// `[lo, hi]` (metres, base_link).
+    pub fn crosses(&self, lo: [f64; 2], hi: [f64; 2]) -> bool {
+        let (mut t0, mut t1) = (0.0f64, f64::INFINITY);
+        for a in 0..2 {
+            let (o, d) = (self.origin_m[a] as f64, self.dir[a] as f64);
+            if d.abs() < 1e-12 {
+                if o < lo[a] || o > hi[a] {
+                    return false;
+                }
+                continue;
+            }
+            let (ta, tb) = ((lo[a] - o) / d, (hi[a] - o) / d);
+            let (near, far) = if ta < tb { (ta, tb) } else { (tb, ta) };
+            t0 = t0.max(near);
+            t1 = t1.min(far);
+            if t0 > t1 {
+                return false;
+            }
+        }
+        true
+    }
 }
 
 /// The depth camera's remembered obstacles and drop-offs, cell centres in
@@ -73,6 +111,7 @@ impl MapObstacles {
         Obstacles {
             points_base: self.obstacles_odom.iter().map(to_base).collect(),
             drop_offs_base: self.drop_offs_odom.iter().map(to_base).collect(),
+            rays_base: Vec::new(),
         }
     }
 }

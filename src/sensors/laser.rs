@@ -3,7 +3,7 @@
 
 use nalgebra::{Isometry3, Point3};
 
-use crate::msg::{LaserScan, Obstacles, Stamp, Stamped};
+use crate::msg::{LaserRay, LaserScan, NoReturn, Obstacles, Reading, Stamp, Stamped};
 
 /// The scan's returns as points in `base_link` (x, y).
 pub fn scan_to_base(scan: &LaserScan, base_from_laser: &Isometry3<f64>) -> Vec<[f32; 2]> {
@@ -19,20 +19,41 @@ pub fn scan_to_base(scan: &LaserScan, base_from_laser: &Isometry3<f64>) -> Vec<[
         .collect()
 }
 
+/// Every step of the scan as a ray in `base_link`.
+pub fn scan_rays(scan: &LaserScan, base_from_laser: &Isometry3<f64>) -> Vec<LaserRay> {
+    let o = base_from_laser.translation.vector;
+    scan.readings
+        .iter()
+        .enumerate()
+        .map(|(i, r)| {
+            let a = scan.angle_min_rad + i as f64 * scan.angle_increment_rad;
+            let d = base_from_laser.rotation * nalgebra::Vector3::new(a.cos(), a.sin(), 0.0);
+            LaserRay {
+                origin_m: [o.x as f32, o.y as f32],
+                dir: [d.x as f32, d.y as f32],
+                blind: matches!(r, Reading::NoReturn(n) if *n != NoReturn::NoObject),
+            }
+        })
+        .collect()
+}
+
 /// Merges scans (each with its `base_from_laser`) into one obstacle set,
 /// stamped with the oldest scan's stamp (the set is as old as its oldest
 /// part). None when no scan is given.
 pub fn merge_scans(scans: &[(&Stamped<LaserScan>, &Isometry3<f64>)]) -> Option<Stamped<Obstacles>> {
     let stamp: Stamp = scans.iter().map(|(s, _)| s.stamp).min()?;
     let mut points_base = Vec::new();
+    let mut rays_base = Vec::new();
     for (s, pose) in scans {
         points_base.extend(scan_to_base(&s.value, pose));
+        rays_base.extend(scan_rays(&s.value, pose));
     }
     Some(Stamped::new(
         stamp,
         Obstacles {
             points_base,
             drop_offs_base: Vec::new(),
+            rays_base,
         },
     ))
 }
