@@ -8,7 +8,7 @@ use std::sync::atomic::Ordering;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use opennav::actuation::can::{BusError, MemoryBus};
+use opennav::actuation::can::{BusError, CanBus, MemoryBus};
 use opennav::actuation::rnet::{JoystickMapping, TakeoverMode};
 use opennav::actuation::writer::{RnetActuator, RnetSettings};
 use opennav::actuation::{Actuator, ActuatorEvent, ActuatorIo, ActuatorStatus};
@@ -357,6 +357,80 @@ async fn bus_off_latches_a_fault_and_centres_at_once() {
     assert_eq!(finish(r).await, SupervisorState::Fault(FaultReason::CanBus));
 }
 
+/// A second program on the chair's bus sends joystick frames `xy` on the
+/// JSM's id every 10 ms (a forgotten can2RNET script, a second daemon).
+async fn other_writer(bus: MemoryBus, xy: (i8, i8), until: Stamp, clock: Arc<dyn Clock>) {
+    let other = bus.endpoint();
+    let mut tick = tokio::time::interval(Duration::from_millis(10));
+    while clock.now() < until {
+        tick.tick().await;
+        other
+            .try_send(&opennav::actuation::rnet::joystick_frame(
+                JSM_ID, xy.0, xy.1,
+            ))
+            .expect("send");
+    }
+}
+
+#[tokio::test(start_paused = true)]
+async fn another_writer_on_the_joystick_id_is_a_latched_fault_in_both_modes() {
+    // FollowJSM: frames on top of the JSM's, deflected (they also look
+    // like the user: the count outranks that). JSMerror: with the JSM
+    // silenced any steady stream is another writer; a deflected one is
+    // taken for the JSM woken up, i.e. the user (we yield and stop
+    // driving: `followjsm_answers_each_jsm_frame_and_yields_to_the_user`),
+    // so this one holds the chair centred.
+    for (mode, xy) in [
+        (TakeoverMode::FollowJsm, (0, 60)),
+        (TakeoverMode::JsmError, (0, 0)),
+    ] {
+        let r = rig(mode);
+        sleep_ms(500).await;
+        assert_eq!(r.status.borrow().last_output, CMD_XY, "{mode:?} drives");
+        let from = r.now();
+        let until = Stamp(from.0 + Duration::from_millis(300));
+        tokio::spawn(other_writer(r.bus.clone(), xy, until, r.clock.clone()));
+        sleep_ms(500).await;
+        let fault = r
+            .events()
+            .into_iter()
+            .find_map(|e| match e {
+                ActuatorEvent::Fault { kind, reason } => Some((kind, reason)),
+                _ => None,
+            })
+            .unwrap_or_else(|| panic!("{mode:?}: no fault: {:?}", r.events()));
+        assert_eq!(fault.0, FaultReason::OtherWriter, "{mode:?}");
+        assert!(fault.1.contains("another program"), "{}", fault.1);
+        // found within the first window, and ours centred from then on
+        let at = r
+            .seen
+            .lock()
+            .expect("events")
+            .iter()
+            .find(|(_, e)| matches!(e, ActuatorEvent::Fault { .. }))
+            .map(|(t, _)| *t)
+            .expect("fault stamp");
+        assert!(
+            from.age_at(at) <= Duration::from_millis(110),
+            "{mode:?}: found after {:?}",
+            from.age_at(at)
+        );
+        // (the power module logs the other program's frames too; ours
+        // after the fault are centred, theirs stop at `until`)
+        let late: Vec<DriveFrame> = after(&r.ours(), until);
+        assert!(late.len() > 10, "{mode:?}: {late:?}");
+        assert!(
+            late.iter().all(|d| (d.x, d.y) == (0, 0)),
+            "{mode:?}: {late:?}"
+        );
+        assert_eq!(
+            finish(r).await,
+            SupervisorState::Fault(FaultReason::OtherWriter),
+            "{mode:?}"
+        );
+    }
+}
+
 #[tokio::test(start_paused = true)]
 async fn error_passive_is_a_fault_and_a_warning_is_not() {
     let r = rig(TakeoverMode::JsmError);
@@ -493,7 +567,16 @@ async fn check_drive_fails_when_the_takeover_does_not_happen() {
 
 #[tokio::test(start_paused = true)]
 async fn the_speed_setting_is_pinned_at_takeover_and_every_second_in_both_modes() {
-    for mode in [TakeoverMode::FollowJsm, TakeoverMode::JsmError] {
+    // FollowJSM: frames on top of the JSM's, deflected (they also look
+    // like the user: the count outranks that). JSMerror: with the JSM
+    // silenced any steady stream is another writer; a deflected one is
+    // taken for the JSM woken up, i.e. the user (we yield and stop
+    // driving: `followjsm_answers_each_jsm_frame_and_yields_to_the_user`),
+    // so this one holds the chair centred.
+    for (mode, xy) in [
+        (TakeoverMode::FollowJsm, (0, 60)),
+        (TakeoverMode::JsmError, (0, 0)),
+    ] {
         let r = rig(mode);
         sleep_ms(300).await;
         let first = r.chair.lock().expect("chair").max_speed_log.clone();

@@ -248,7 +248,16 @@ pub enum TakeoverEvent {
     UserDeflection { x: i8, y: i8 },
     /// The JSM's heartbeat stopped for longer than the limit.
     JsmLost,
+    /// More frames on our joystick id in one window than the JSM and we
+    /// account for: another program drives the chair too.
+    OtherWriter { frames: u32, expected: u32 },
 }
+
+/// The window over which frames on our joystick id are counted.
+pub const OTHER_WRITER_WINDOW: Duration = Duration::from_millis(100);
+/// Frames beyond the expected count a window tolerates (a late frame
+/// landing in the next window, bus jitter).
+pub const OTHER_WRITER_SLACK: u32 = 3;
 
 /// The takeover and the 10 ms writer rule, as a pure state machine.
 ///
@@ -272,6 +281,9 @@ pub struct Takeover {
     last_sent: Option<Stamp>,
     /// Frames not sent because their slot had passed.
     pub late_frames: u64,
+    /// Frames on our joystick id in the current window, and its start.
+    window: Option<(Stamp, u32)>,
+    other_writer_reported: bool,
 }
 
 impl Takeover {
@@ -289,7 +301,42 @@ impl Takeover {
             period: Duration::from_millis(10),
             last_sent: None,
             late_frames: 0,
+            window: None,
+            other_writer_reported: false,
         }
+    }
+
+    /// Frames on our joystick id the JSM accounts for in one window: one
+    /// per period under FollowJSM (ours are not echoed back to us); none
+    /// once JSMerror has silenced it.
+    fn expected_per_window(&self) -> Option<u32> {
+        let per_window = (OTHER_WRITER_WINDOW.as_nanos() / self.period.as_nanos().max(1)) as u32;
+        match (self.mode, self.state) {
+            (TakeoverMode::FollowJsm, TakeoverState::Active | TakeoverState::Yielded) => {
+                Some(per_window)
+            }
+            (TakeoverMode::JsmError, TakeoverState::Active) => Some(0),
+            _ => None,
+        }
+    }
+
+    /// Counts a frame on our id at `now`: too many in a window → the event
+    /// (once).
+    fn count_own_id(&mut self, now: Stamp) -> Option<TakeoverEvent> {
+        let expected = self.expected_per_window()?;
+        let (start, n) = match self.window {
+            Some((start, n)) if start.age_at(now) < OTHER_WRITER_WINDOW => (start, n + 1),
+            _ => (now, 1),
+        };
+        self.window = Some((start, n));
+        if n > expected + OTHER_WRITER_SLACK && !self.other_writer_reported {
+            self.other_writer_reported = true;
+            return Some(TakeoverEvent::OtherWriter {
+                frames: n,
+                expected,
+            });
+        }
+        None
     }
 
     pub fn joystick_id(&self) -> Option<u32> {
@@ -331,6 +378,7 @@ impl Takeover {
                     }
                 }
                 if Some(id) == self.joystick_id {
+                    let other = self.count_own_id(now);
                     self.last_jsm_joystick = Some(now);
                     let deflected = x != 0 || y != 0;
                     match (self.mode, self.state) {
@@ -358,6 +406,10 @@ impl Takeover {
                             event = Some(TakeoverEvent::UserDeflection { x, y });
                         }
                         _ => {}
+                    }
+                    // a second writer outranks what its frames look like
+                    if other.is_some() {
+                        event = other;
                     }
                 }
             }
@@ -555,6 +607,55 @@ mod tests {
         assert_eq!(out[0].to_string(), "02000100#0032");
         // the tick sends nothing in this mode
         assert_eq!(t.tick(ms(65)), None);
+    }
+
+    #[test]
+    fn another_writer_on_our_joystick_id_is_reported_once() {
+        // FollowJSM: the JSM's one frame per 10 ms is expected
+        let mut t = Takeover::new(TakeoverMode::FollowJsm);
+        let id = 0x0200_0000;
+        let mut events = Vec::new();
+        for k in 0..100u64 {
+            let (_, e) = t.on_frame(&joystick_frame(id, 0, 0), ms(k * 10));
+            events.extend(e);
+        }
+        assert_eq!(events, vec![TakeoverEvent::Learned(id)]);
+        // a second program sends on the same id every 10 ms as well
+        let mut events = Vec::new();
+        for k in 100..200u64 {
+            events.extend(t.on_frame(&joystick_frame(id, 0, 0), ms(k * 10)).1);
+            events.extend(t.on_frame(&joystick_frame(id, 10, 0), ms(k * 10 + 3)).1);
+        }
+        let other: Vec<_> = events
+            .iter()
+            .filter(|e| matches!(e, TakeoverEvent::OtherWriter { .. }))
+            .collect();
+        assert_eq!(
+            other,
+            vec![&TakeoverEvent::OtherWriter {
+                frames: 14,
+                expected: 10
+            }]
+        );
+
+        // JSMerror: once the JSM is silent, any steady stream on our id is
+        // another writer
+        let mut t = Takeover::new(TakeoverMode::JsmError);
+        t.on_frame(&joystick_frame(id, 0, 0), ms(0));
+        assert_eq!(t.state, TakeoverState::Silencing);
+        t.tick(ms(30));
+        assert_eq!(t.state, TakeoverState::Active);
+        let mut events = Vec::new();
+        for k in 4..20u64 {
+            events.extend(t.on_frame(&joystick_frame(id, 0, 0), ms(k * 10)).1);
+        }
+        assert_eq!(
+            events,
+            vec![TakeoverEvent::OtherWriter {
+                frames: 4,
+                expected: 0
+            }]
+        );
     }
 
     #[test]

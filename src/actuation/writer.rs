@@ -325,6 +325,17 @@ impl<B: CanBus> Actuator for RnetActuator<B> {
                                     emit(&io, ActuatorEvent::UserDeflection { x, y });
                                 }
                                 Some(TakeoverEvent::JsmLost) => emit(&io, ActuatorEvent::JsmLost),
+                                Some(TakeoverEvent::OtherWriter { frames, expected }) => {
+                                    let reason = format!(
+                                        "another program sends joystick frames on {:08X} ({frames} in {} ms where the joystick module accounts for {expected})",
+                                        tk.joystick_id().unwrap_or(0),
+                                        crate::actuation::rnet::OTHER_WRITER_WINDOW.as_millis()
+                                    );
+                                    tracing::error!(%reason, "R-Net");
+                                    w.fault_at = Some(now);
+                                    tk.clear_command();
+                                    emit(&io, ActuatorEvent::Fault { kind: FaultReason::OtherWriter, reason });
+                                }
                                 None => {}
                             }
                         }

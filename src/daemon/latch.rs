@@ -17,7 +17,10 @@ pub const FILE: &str = "latched-fault.json";
 pub fn persists(kind: FaultReason) -> bool {
     matches!(
         kind,
-        FaultReason::CanBus | FaultReason::MotorLink | FaultReason::Overspeed
+        FaultReason::CanBus
+            | FaultReason::MotorLink
+            | FaultReason::Overspeed
+            | FaultReason::OtherWriter
     )
 }
 

@@ -47,6 +47,9 @@ pub enum FaultReason {
     /// The chair moved faster than the caps (plus a margin) for longer
     /// than the overspeed window: something other than us drives it.
     Overspeed,
+    /// Another program sends joystick frames on our id (more frames per
+    /// window than the joystick module and we account for).
+    OtherWriter,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
