@@ -7,12 +7,15 @@ mod common;
 use std::sync::Arc;
 use std::time::Duration;
 
+use opennav::msg::Clock;
 use opennav::msg::LaserScan;
 use opennav::msg::Reading;
 use opennav::msg::{MonotonicClock, Stamped};
 use opennav::sensors::hokuyo::{HokuyoDriver, HokuyoError, HokuyoSettings};
 use opennav::sensors::scip::SensorParams;
-use opennav::sim::hokuyo::{load_sena_csv, resample_to_urg, Fault, HokuyoEmulator};
+use opennav::sim::hokuyo::{
+    load_sena_csv, resample_to_urg, EmuMode, EmuOptions, Fault, HokuyoEmulator,
+};
 
 const PERIOD_MS: u32 = 5;
 const CLOCK_START: u32 = 0xFF_FF00;
@@ -118,7 +121,7 @@ fn scans_round_trip_and_every_fault_recovers() {
                     st.error_statuses > before.error_statuses && st.rearms > before.rearms
                 }
                 Fault::Silence(_) => st.silences > before.silences,
-                Fault::Unplug(_) => st.reconnects > before.reconnects,
+                Fault::Unplug(_) | Fault::PowerCycle(_) => st.reconnects > before.reconnects,
             };
             if noticed {
                 for _ in 0..20 {
@@ -130,6 +133,108 @@ fn scans_round_trip_and_every_fault_recovers() {
         assert!(noticed, "{f:?} not noticed: {:?}", d.stats);
     }
     assert!(emu.scans_sent() > 300);
+}
+
+/// A sensor found in `options`' state: the driver brings it into SCIP 2.0
+/// and streams exact scans. Returns the driver's commands (as the
+/// emulator counted them) for the connection.
+fn connects_from(options: EmuOptions) -> u64 {
+    let all = scans();
+    let dir = tempfile::tempdir().expect("tmp");
+    let link = dir.path().join("hokuyo");
+    let emu = HokuyoEmulator::spawn_with(
+        &link,
+        all.clone(),
+        Duration::from_millis(PERIOD_MS as u64),
+        CLOCK_START,
+        options,
+    )
+    .expect("emulator");
+    let mut settings = HokuyoSettings::new(link.display().to_string());
+    settings.reply_timeout = Duration::from_millis(150);
+    let mut d = HokuyoDriver::new(settings, Arc::new(MonotonicClock::new()));
+    let params = d.connect().unwrap_or_else(|e| panic!("{options:?}: {e}"));
+    assert_eq!(params, SensorParams::URG_04LX);
+    let commands = emu.commands_received();
+    for _ in 0..20 {
+        check(&all, &next_ok(&mut d));
+    }
+    commands
+}
+
+#[test]
+fn a_sensor_in_scip_1_1_is_switched_to_scip_2_0() {
+    connects_from(EmuOptions {
+        mode: EmuMode::Scip11,
+        baud: None,
+    });
+}
+
+#[test]
+fn a_sensor_left_in_time_stamp_mode_is_brought_out_with_tm2() {
+    connects_from(EmuOptions {
+        mode: EmuMode::TimeStamp,
+        baud: None,
+    });
+}
+
+#[test]
+fn a_serial_urg_at_another_speed_is_found() {
+    // configured 115200 (the default); the sensor was left at 19200: the
+    // commands sent at 115200 go unanswered, then 19200 answers
+    let at_19200 = connects_from(EmuOptions {
+        mode: EmuMode::Scip20,
+        baud: Some(19_200),
+    });
+    let at_115200 = connects_from(EmuOptions {
+        mode: EmuMode::Scip20,
+        baud: Some(115_200),
+    });
+    assert!(at_19200 > at_115200, "{at_19200} vs {at_115200} commands");
+}
+
+#[test]
+fn a_power_cycled_sensor_restarting_its_clock_keeps_stamps_true() {
+    let all = scans();
+    let dir = tempfile::tempdir().expect("tmp");
+    let link = dir.path().join("hokuyo");
+    // its clock far from zero, so the restart is a big backward step
+    let emu = HokuyoEmulator::spawn(
+        &link,
+        all.clone(),
+        Duration::from_millis(PERIOD_MS as u64),
+        0x40_0000,
+    )
+    .expect("emulator");
+    let clock = Arc::new(MonotonicClock::new());
+    let mut d = HokuyoDriver::new(
+        HokuyoSettings::new(link.display().to_string()),
+        clock.clone(),
+    );
+    d.connect().expect("connects");
+    for _ in 0..50 {
+        next_ok(&mut d);
+    }
+    emu.inject(Fault::PowerCycle(Duration::from_millis(200)));
+    let before = d.stats.reconnects;
+    let mut after_cycle = 0;
+    for _ in 0..400 {
+        let s = next_ok(&mut d);
+        let age = s.stamp.age_at(clock.now());
+        if d.stats.reconnects > before {
+            after_cycle += 1;
+            // stamped when it was measured, not hours or seconds off
+            assert!(
+                age < Duration::from_millis(100),
+                "a scan after the power cycle is {age:?} old (sensor ms {})",
+                s.value.sensor_ms
+            );
+            if after_cycle == 50 {
+                break;
+            }
+        }
+    }
+    assert_eq!(after_cycle, 50, "no scans after the power cycle");
 }
 
 #[test]

@@ -18,8 +18,8 @@ use thiserror::Error;
 
 use super::clock::DeviceClock;
 use super::scip::{
-    classify, decode_ranges, parse_pp, parse_reply, Command, Reply, ReplyFramer, ScanRequest,
-    ScipError, SensorParams,
+    classify, decode_ranges, parse_pp, parse_reply, scip11_status, Command, Reply, ReplyFramer,
+    ScanRequest, ScipError, SensorParams,
 };
 use crate::msg::{Clock, LaserScan, Reading, Stamped};
 
@@ -97,6 +97,24 @@ pub struct HokuyoStats {
     pub reconnects: u64,
 }
 
+/// The line speeds a serial URG may have been left at.
+pub const STANDARD_BAUDS: [u32; 6] = [19_200, 57_600, 115_200, 250_000, 500_000, 750_000];
+
+/// What a sensor's answer to `QT` says about the state it is in.
+#[derive(Debug, Clone, PartialEq, Eq)]
+enum Probe {
+    /// SCIP 2.0, stopped.
+    Ready,
+    /// A one-character status: SCIP 1.1 (send `SCIP2.0`).
+    Scip11,
+    /// `0E`: left in time-stamp mode (send `TM2`).
+    TimeStamp,
+    /// Another status.
+    Status(Reply),
+    /// Nothing within the reply timeout.
+    Silent,
+}
+
 /// Driver settings.
 #[derive(Debug, Clone)]
 pub struct HokuyoSettings {
@@ -106,6 +124,9 @@ pub struct HokuyoSettings {
     pub silence_timeout: Duration,
     /// Replies to commands must come within this.
     pub reply_timeout: Duration,
+    /// A serial URG that does not answer at `baud` is tried at these
+    /// (urg_library's list); a USB URG answers at any.
+    pub try_bauds: Vec<u32>,
     /// Reopen attempts back off from `backoff_min` doubling to `backoff_max`.
     pub backoff_min: Duration,
     pub backoff_max: Duration,
@@ -118,6 +139,7 @@ impl HokuyoSettings {
             baud: 115_200,
             silence_timeout: Duration::from_millis(500),
             reply_timeout: Duration::from_millis(500),
+            try_bauds: STANDARD_BAUDS.to_vec(),
             backoff_min: Duration::from_millis(50),
             backoff_max: Duration::from_secs(2),
         }
@@ -176,8 +198,8 @@ impl HokuyoDriver {
         }
     }
 
-    fn open(&mut self) -> Result<(), HokuyoError> {
-        let p = serialport::new(&self.settings.port, self.settings.baud)
+    fn open(&mut self, baud: u32) -> Result<(), HokuyoError> {
+        let p = serialport::new(&self.settings.port, baud)
             .timeout(Duration::from_millis(20))
             .open()
             .map_err(|e| HokuyoError::Open {
@@ -283,32 +305,109 @@ impl HokuyoDriver {
         })
     }
 
-    /// Opens the port (if needed), brings the sensor into SCIP 2.0 with the
-    /// stream stopped, reads PP, and starts MD streaming.
-    pub fn connect(&mut self) -> Result<SensorParams, HokuyoError> {
-        if self.port.is_none() {
-            self.open()?;
+    /// Sends `QT` and reads what comes back until its answer or the reply
+    /// timeout (scans in flight are skipped).
+    fn probe(&mut self) -> Result<Probe, HokuyoError> {
+        self.send(&Command::Qt)?;
+        let start = self.clock.now();
+        loop {
+            let left = self
+                .settings
+                .reply_timeout
+                .saturating_sub(start.age_at(self.clock.now()));
+            let Some(block) = self.read_block(left)? else {
+                return Ok(Probe::Silent);
+            };
+            if scip11_status(&block, b"QT").is_some() {
+                return Ok(Probe::Scip11);
+            }
+            match parse_reply(&block) {
+                Ok(r) if r.echo == b"QT" => {
+                    return Ok(if r.status.is_ok() {
+                        Probe::Ready
+                    } else if &r.status.0 == b"0E" {
+                        Probe::TimeStamp
+                    } else {
+                        Probe::Status(r)
+                    });
+                }
+                // a scan or a leftover reply: skipped
+                Ok(_) => continue,
+                Err(ScipError::Checksum { .. }) => self.stats.checksum_errors += 1,
+                Err(_) => self.stats.malformed_replies += 1,
+            }
         }
-        self.streaming = false;
+    }
+
+    /// Opens the port at `baud` and finds out the sensor's state; None
+    /// when nothing answers.
+    fn open_and_probe(&mut self, baud: u32) -> Result<Option<Probe>, HokuyoError> {
+        self.port = None;
+        self.open(baud)?;
         // stop whatever runs and drop what is in flight
         self.send(&Command::Qt)?;
         let _ = self.read_until_quiet(Duration::from_millis(60))?;
-        let qt = self.command(&Command::Qt);
-        match qt {
-            Ok(r) if r.status.is_ok() => {}
-            Ok(r) if &r.status.0 == b"0E" => {
-                // the sensor speaks SCIP 1.1
-                let r = self.command(&Command::Scip20)?;
-                self.expect_ok(&Command::Scip20, &r)?;
+        match self.probe()? {
+            Probe::Silent => Ok(None),
+            p => Ok(Some(p)),
+        }
+    }
+
+    /// Opens the port (if needed), brings the sensor into SCIP 2.0 with the
+    /// stream stopped — from SCIP 1.1 (`SCIP2.0`), from time-stamp mode
+    /// (`TM2`), at whatever standard speed a serial URG was left at —,
+    /// reads PP, and starts MD streaming. The sensor clock's mapping starts
+    /// afresh: a power-cycled sensor counts from zero again.
+    pub fn connect(&mut self) -> Result<SensorParams, HokuyoError> {
+        self.streaming = false;
+        self.mapper = sensor_clock();
+        let mut bauds = vec![self.settings.baud];
+        bauds.extend(
+            self.settings
+                .try_bauds
+                .iter()
+                .filter(|b| **b != self.settings.baud),
+        );
+        let mut found = None;
+        for baud in bauds {
+            if let Some(p) = self.open_and_probe(baud)? {
+                if baud != self.settings.baud {
+                    tracing::warn!(port = %self.settings.port, baud, configured = self.settings.baud, "laser answers at another line speed");
+                }
+                found = Some(p);
+                break;
             }
-            Ok(r) => self.expect_ok(&Command::Qt, &r)?,
-            Err(HokuyoError::Silent { .. }) => {
-                // a sensor left in time-stamp mode answers nothing else: leave it
-                let _ = self.command(&Command::Tm(2));
-                let r = self.command(&Command::Qt)?;
-                self.expect_ok(&Command::Qt, &r)?;
+        }
+        let Some(probe) = found else {
+            self.port = None;
+            return Err(HokuyoError::Silent {
+                port: self.port_name(),
+                command: "QT".into(),
+                timeout_ms: self.settings.reply_timeout.as_millis() as u64,
+            });
+        };
+        match probe {
+            Probe::Ready => {}
+            Probe::Scip11 => {
+                tracing::info!(port = %self.settings.port, "laser speaks SCIP 1.1: switching to SCIP 2.0");
+                self.send(&Command::Scip20)?;
+                let _ = self.read_until_quiet(Duration::from_millis(60))?;
+                match self.probe()? {
+                    Probe::Ready => {}
+                    other => return Err(self.not_ready("SCIP2.0", other)),
+                }
             }
-            Err(e) => return Err(e),
+            Probe::TimeStamp => {
+                tracing::info!(port = %self.settings.port, "laser left in time-stamp mode: leaving it (TM2)");
+                let r = self.command(&Command::Tm(2))?;
+                self.expect_ok(&Command::Tm(2), &r)?;
+                match self.probe()? {
+                    Probe::Ready => {}
+                    other => return Err(self.not_ready("TM2", other)),
+                }
+            }
+            Probe::Status(r) => self.expect_ok(&Command::Qt, &r)?,
+            Probe::Silent => {}
         }
         let pp = self.command(&Command::Pp)?;
         self.expect_ok(&Command::Pp, &pp)?;
@@ -331,6 +430,32 @@ impl HokuyoDriver {
         self.params = Some(params);
         self.start_stream()?;
         Ok(params)
+    }
+
+    /// The sensor still not ready after `after`.
+    fn not_ready(&mut self, after: &str, p: Probe) -> HokuyoError {
+        match p {
+            Probe::Status(r) => {
+                self.stats.error_statuses += 1;
+                HokuyoError::Status {
+                    port: self.port_name(),
+                    command: format!("QT after {after}"),
+                    status: r.status.code(),
+                    meaning: r.status.meaning(b"QT"),
+                }
+            }
+            Probe::Silent => HokuyoError::Silent {
+                port: self.port_name(),
+                command: format!("QT after {after}"),
+                timeout_ms: self.settings.reply_timeout.as_millis() as u64,
+            },
+            other => HokuyoError::Status {
+                port: self.port_name(),
+                command: format!("QT after {after}"),
+                status: format!("{other:?}"),
+                meaning: "the sensor did not come into SCIP 2.0".into(),
+            },
+        }
     }
 
     fn start_stream(&mut self) -> Result<(), HokuyoError> {

@@ -250,6 +250,15 @@ fn check_line(line: &[u8], idx: usize, key_value: bool) -> Result<&[u8], ScipErr
 /// Parses one reply block: the bytes up to and including the blank line
 /// (`…\n\n`). Scan replies (`MD`/`MS` with status 99, `GD`/`GS` with 00)
 /// carry a timestamp line.
+/// A SCIP 1.1 reply — the echo, a one-character status, a blank line —
+/// to `echo`: its status character (SCIP 1.1 sensors answer `QT` so).
+pub fn scip11_status(block: &[u8], echo: &[u8]) -> Option<u8> {
+    let body = block.strip_suffix(b"\n\n")?;
+    let mut lines = body.split(|&b| b == b'\n');
+    let (e, st) = (lines.next()?, lines.next()?);
+    (e == echo && st.len() == 1 && lines.next().is_none()).then_some(st[0])
+}
+
 pub fn parse_reply(block: &[u8]) -> Result<Reply, ScipError> {
     let body = block
         .strip_suffix(b"\n\n")
@@ -527,6 +536,17 @@ mod tests {
             decode_value(b"C\x7f"),
             Err(ScipError::BadChar(_, 0x7f))
         ));
+    }
+
+    #[test]
+    fn a_scip11_reply_is_recognised_by_its_one_character_status() {
+        assert_eq!(scip11_status(b"QT\nE\n\n", b"QT"), Some(b'E'));
+        assert_eq!(scip11_status(b"SCIP2.0\n0\n\n", b"SCIP2.0"), Some(b'0'));
+        // SCIP 2.0 replies, other echoes and fragments are not
+        assert_eq!(scip11_status(b"QT\n00P\n\n", b"QT"), None);
+        assert_eq!(scip11_status(b"PP\nE\n\n", b"QT"), None);
+        assert_eq!(scip11_status(b"QT\nE\n", b"QT"), None);
+        assert_eq!(scip11_status(b"QT\nE\nX\n\n", b"QT"), None);
     }
 
     #[test]

@@ -29,6 +29,41 @@ pub enum Fault {
     Silence(Duration),
     /// The device vanishes for this long, then comes back on a new pty.
     Unplug(Duration),
+    /// Unplugged for this long and back powered up afresh: its clock
+    /// restarts near zero and it speaks SCIP 2.0 with the stream stopped.
+    PowerCycle(Duration),
+}
+
+/// The protocol state a sensor can be found in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum EmuMode {
+    /// SCIP 2.0, the stream stopped (a sensor powered up in SCIP 2.0).
+    Scip20,
+    /// SCIP 1.1 (an older firmware's default): every reply's status is
+    /// one character; `SCIP2.0` switches to SCIP 2.0.
+    Scip11,
+    /// Left in time-stamp mode (`TM0`/`TM1` by a previous program): every
+    /// command but `TM` answers `0E`; `TM2` leaves it.
+    TimeStamp,
+}
+
+/// How the emulated sensor starts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct EmuOptions {
+    pub mode: EmuMode,
+    /// A serial URG's line speed: commands at another speed are lost (the
+    /// pty's line settings, as the driver set them, are checked). None:
+    /// USB (any speed works).
+    pub baud: Option<u32>,
+}
+
+impl Default for EmuOptions {
+    fn default() -> Self {
+        EmuOptions {
+            mode: EmuMode::Scip20,
+            baud: None,
+        }
+    }
 }
 
 /// Loads the SENA laser CSV of the shared data: ranges in metres per scan
@@ -113,6 +148,17 @@ impl HokuyoEmulator {
         period: Duration,
         clock_start_ms: u32,
     ) -> std::io::Result<Self> {
+        Self::spawn_with(link, scans, period, clock_start_ms, EmuOptions::default())
+    }
+
+    /// As `spawn`, the sensor found in `options`' state.
+    pub fn spawn_with(
+        link: &Path,
+        scans: Vec<Vec<u32>>,
+        period: Duration,
+        clock_start_ms: u32,
+        options: EmuOptions,
+    ) -> std::io::Result<Self> {
         let device = plug(link)?;
         let (tx, rx) = channel();
         let stop = Arc::new(AtomicBool::new(false));
@@ -141,6 +187,8 @@ impl HokuyoEmulator {
                     sent: n2,
                     commands: c2,
                     garbage_seed: 0x1234_5678,
+                    mode: options.mode,
+                    baud: options.baud,
                 };
                 emu.run(&s2);
             })?;
@@ -197,6 +245,20 @@ struct Emu {
     sent: Arc<AtomicU64>,
     commands: Arc<AtomicU64>,
     garbage_seed: u32,
+    mode: EmuMode,
+    baud: Option<u32>,
+}
+
+/// The line speed the pty's slave is set to (the driver's choice): the
+/// master shares the slave's termios on Linux; termios2 carries any speed.
+fn line_baud(device: &Device) -> Option<u32> {
+    use std::os::fd::AsRawFd;
+    // SAFETY: TCGETS2 on an open descriptor into a zeroed termios2
+    let mut t: libc::termios2 = unsafe { std::mem::zeroed() };
+    if unsafe { libc::ioctl(device.master.as_raw_fd(), libc::TCGETS2, &mut t) } != 0 {
+        return None;
+    }
+    Some(t.c_ospeed)
 }
 
 const MD_ECHO: &[u8] = b"MD0044072501000";
@@ -236,15 +298,52 @@ impl Emu {
 
     fn handle(&mut self, cmd: Vec<u8>) {
         self.commands.fetch_add(1, Ordering::SeqCst);
+        if let (Some(want), Some(d)) = (self.baud, self.device.as_ref()) {
+            if line_baud(d) != Some(want) {
+                // at the wrong speed the sensor hears noise: no answer
+                return;
+            }
+        }
         // the echo is the command as received (tag included)
         let body: Vec<u8> = cmd.split(|&b| b == b';').next().unwrap_or(&[]).to_vec();
         let reply = |status: &[u8; 2]| build_reply(&cmd, status, None, &[]);
+        match self.mode {
+            EmuMode::Scip20 => {}
+            EmuMode::Scip11 => {
+                // SCIP 1.1: echo, a one-character status, a blank line
+                let ok = body.as_slice() == b"SCIP2.0";
+                if ok {
+                    self.mode = EmuMode::Scip20;
+                }
+                let mut out = cmd.clone();
+                out.extend_from_slice(if ok { b"\n0\n\n" } else { b"\nE\n\n" });
+                self.write(&out);
+                return;
+            }
+            EmuMode::TimeStamp => {
+                let out = match body.as_slice() {
+                    b"TM2" => {
+                        self.mode = EmuMode::Scip20;
+                        reply(b"00")
+                    }
+                    b"TM0" => reply(b"02"),
+                    b"TM1" => build_reply(&cmd, b"00", Some(self.clock_ms), &[]),
+                    _ => reply(b"0E"),
+                };
+                self.write(&out);
+                return;
+            }
+        }
         let out = match body.as_slice() {
             b"QT" => {
                 self.streaming = false;
                 reply(b"00")
             }
-            b"SCIP2.0" | b"BM" | b"RS" | b"TM0" | b"TM2" => reply(b"00"),
+            b"SCIP2.0" | b"BM" | b"RS" | b"TM2" => reply(b"00"),
+            b"TM0" => {
+                self.mode = EmuMode::TimeStamp;
+                reply(b"00")
+            }
             b"PP" => Self::pp_block(),
             b"VV" | b"II" => {
                 let mut b = build_reply(&cmd, b"00", None, &[]);
@@ -327,11 +426,16 @@ impl Emu {
                 std::thread::sleep(d);
                 return;
             }
-            Some(Fault::Unplug(d)) => {
+            Some(f @ (Fault::Unplug(d) | Fault::PowerCycle(d))) => {
                 self.device = None;
                 let _ = std::fs::remove_file(&self.link);
                 self.streaming = false;
                 std::thread::sleep(d);
+                if matches!(f, Fault::PowerCycle(_)) {
+                    // its millisecond counter starts again from power-up
+                    self.clock_ms = 17;
+                    self.mode = EmuMode::Scip20;
+                }
                 match plug(&self.link) {
                     Ok(dev) => self.device = Some(dev),
                     Err(e) => tracing::error!(error = %e, "emulator could not replug"),
@@ -373,7 +477,7 @@ impl Emu {
                 next_scan = now + self.period;
                 let urgent = matches!(
                     self.pending.first(),
-                    Some(Fault::Unplug(_)) | Some(Fault::Garbage)
+                    Some(Fault::Unplug(_)) | Some(Fault::PowerCycle(_)) | Some(Fault::Garbage)
                 );
                 if self.streaming || urgent {
                     self.send_scan();
