@@ -366,143 +366,207 @@ pub enum Recorded {
     },
 }
 
-/// A message as stored: topic, log time, payload.
-struct RawMessage {
-    topic: String,
-    log_time: u64,
-    data: Vec<u8>,
-}
-
 /// Largest record (or decompressed chunk) accepted: a corrupt length field
 /// is an error, not a huge allocation.
 const RECORD_LIMIT: usize = 256 << 20;
 
-/// Every message of the file in order, with bounded allocations (chunk
-/// sizes are checked against the limit and chunk CRCs before
-/// decompressing).
-fn raw_messages(bytes: &[u8]) -> Result<Vec<RawMessage>, String> {
-    use mcap::records::Record;
-    use mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
-    let mut reader = LinearReader::new_with_options(
-        LinearReaderOptions::default()
-            .with_record_length_limit(RECORD_LIMIT.min(bytes.len().max(1) * 64))
-            .with_prevalidate_chunk_crcs(true),
-    );
-    let mut topics: BTreeMap<u16, String> = BTreeMap::new();
-    let mut out = Vec::new();
-    let mut offset = 0usize;
-    while let Some(event) = reader.next_event() {
-        match event.map_err(|e| format!("not a valid MCAP file: {e}"))? {
-            LinearReadEvent::ReadRequest(n) => {
-                let n = n.min(bytes.len() - offset);
-                if n == 0 {
-                    return Err(format!("truncated after {offset} bytes"));
+/// Reads a recording message by message: what is held at once is one
+/// record (or one chunk being decompressed), at most [`RECORD_LIMIT`]
+/// bytes and never more than 64 times the file's size, checked before
+/// allocating; chunk CRCs are checked before decompressing. A bad message
+/// or a truncated file is an error naming it, after the good messages
+/// before it.
+pub struct RecordReader {
+    path: String,
+    file: std::fs::File,
+    reader: mcap::sans_io::linear_reader::LinearReader,
+    topics: BTreeMap<u16, String>,
+    /// Messages decoded so far.
+    index: usize,
+    offset: u64,
+    done: bool,
+}
+
+impl RecordReader {
+    pub fn open(path: &Path) -> Result<RecordReader, RecordError> {
+        use mcap::sans_io::linear_reader::{LinearReader, LinearReaderOptions};
+        let p = path.display().to_string();
+        let file_err = |e: std::io::Error| RecordError::File {
+            path: p.clone(),
+            reason: e.to_string(),
+        };
+        let file = std::fs::File::open(path).map_err(file_err)?;
+        let len = file.metadata().map_err(file_err)?.len();
+        let limit = usize::try_from(len)
+            .unwrap_or(usize::MAX)
+            .max(1)
+            .saturating_mul(64)
+            .min(RECORD_LIMIT);
+        Ok(RecordReader {
+            path: p,
+            file,
+            reader: LinearReader::new_with_options(
+                LinearReaderOptions::default()
+                    .with_record_length_limit(limit)
+                    .with_prevalidate_chunk_crcs(true),
+            ),
+            topics: BTreeMap::new(),
+            index: 0,
+            offset: 0,
+            done: false,
+        })
+    }
+
+    fn file_error(&mut self, reason: String) -> RecordError {
+        self.done = true;
+        RecordError::File {
+            path: self.path.clone(),
+            reason,
+        }
+    }
+
+    /// The next message, None at the end of the file.
+    fn next_message(&mut self) -> Result<Option<Recorded>, RecordError> {
+        use mcap::records::Record;
+        use mcap::sans_io::linear_reader::LinearReadEvent;
+        use std::io::Read;
+        while let Some(event) = self.reader.next_event() {
+            let event = match event {
+                Ok(e) => e,
+                Err(e) => return Err(self.file_error(format!("not a valid MCAP file: {e}"))),
+            };
+            match event {
+                LinearReadEvent::ReadRequest(n) => {
+                    let buf = self.reader.insert(n);
+                    let got = match self.file.read(buf) {
+                        Ok(k) => k,
+                        Err(e) => return Err(self.file_error(e.to_string())),
+                    };
+                    if got == 0 {
+                        let at = self.offset;
+                        return Err(self.file_error(format!("truncated after {at} bytes")));
+                    }
+                    self.reader.notify_read(got);
+                    self.offset += got as u64;
                 }
-                let buf = reader.insert(n);
-                buf.copy_from_slice(&bytes[offset..offset + n]);
-                reader.notify_read(n);
-                offset += n;
-            }
-            LinearReadEvent::Record { data, opcode } => {
-                match mcap::parse_record(opcode, data)
-                    .map_err(|e| format!("record {opcode:#04x}: {e}"))?
-                {
-                    Record::Channel(c) => {
-                        topics.insert(c.id, c.topic);
+                LinearReadEvent::Record { data, opcode } => {
+                    let record = match mcap::parse_record(opcode, data) {
+                        Ok(r) => r,
+                        Err(e) => return Err(self.file_error(format!("record {opcode:#04x}: {e}"))),
+                    };
+                    match record {
+                        Record::Channel(c) => {
+                            self.topics.insert(c.id, c.topic);
+                        }
+                        Record::Message { header, data } => {
+                            let Some(topic) = self.topics.get(&header.channel_id).cloned() else {
+                                let id = header.channel_id;
+                                return Err(
+                                    self.file_error(format!("message on unknown channel {id}"))
+                                );
+                            };
+                            let index = self.index;
+                            self.index += 1;
+                            let stamp = Stamp(std::time::Duration::from_nanos(header.log_time));
+                            return decode_message(&self.path, index, topic, stamp, &data)
+                                .map(Some)
+                                .inspect_err(|_| self.done = true);
+                        }
+                        _ => {}
                     }
-                    Record::Message { header, data } => {
-                        let topic = topics.get(&header.channel_id).cloned().ok_or_else(|| {
-                            format!("message on unknown channel {}", header.channel_id)
-                        })?;
-                        out.push(RawMessage {
-                            topic,
-                            log_time: header.log_time,
-                            data: data.into_owned(),
-                        });
-                    }
-                    _ => {}
                 }
             }
         }
+        Ok(None)
     }
-    Ok(out)
 }
 
-/// Reads a whole recording, in file order; a bad message is an error
-/// naming it.
-pub fn read_all(path: &Path) -> Result<Vec<Recorded>, RecordError> {
-    let p = path.display().to_string();
-    let bytes = std::fs::read(path).map_err(|e| RecordError::File {
-        path: p.clone(),
-        reason: e.to_string(),
-    })?;
-    let messages = raw_messages(&bytes).map_err(|reason| RecordError::File {
-        path: p.clone(),
-        reason,
-    })?;
-    let mut out = Vec::new();
-    for (index, m) in messages.into_iter().enumerate() {
-        let topic = m.topic.clone();
-        let stamp = Stamp(std::time::Duration::from_nanos(m.log_time));
-        let bad = |reason: String| RecordError::Message {
-            path: p.clone(),
-            index,
-            topic: topic.clone(),
-            reason,
-        };
-        let json = |d: &[u8]| -> Result<serde_json::Value, RecordError> {
-            serde_json::from_slice(d).map_err(|e| bad(e.to_string()))
-        };
-        let rec = match topic.as_str() {
-            TOPIC_LASER_LEFT | TOPIC_LASER_RIGHT => {
-                let r: ScanRecord =
-                    serde_json::from_value(json(&m.data)?).map_err(|e| bad(e.to_string()))?;
-                if r.codes.len() != r.ranges_m.len() {
-                    return Err(bad(format!(
-                        "{} codes but {} ranges",
-                        r.codes.len(),
-                        r.ranges_m.len()
-                    )));
-                }
-                Recorded::Scan {
-                    left: topic == TOPIC_LASER_LEFT,
-                    scan: Stamped::new(stamp, r.to_scan()),
-                }
+impl Iterator for RecordReader {
+    type Item = Result<Recorded, RecordError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        if self.done {
+            return None;
+        }
+        match self.next_message() {
+            Ok(Some(r)) => Some(Ok(r)),
+            Ok(None) => {
+                self.done = true;
+                None
             }
-            TOPIC_TICKS => {
-                let r: TicksRecord =
-                    serde_json::from_value(json(&m.data)?).map_err(|e| bad(e.to_string()))?;
-                Recorded::Ticks(Stamped::new(stamp, WheelTicks::from(&r)))
-            }
-            TOPIC_RGBD => Recorded::Rgbd(Stamped::new(
-                stamp,
-                decode_rgbd(&m.data, stamp).map_err(bad)?,
-            )),
-            TOPIC_CALIBRATION => Recorded::Calibration(Box::new(
-                serde_json::from_value(json(&m.data)?).map_err(|e| bad(e.to_string()))?,
-            )),
-            TOPIC_DETECTIONS => {
-                let v: Vec<DetectionRecord> =
-                    serde_json::from_value(json(&m.data)?).map_err(|e| bad(e.to_string()))?;
-                Recorded::Detections(
-                    stamp,
-                    v.into_iter()
-                        .map(|d| Detection {
-                            label: d.label,
-                            class: d.class,
-                            score: d.score,
-                            box_xyxy: d.box_xyxy,
-                        })
-                        .collect(),
-                )
-            }
-            TOPIC_OBJECTS => Recorded::Objects(
-                stamp,
-                serde_json::from_value(json(&m.data)?).map_err(|e| bad(e.to_string()))?,
-            ),
-            _ => Recorded::Other { topic, stamp },
-        };
-        out.push(rec);
+            Err(e) => Some(Err(e)),
+        }
     }
-    Ok(out)
+}
+
+/// One message decoded; a bad one is an error naming it.
+fn decode_message(
+    p: &str,
+    index: usize,
+    topic: String,
+    stamp: Stamp,
+    data: &[u8],
+) -> Result<Recorded, RecordError> {
+    let bad = |reason: String| RecordError::Message {
+        path: p.to_string(),
+        index,
+        topic: topic.clone(),
+        reason,
+    };
+    let json = |d: &[u8]| -> Result<serde_json::Value, RecordError> {
+        serde_json::from_slice(d).map_err(|e| bad(e.to_string()))
+    };
+    let rec = match topic.as_str() {
+        TOPIC_LASER_LEFT | TOPIC_LASER_RIGHT => {
+            let r: ScanRecord =
+                serde_json::from_value(json(data)?).map_err(|e| bad(e.to_string()))?;
+            if r.codes.len() != r.ranges_m.len() {
+                return Err(bad(format!(
+                    "{} codes but {} ranges",
+                    r.codes.len(),
+                    r.ranges_m.len()
+                )));
+            }
+            Recorded::Scan {
+                left: topic == TOPIC_LASER_LEFT,
+                scan: Stamped::new(stamp, r.to_scan()),
+            }
+        }
+        TOPIC_TICKS => {
+            let r: TicksRecord =
+                serde_json::from_value(json(data)?).map_err(|e| bad(e.to_string()))?;
+            Recorded::Ticks(Stamped::new(stamp, WheelTicks::from(&r)))
+        }
+        TOPIC_RGBD => Recorded::Rgbd(Stamped::new(stamp, decode_rgbd(data, stamp).map_err(bad)?)),
+        TOPIC_CALIBRATION => Recorded::Calibration(Box::new(
+            serde_json::from_value(json(data)?).map_err(|e| bad(e.to_string()))?,
+        )),
+        TOPIC_DETECTIONS => {
+            let v: Vec<DetectionRecord> =
+                serde_json::from_value(json(data)?).map_err(|e| bad(e.to_string()))?;
+            Recorded::Detections(
+                stamp,
+                v.into_iter()
+                    .map(|d| Detection {
+                        label: d.label,
+                        class: d.class,
+                        score: d.score,
+                        box_xyxy: d.box_xyxy,
+                    })
+                    .collect(),
+            )
+        }
+        TOPIC_OBJECTS => Recorded::Objects(
+            stamp,
+            serde_json::from_value(json(data)?).map_err(|e| bad(e.to_string()))?,
+        ),
+        _ => Recorded::Other { topic, stamp },
+    };
+    Ok(rec)
+}
+
+/// Reads a whole recording, in file order (for short recordings and
+/// tests; [`RecordReader`] streams); a bad message is an error naming it.
+pub fn read_all(path: &Path) -> Result<Vec<Recorded>, RecordError> {
+    RecordReader::open(path)?.collect()
 }

@@ -188,3 +188,57 @@ fn bad_recordings_are_errors_naming_the_file_and_message() {
     );
     assert!(msg.contains("expected 124"), "{msg}");
 }
+
+#[test]
+fn the_reader_streams_and_a_truncated_recording_keeps_what_came_before() {
+    use opennav::record::RecordReader;
+    let settings = Settings::load(None).expect("defaults");
+    let left = settings.lasers.left.base_from_laser();
+    let world = SimWorld::living_room(settings.drive_params());
+    let dir = tempfile::tempdir().expect("tmp");
+    let path = dir.path().join("long.mcap");
+    let mut rec = Recorder::create(&path).expect("create");
+    let n = 2000u64;
+    for k in 0..n {
+        let stamp = Stamp(std::time::Duration::from_millis(100 * k));
+        rec.scan(
+            true,
+            &Stamped::new(stamp, world.laser_scan(&left, k as u32)),
+        )
+        .expect("scan");
+    }
+    rec.finish().expect("finish");
+    // streamed: every message, in order
+    let mut count = 0u64;
+    for r in RecordReader::open(&path).expect("open") {
+        match r.expect("message") {
+            Recorded::Scan { scan, .. } => {
+                assert_eq!(
+                    scan.stamp,
+                    Stamp(std::time::Duration::from_millis(100 * count))
+                );
+                count += 1;
+            }
+            other => panic!("unexpected {other:?}"),
+        }
+    }
+    assert_eq!(count, n);
+    // the last third cut off (a recording the power cut short): the
+    // messages before the cut come out, then one error naming the file
+    let bytes = std::fs::read(&path).expect("read");
+    let cut = dir.path().join("cut.mcap");
+    std::fs::write(&cut, &bytes[..bytes.len() * 2 / 3]).expect("write");
+    let mut good = 0u64;
+    let mut errors = Vec::new();
+    for r in RecordReader::open(&cut).expect("open") {
+        match r {
+            Ok(_) => good += 1,
+            Err(e) => errors.push(e.to_string()),
+        }
+    }
+    assert!(good > n / 3 && good < n, "{good} messages before the cut");
+    assert_eq!(errors.len(), 1, "{errors:?}");
+    assert!(errors[0].contains("cut.mcap"), "{errors:?}");
+    // read_all reports the same error and nothing else
+    assert!(read_all(&cut).is_err());
+}
