@@ -1,0 +1,181 @@
+//! FollowJSM's answer: our joystick frame must follow each of the joystick
+//! module's within 1 ms (the power module acts on the newest frame). The
+//! real writer (`RnetActuator`, its precise ticker thread, on a
+//! multi-threaded tokio runtime as on the chair) on the in-memory bus; a
+//! JSM thread sends a centred frame every 10 ms and its heartbeat every
+//! 100 ms; an observer on the bus stamps every frame as it arrives. The
+//! latency is from the JSM frame's send to our answer's arrival (so it
+//! includes the bus's own delivery to the observer: an upper bound).
+//! Measured idle and with both cores busy (two spinning threads standing
+//! in for perception).
+//!
+//!   cargo bench --bench followjsm_latency [-- FRAMES]
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use opennav::actuation::can::{BusEvent, CanBus, MemoryBus};
+use opennav::actuation::rnet::{
+    joystick_frame, CanFrame, JoystickMapping, TakeoverMode, JSM_HEARTBEAT_ID,
+};
+use opennav::actuation::writer::{RnetActuator, RnetSettings};
+use opennav::actuation::{Actuator, ActuatorIo, ActuatorStatus};
+use opennav::msg::{Clock, MonotonicClock, SafeCmd, SupervisorState, VelocityCmd};
+use tokio::sync::{mpsc, watch};
+use tokio_util::sync::CancellationToken;
+
+const JSM_ID: u32 = 0x0200_0000;
+
+fn percentile(sorted: &[f64], p: f64) -> f64 {
+    let i = ((sorted.len() - 1) as f64 * p).round() as usize;
+    sorted[i]
+}
+
+/// Latencies (µs) of `frames` answers.
+fn measure(frames: usize, load: bool) -> Vec<f64> {
+    let stop_load = Arc::new(AtomicBool::new(false));
+    let mut spinners = Vec::new();
+    if load {
+        for _ in 0..2 {
+            let s = stop_load.clone();
+            spinners.push(std::thread::spawn(move || {
+                let mut x = 0u64;
+                while !s.load(Ordering::Relaxed) {
+                    x = x.wrapping_mul(6364136223846793005).wrapping_add(1);
+                    std::hint::black_box(x);
+                }
+            }));
+        }
+    }
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .expect("runtime");
+    let out = rt.block_on(async {
+        let clock: Arc<dyn Clock> = Arc::new(MonotonicClock::new());
+        let bus = MemoryBus::new();
+        let jsm = bus.endpoint();
+        let observer = bus.endpoint();
+        // the supervisor's command, fresh every 20 ms
+        let (cmd_tx, cmd_rx) = watch::channel(None);
+        let cancel = CancellationToken::new();
+        {
+            let (clock, cancel) = (clock.clone(), cancel.clone());
+            tokio::spawn(async move {
+                let mut tick = tokio::time::interval(Duration::from_millis(20));
+                while !cancel.is_cancelled() {
+                    tick.tick().await;
+                    cmd_tx.send_replace(Some(SafeCmd {
+                        cmd: VelocityCmd {
+                            v_mps: 0.2,
+                            omega_radps: 0.0,
+                        },
+                        state: SupervisorState::Navigating,
+                        stamp: clock.now(),
+                    }));
+                }
+            });
+        }
+        let (ev_tx, mut ev_rx) = mpsc::channel(64);
+        tokio::spawn(async move { while ev_rx.recv().await.is_some() {} });
+        let (status_tx, _status) = watch::channel(ActuatorStatus::default());
+        let writer = tokio::spawn(
+            RnetActuator {
+                bus: bus.endpoint(),
+                settings: RnetSettings::new(
+                    TakeoverMode::FollowJsm,
+                    JoystickMapping {
+                        forward_full_mps: 0.6,
+                        reverse_full_mps: 0.3,
+                        turn_full_radps: 1.6,
+                        deadband: 0,
+                    },
+                ),
+            }
+            .run(ActuatorIo {
+                commands: cmd_rx,
+                events: ev_tx,
+                status: status_tx,
+                cancel: cancel.clone(),
+                clock: clock.clone(),
+            }),
+        );
+        // the JSM: its own thread, absolute 10 ms deadlines
+        let sent: Arc<Mutex<Vec<Instant>>> = Arc::new(Mutex::new(Vec::new()));
+        let jsm_stop = Arc::new(AtomicBool::new(false));
+        let jsm_thread = {
+            let (sent, stop) = (sent.clone(), jsm_stop.clone());
+            std::thread::spawn(move || {
+                let mut next = Instant::now();
+                let mut k = 0u64;
+                while !stop.load(Ordering::Relaxed) {
+                    let now = Instant::now();
+                    if k.is_multiple_of(10) {
+                        let _ = jsm.try_send(&CanFrame::ext(JSM_HEARTBEAT_ID, &[0x87; 8]));
+                    }
+                    sent.lock().expect("sent").push(now);
+                    let _ = jsm.try_send(&joystick_frame(JSM_ID, 0, 0));
+                    k += 1;
+                    next += Duration::from_millis(10);
+                    std::thread::sleep(next.saturating_duration_since(Instant::now()));
+                }
+            })
+        };
+        // the observer: every JSM frame and every answer, as they arrive
+        let mut latencies = Vec::with_capacity(frames);
+        let mut last_jsm: Option<Instant> = None;
+        let warmup = Instant::now() + Duration::from_secs(1);
+        let mut jsm_seen = 0usize;
+        while latencies.len() < frames {
+            let Ok(ev) = observer.recv().await else { break };
+            let at = Instant::now();
+            let BusEvent::Frame(f) = ev else { continue };
+            if f.id != JSM_ID {
+                continue;
+            }
+            if f.data[..2] == [0, 0] {
+                // the JSM's: match it with its send time
+                if let Some(t) = sent.lock().expect("sent").get(jsm_seen) {
+                    last_jsm = Some(*t);
+                }
+                jsm_seen += 1;
+            } else if let (Some(t), true) = (last_jsm, at > warmup) {
+                latencies.push((at - t).as_secs_f64() * 1e6);
+            }
+        }
+        jsm_stop.store(true, Ordering::Relaxed);
+        let _ = jsm_thread.join();
+        cancel.cancel();
+        let _ = writer.await;
+        latencies
+    });
+    stop_load.store(true, Ordering::Relaxed);
+    for s in spinners {
+        let _ = s.join();
+    }
+    out
+}
+
+fn main() {
+    let frames: usize = std::env::args()
+        .skip(1)
+        .find_map(|a| a.parse().ok())
+        .unwrap_or(3000);
+    for load in [false, true] {
+        let mut l = measure(frames, load);
+        l.sort_by(f64::total_cmp);
+        let over_1ms = l.iter().filter(|v| **v > 1000.0).count();
+        println!(
+            "followjsm answer ({}, {} frames): p50 {:.0} µs, p99 {:.0} µs, max {:.0} µs, over 1 ms: {} ({:.2} %)",
+            if load { "both cores busy" } else { "idle" },
+            l.len(),
+            percentile(&l, 0.5),
+            percentile(&l, 0.99),
+            l.last().copied().unwrap_or(f64::NAN),
+            over_1ms,
+            100.0 * over_1ms as f64 / l.len().max(1) as f64
+        );
+    }
+}
