@@ -125,23 +125,19 @@ fn measure(frames: usize, load: bool) -> Vec<f64> {
         };
         // the observer: every JSM frame and every answer, as they arrive
         let mut latencies = Vec::with_capacity(frames);
-        let mut last_jsm: Option<Instant> = None;
         let warmup = Instant::now() + Duration::from_secs(1);
-        let mut jsm_seen = 0usize;
         while latencies.len() < frames {
             let Ok(ev) = observer.recv().await else { break };
             let at = Instant::now();
             let BusEvent::Frame(f) = ev else { continue };
-            if f.id != JSM_ID {
+            // ours carry the command (the JSM's and our first are centred)
+            if f.id != JSM_ID || f.data[..2] == [0, 0] || at < warmup {
                 continue;
             }
-            if f.data[..2] == [0, 0] {
-                // the JSM's: match it with its send time
-                if let Some(t) = sent.lock().expect("sent").get(jsm_seen) {
-                    last_jsm = Some(*t);
-                }
-                jsm_seen += 1;
-            } else if let (Some(t), true) = (last_jsm, at > warmup) {
+            // the JSM frame it answers: the newest sent before it arrived
+            let sent = sent.lock().expect("sent");
+            let i = sent.partition_point(|t| *t <= at);
+            if let Some(t) = i.checked_sub(1).map(|i| sent[i]) {
                 latencies.push((at - t).as_secs_f64() * 1e6);
             }
         }
