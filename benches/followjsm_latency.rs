@@ -1,7 +1,10 @@
 //! FollowJSM's answer: our joystick frame must follow each of the joystick
 //! module's within 1 ms (the power module acts on the newest frame). The
-//! real writer (`RnetActuator`, its precise ticker thread, on a
-//! multi-threaded tokio runtime as on the chair) on the in-memory bus; a
+//! real writer (`RnetActuator` with its precise ticker) started as the
+//! chair starts it — its own thread and single-threaded runtime at
+//! SCHED_FIFO 50 (`spawn_actuator_thread`), off the daemon's workers — or,
+//! for comparison, as a task on the daemon's two-worker runtime; on the
+//! in-memory bus; a
 //! JSM thread sends a centred frame every 10 ms and its heartbeat every
 //! 100 ms; an observer on the bus stamps every frame as it arrives. The
 //! latency is from the JSM frame's send to our answer's arrival (so it
@@ -20,7 +23,9 @@ use opennav::actuation::rnet::{
     joystick_frame, CanFrame, JoystickMapping, TakeoverMode, JSM_HEARTBEAT_ID,
 };
 use opennav::actuation::writer::{RnetActuator, RnetSettings};
-use opennav::actuation::{Actuator, ActuatorIo, ActuatorStatus};
+use opennav::actuation::{
+    spawn_actuator_thread, thread_result, Actuator, ActuatorIo, ActuatorStatus,
+};
 use opennav::msg::{Clock, MonotonicClock, SafeCmd, SupervisorState, VelocityCmd};
 use tokio::sync::{mpsc, watch};
 use tokio_util::sync::CancellationToken;
@@ -33,7 +38,7 @@ fn percentile(sorted: &[f64], p: f64) -> f64 {
 }
 
 /// Latencies (µs) of `frames` answers.
-fn measure(frames: usize, load: bool) -> Vec<f64> {
+fn measure(frames: usize, load: bool, own_thread: bool) -> Vec<f64> {
     let stop_load = Arc::new(AtomicBool::new(false));
     let mut spinners = Vec::new();
     if load {
@@ -81,33 +86,42 @@ fn measure(frames: usize, load: bool) -> Vec<f64> {
         let (ev_tx, mut ev_rx) = mpsc::channel(64);
         tokio::spawn(async move { while ev_rx.recv().await.is_some() {} });
         let (status_tx, _status) = watch::channel(ActuatorStatus::default());
-        let writer = tokio::spawn(
-            RnetActuator {
-                bus: bus.endpoint(),
-                settings: RnetSettings::new(
-                    TakeoverMode::FollowJsm,
-                    JoystickMapping {
-                        forward_full_mps: 0.6,
-                        reverse_full_mps: 0.3,
-                        turn_full_radps: 1.6,
-                        deadband: 0,
-                    },
-                ),
-            }
-            .run(ActuatorIo {
-                commands: cmd_rx,
-                events: ev_tx,
-                status: status_tx,
-                cancel: cancel.clone(),
-                clock: clock.clone(),
-            }),
-        );
-        // the JSM: its own thread, absolute 10 ms deadlines
+        let actuator = RnetActuator {
+            bus: bus.endpoint(),
+            settings: RnetSettings::new(
+                TakeoverMode::FollowJsm,
+                JoystickMapping {
+                    forward_full_mps: 0.6,
+                    reverse_full_mps: 0.3,
+                    turn_full_radps: 1.6,
+                    deadband: 0,
+                },
+            ),
+        };
+        let io = ActuatorIo {
+            commands: cmd_rx,
+            events: ev_tx,
+            status: status_tx,
+            cancel: cancel.clone(),
+            clock: clock.clone(),
+        };
+        let writer = if own_thread {
+            let h = spawn_actuator_thread("rnet-writer", 50, move || Ok(actuator), io)
+                .expect("writer thread");
+            tokio::spawn(thread_result(h))
+        } else {
+            tokio::spawn(actuator.run(io))
+        };
+        // the JSM: its own thread (real-time, as the chair's JSM is its own
+        // device), absolute 10 ms deadlines
         let sent: Arc<Mutex<Vec<Instant>>> = Arc::new(Mutex::new(Vec::new()));
         let jsm_stop = Arc::new(AtomicBool::new(false));
         let jsm_thread = {
             let (sent, stop) = (sent.clone(), jsm_stop.clone());
             std::thread::spawn(move || {
+                let param = libc::sched_param { sched_priority: 70 };
+                // SAFETY: plain syscall on this thread; refusal is fine
+                unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) };
                 let mut next = Instant::now();
                 let mut k = 0u64;
                 while !stop.load(Ordering::Relaxed) {
@@ -123,24 +137,46 @@ fn measure(frames: usize, load: bool) -> Vec<f64> {
                 }
             })
         };
-        // the observer: every JSM frame and every answer, as they arrive
-        let mut latencies = Vec::with_capacity(frames);
-        let warmup = Instant::now() + Duration::from_secs(1);
-        while latencies.len() < frames {
-            let Ok(ev) = observer.recv().await else { break };
-            let at = Instant::now();
-            let BusEvent::Frame(f) = ev else { continue };
-            // ours carry the command (the JSM's and our first are centred)
-            if f.id != JSM_ID || f.data[..2] == [0, 0] || at < warmup {
-                continue;
-            }
-            // the JSM frame it answers: the newest sent before it arrived
-            let sent = sent.lock().expect("sent");
-            let i = sent.partition_point(|t| *t <= at);
-            if let Some(t) = i.checked_sub(1).map(|i| sent[i]) {
-                latencies.push((at - t).as_secs_f64() * 1e6);
-            }
-        }
+        // the observer: every answer as it arrives, on its own thread at a
+        // higher real-time priority than the writer (so the spinners do
+        // not delay the measurement itself)
+        let observer_thread = {
+            let sent = sent.clone();
+            std::thread::spawn(move || {
+                let param = libc::sched_param { sched_priority: 70 };
+                // SAFETY: plain syscall on this thread; refusal is fine
+                unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) };
+                let rt = tokio::runtime::Builder::new_current_thread()
+                    .enable_all()
+                    .build()
+                    .expect("observer runtime");
+                rt.block_on(async move {
+                    let mut latencies = Vec::with_capacity(frames);
+                    let warmup = Instant::now() + Duration::from_secs(1);
+                    while latencies.len() < frames {
+                        let Ok(ev) = observer.recv().await else { break };
+                        let at = Instant::now();
+                        let BusEvent::Frame(f) = ev else { continue };
+                        // ours carry the command (the JSM's and our first
+                        // frames are centred)
+                        if f.id != JSM_ID || f.data[..2] == [0, 0] || at < warmup {
+                            continue;
+                        }
+                        // the JSM frame it answers: the newest sent before
+                        let sent = sent.lock().expect("sent");
+                        let i = sent.partition_point(|t| *t <= at);
+                        if let Some(t) = i.checked_sub(1).map(|i| sent[i]) {
+                            latencies.push((at - t).as_secs_f64() * 1e6);
+                        }
+                    }
+                    latencies
+                })
+            })
+        };
+        let latencies = tokio::task::spawn_blocking(move || observer_thread.join())
+            .await
+            .expect("joined")
+            .expect("observer");
         jsm_stop.store(true, Ordering::Relaxed);
         let _ = jsm_thread.join();
         cancel.cancel();
@@ -159,12 +195,17 @@ fn main() {
         .skip(1)
         .find_map(|a| a.parse().ok())
         .unwrap_or(3000);
-    for load in [false, true] {
-        let mut l = measure(frames, load);
+    for (own_thread, load) in [(true, false), (true, true), (false, false), (false, true)] {
+        let mut l = measure(frames, load, own_thread);
         l.sort_by(f64::total_cmp);
         let over_1ms = l.iter().filter(|v| **v > 1000.0).count();
         println!(
-            "followjsm answer ({}, {} frames): p50 {:.0} µs, p99 {:.0} µs, max {:.0} µs, over 1 ms: {} ({:.2} %)",
+            "followjsm answer ({}, {}, {} frames): p50 {:.0} µs, p99 {:.0} µs, max {:.0} µs, over 1 ms: {} ({:.2} %)",
+            if own_thread {
+                "writer thread SCHED_FIFO (as on the chair)"
+            } else {
+                "writer on the async workers"
+            },
             if load { "both cores busy" } else { "idle" },
             l.len(),
             percentile(&l, 0.5),
