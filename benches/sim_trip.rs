@@ -27,6 +27,13 @@ fn trip(settings: &Settings, word: &str) -> (RunReport, Duration) {
             opennav::sim::devices::devices(settings, world, clock.clone()).expect("devices");
         let (tx, rx) = tokio::sync::mpsc::channel(4);
         tx.send(UserInput::Goto(word.into())).await.expect("word");
+        // "yes" when the chair asks whether it is clear behind (its rear
+        // is unseen at start-up: a search turn needs it)
+        let yes = tx.clone();
+        tokio::spawn(async move {
+            tokio::time::sleep(Duration::from_millis(2500)).await;
+            yes.send(UserInput::Yes).await.ok();
+        });
         let opts = RunOptions {
             exit_on_arrival: true,
             max_duration: Some(Duration::from_secs(120)),

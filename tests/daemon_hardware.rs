@@ -122,6 +122,9 @@ fn runs_on_emulated_devices_turns_to_search_and_stops_on_the_word() {
     let mut stdin = child.stdin.take().expect("stdin");
     std::thread::sleep(Duration::from_secs(2));
     writeln!(stdin, "chair").expect("word");
+    // the rear was never seen: the chair asks before a turn on the spot
+    std::thread::sleep(Duration::from_millis(1800));
+    writeln!(stdin, "yes").expect("yes");
     std::thread::sleep(Duration::from_secs(2));
     let turning = chip
         .log()
@@ -155,6 +158,12 @@ fn runs_on_emulated_devices_turns_to_search_and_stops_on_the_word() {
     assert!(!after.is_empty());
     assert!(after.iter().all(|v| (v.vx, v.vy) == (0, 0)), "{after:?}");
     assert_eq!(r["outcome"], "quit", "{r}");
+    assert!(
+        r["said"].as_array().is_some_and(|s| s.iter().any(|l| l
+            .as_str()
+            .is_some_and(|l| l.contains("cannot see behind me")))),
+        "{r}"
+    );
     assert_eq!(r["supervisor"]["Stopped"], "UserStop", "{r}");
     assert_eq!(r["actuator"]["backend"], "rebus");
     assert_eq!(r["actuator"]["state"], "released", "{r}");

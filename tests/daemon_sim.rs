@@ -78,6 +78,17 @@ fn go(word: &str) -> Vec<(Duration, UserInput)> {
     vec![(Duration::ZERO, UserInput::Goto(word.into()))]
 }
 
+/// The word, then "yes" when the chair asks whether it is clear behind
+/// (it has not seen its rear at start-up: a turn on the spot needs it).
+fn go_clear_behind(word: &str) -> Vec<(Duration, UserInput)> {
+    vec![
+        (Duration::ZERO, UserInput::Goto(word.into())),
+        (Duration::from_millis(2500), UserInput::Yes),
+    ]
+}
+
+const REAR_QUESTION: &str = "I cannot see behind me";
+
 fn to_arrival() -> RunOptions {
     RunOptions {
         exit_on_arrival: true,
@@ -116,15 +127,20 @@ async fn finds_the_chair_and_drives_there() {
 
 #[tokio::test(start_paused = true)]
 async fn finds_the_cabinet_after_turning_to_look_for_it() {
-    let (r, s) = trip(go("cabinet"), to_arrival(), |_, _| {}).await;
+    let (r, s) = trip(go_clear_behind("cabinet"), to_arrival(), |_, _| {}).await;
     check_arrival(&r, &s, "cabinet");
+    assert!(
+        r.said.iter().any(|l| l.contains(REAR_QUESTION)),
+        "{:?}",
+        r.said
+    );
     // it was out of view at the start: the chair turned to find it
     assert!(s.world.distance_travelled_m > 0.8, "{s:?}");
 }
 
 #[tokio::test(start_paused = true)]
 async fn a_word_nothing_answers_ends_in_not_found_after_one_turn() {
-    let (r, s) = trip(go("piano"), to_arrival(), |_, _| {}).await;
+    let (r, s) = trip(go_clear_behind("piano"), to_arrival(), |_, _| {}).await;
     assert_eq!(r.outcome, Outcome::NotFound, "{r:?}");
     assert!(
         r.said.iter().any(|l| l.contains("cannot find a piano")),
@@ -132,14 +148,48 @@ async fn a_word_nothing_answers_ends_in_not_found_after_one_turn() {
         r.said
     );
     assert_eq!(s.world.collision_steps, 0);
-    // one full turn on the spot: ~21 s at 0.3 rad/s
-    assert!((18.0..40.0).contains(&r.duration_s), "{}", r.duration_s);
+    // one full turn on the spot: ~21 s at 0.3 rad/s, after the question
+    assert!((18.0..42.0).contains(&r.duration_s), "{}", r.duration_s);
+}
+
+#[tokio::test(start_paused = true)]
+async fn a_turn_on_the_spot_waits_until_someone_says_it_is_clear_behind() {
+    // nobody answers: asked once, and the chair does not turn
+    let opts = RunOptions {
+        max_duration: Some(Duration::from_secs(10)),
+        ..to_arrival()
+    };
+    let (r, s) = trip(go("cabinet"), opts.clone(), |_, _| {}).await;
+    assert_eq!(r.outcome, Outcome::Timeout, "{r:?}");
+    let asked = r.said.iter().filter(|l| l.contains(REAR_QUESTION)).count();
+    assert_eq!(asked, 1, "{:?}", r.said);
+    assert_eq!(
+        serde_json::to_value(r.supervisor).expect("json"),
+        serde_json::json!({"Stopped": "RearUnseen"}),
+        "{r:?}"
+    );
+    let turned = (s.world.truth.theta_rad
+        - SimWorld::living_room(Settings::defaults().drive_params())
+            .start
+            .theta_rad)
+        .abs();
+    assert!(turned < 0.05, "turned {turned} rad without a seen rear");
+    assert!(s.world.distance_travelled_m < 0.02, "{s:?}");
+    // "no": the chair stays and says so
+    let words = vec![
+        (Duration::ZERO, UserInput::Goto("cabinet".into())),
+        (Duration::from_millis(2500), UserInput::No),
+    ];
+    let (r, s) = trip(words, opts, |_, _| {}).await;
+    assert!(r.said.iter().any(|l| l == "Staying here."), "{:?}", r.said);
+    assert!(s.world.distance_travelled_m < 0.02, "{s:?}");
 }
 
 #[tokio::test(start_paused = true)]
 async fn the_stop_word_brings_the_chair_to_rest() {
     let words = vec![
         (Duration::ZERO, UserInput::Goto("cabinet".into())),
+        (Duration::from_millis(2500), UserInput::Yes),
         // moving (searching, then driving) for a while
         (Duration::from_secs(4), UserInput::Stop),
         (Duration::from_millis(1500), UserInput::Quit),
@@ -158,8 +208,8 @@ async fn the_stop_word_brings_the_chair_to_rest() {
 
 #[tokio::test(start_paused = true)]
 async fn two_runs_of_one_trip_on_the_virtual_clock_are_identical() {
-    let a = trip(go("cabinet"), to_arrival(), |_, _| {}).await;
-    let b = trip(go("cabinet"), to_arrival(), |_, _| {}).await;
+    let a = trip(go_clear_behind("cabinet"), to_arrival(), |_, _| {}).await;
+    let b = trip(go_clear_behind("cabinet"), to_arrival(), |_, _| {}).await;
     let json = |(r, s): &(RunReport, SimSummary)| {
         serde_json::to_string(&serde_json::json!({"report": r, "sim": s})).expect("json")
     };

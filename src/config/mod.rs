@@ -128,6 +128,10 @@ pub struct SafetySection {
     pub overspeed_window_s: f64,
     pub camera_max_age_s: f64,
     pub max_blind_fraction: f64,
+    pub turn_needs_seen_rear: bool,
+    pub rear_blind_deg: f64,
+    pub rear_memory_s: f64,
+    pub rear_confirm_s: f64,
 }
 
 #[derive(Debug, Clone, Deserialize, PartialEq)]
@@ -329,6 +333,19 @@ impl Settings {
             overspeed_window: d(s.overspeed_window_s),
             camera_max_age: self.depth_obstacles.enabled.then(|| d(s.camera_max_age_s)),
             max_blind_fraction: s.max_blind_fraction,
+            turn_needs_seen_rear: s.turn_needs_seen_rear,
+        }
+    }
+
+    pub fn rear_settings(&self) -> crate::safety::rear::RearSettings {
+        let s = &self.safety;
+        let half = (s.rear_blind_deg / 2.0).to_radians();
+        crate::safety::rear::RearSettings {
+            blind_half_angle_rad: half,
+            seen_half_angle_rad: std::f64::consts::PI - half,
+            memory: std::time::Duration::from_secs_f64(s.rear_memory_s),
+            confirm_for: std::time::Duration::from_secs_f64(s.rear_confirm_s),
+            ..Default::default()
         }
     }
 

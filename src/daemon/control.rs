@@ -17,6 +17,7 @@ use crate::msg::{
 };
 use crate::navigation::mpc::UnicycleState;
 use crate::navigation::planner::Planner;
+use crate::safety::rear::{RearSettings, RearWatch};
 use crate::safety::{Supervisor, SupervisorInputs};
 
 /// How a run ended.
@@ -84,7 +85,20 @@ pub struct Control {
     motors: Motors,
     /// What the latest fault was, in words.
     fault_reason: Option<String>,
+    /// What is known of the space behind the chair.
+    pub rear: RearWatch,
+    /// The newest laser scan the rear watch has seen.
+    rear_scan: Option<Stamp>,
+    /// Since when a turn on the spot waits for the rear to be seen.
+    rear_blocked_since: Option<Stamp>,
+    /// The chair asked whether it is clear behind (the pose it asked at).
+    asked_rear: Option<crate::msg::Pose2>,
+    /// "yes" arrived: vouch for the rear at the next step.
+    rear_yes: bool,
 }
+
+/// A turn on the spot refused this long for an unseen rear: the chair asks.
+const ASK_REAR_AFTER: std::time::Duration = std::time::Duration::from_secs(1);
 
 /// The motor interface up but not driving this long: the takeover failed.
 const TAKEOVER_WITHIN: std::time::Duration = std::time::Duration::from_secs(1);
@@ -123,6 +137,11 @@ impl Control {
             pending: None,
             motors: Motors::default(),
             fault_reason: None,
+            rear: RearWatch::new(RearSettings::default()),
+            rear_scan: None,
+            rear_blocked_since: None,
+            asked_rear: None,
+            rear_yes: false,
         }
     }
 
@@ -200,6 +219,18 @@ impl Control {
                 }
             }
             UserInput::Go => tracing::info!("\"go\" while not stopped: nothing to clear"),
+            UserInput::Yes if self.asked_rear.is_some() => {
+                self.rear_yes = true;
+                self.say("Thank you. Turning.".into());
+            }
+            UserInput::No if self.asked_rear.take().is_some() => {
+                self.goal.clear();
+                self.planner_cmd = None;
+                self.say("Staying here.".into());
+            }
+            UserInput::Yes | UserInput::No => {
+                tracing::info!(input = ?input, "an answer while nothing was asked: ignored")
+            }
             UserInput::Quit => {
                 self.done.get_or_insert(Outcome::Quit);
             }
@@ -282,6 +313,9 @@ impl Control {
         if let (Some(o), Some(odo)) = (inputs.obstacles, inputs.odometry) {
             self.plan(now, o, camera.as_ref(), odo, inputs.tracker);
         }
+        let rear = inputs
+            .odometry
+            .map(|odo| self.watch_rear(now, inputs.obstacles, odo.value.pose));
         let mut cmd = self.supervisor.step(
             now,
             &SupervisorInputs {
@@ -289,8 +323,10 @@ impl Control {
                 odometry: inputs.odometry,
                 command: self.planner_cmd.as_ref(),
                 camera: camera.as_ref(),
+                rear: rear.as_ref(),
             },
         );
+        self.ask_about_rear(now, cmd.state, inputs.odometry.map(|o| o.value.pose));
         if self.done.is_some() {
             // the trip is over: the last command the chair gets is zero
             cmd.cmd = VelocityCmd::default();
@@ -300,6 +336,54 @@ impl Control {
             wanted: self.goal.wanted(),
             said: std::mem::take(&mut self.said),
             done: self.done.clone(),
+        }
+    }
+
+    /// Feeds the rear watch the newest scan (seen from the pose now) and
+    /// the person's "yes"; what it knows of the rear now.
+    fn watch_rear(
+        &mut self,
+        now: Stamp,
+        obstacles: Option<&Stamped<Obstacles>>,
+        pose: crate::msg::Pose2,
+    ) -> crate::safety::rear::RearView {
+        if let Some(o) = obstacles.filter(|o| Some(o.stamp) != self.rear_scan) {
+            self.rear_scan = Some(o.stamp);
+            self.rear.on_scan(o.stamp, pose, &o.value.points_base);
+        }
+        if std::mem::take(&mut self.rear_yes) {
+            if let Some(at) = self.asked_rear.take() {
+                self.rear.confirm(now, at);
+            }
+        }
+        self.rear.view(now, pose)
+    }
+
+    /// A turn on the spot refused for an unseen rear for a second: ask
+    /// the person whether it is clear behind (once per wait).
+    fn ask_about_rear(
+        &mut self,
+        now: Stamp,
+        state: SupervisorState,
+        pose: Option<crate::msg::Pose2>,
+    ) {
+        if state != SupervisorState::Stopped(crate::msg::StopReason::RearUnseen) {
+            // the wait is over (turned, or no turn needed any more): a
+            // later one asks again
+            self.rear_blocked_since = None;
+            self.asked_rear = None;
+            return;
+        }
+        let since = *self.rear_blocked_since.get_or_insert(now);
+        if since.age_at(now) >= ASK_REAR_AFTER && self.asked_rear.is_none() {
+            if let Some(p) = pose {
+                self.asked_rear = Some(p);
+                self.say(
+                    "I need to turn on the spot, and I cannot see behind me. \
+                     Is it clear behind? Say yes to let me turn, or no."
+                        .into(),
+                );
+            }
         }
     }
 
@@ -396,9 +480,11 @@ mod tests {
 
     fn control(exit_on_arrival: bool) -> Control {
         Control::new(
-            // no depth camera in these tests: the lasers decide
+            // no depth camera in these tests: the lasers decide; the rear
+            // counts as seen (its own test turns the check on)
             Supervisor::new(crate::safety::SafetyLimits {
                 camera_max_age: None,
+                turn_needs_seen_rear: false,
                 ..crate::config::Settings::defaults().safety_limits()
             }),
             GoalKeeper::new(crate::config::Settings::defaults().goal_settings()),
@@ -497,6 +583,43 @@ mod tests {
         assert_eq!(out.said, vec!["Stopped.".to_string()]);
         assert!(out.wanted.is_empty());
         assert_eq!(out.done, None, "the daemon goes on after a stop");
+    }
+
+    #[test]
+    fn an_unseen_rear_is_asked_about_once_and_yes_lets_the_search_turn() {
+        let mut c = control(false);
+        c.supervisor.limits.turn_needs_seen_rear = true;
+        c.on_input(UserInput::Goto("chair".into()));
+        let mut said = Vec::new();
+        for k in 0..40 {
+            let out = step_empty(&mut c, 50 * k);
+            assert_eq!(out.cmd.cmd, VelocityCmd::default(), "step {k}");
+            said.extend(out.said);
+        }
+        let asked: Vec<_> = said
+            .iter()
+            .filter(|l| l.contains("cannot see behind me"))
+            .collect();
+        assert_eq!(asked.len(), 1, "{said:?}");
+        assert_eq!(
+            c.state(),
+            SupervisorState::Stopped(crate::msg::StopReason::RearUnseen)
+        );
+        // a "yes" vouches for this spot: the search turn starts
+        c.on_input(UserInput::Yes);
+        let mut turning = false;
+        for k in 40..50 {
+            turning |= step_empty(&mut c, 50 * k).cmd.cmd.omega_radps > 0.0;
+        }
+        assert!(turning, "{:?}", c.state());
+        // "yes" with nothing asked changes nothing
+        let mut c = control(false);
+        c.supervisor.limits.turn_needs_seen_rear = true;
+        c.on_input(UserInput::Yes);
+        c.on_input(UserInput::Goto("chair".into()));
+        for k in 0..10 {
+            assert_eq!(step_empty(&mut c, 50 * k).cmd.cmd, VelocityCmd::default());
+        }
     }
 
     #[test]

@@ -482,6 +482,7 @@ pub async fn run(
 
     // the control task, watched together with the others
     let mut control = new_control(settings, view, opts.exit_on_arrival);
+    control.rear = crate::safety::rear::RearWatch::new(settings.rear_settings());
     if depth_map.is_none() {
         // the lasers alone decide: nothing below their plane is seen
         control.supervisor.limits.camera_max_age = None;

@@ -27,6 +27,9 @@ pub enum StopReason {
     /// Too many laser steps through the corridor (or the turn circle)
     /// came back without a range that means "free": the way is not seen.
     LaserBlind,
+    /// A turn on the spot would sweep the chair's rear through space no
+    /// sensor has seen and nobody vouched for.
+    RearUnseen,
     /// A stop from any input (socket, switch, voice).
     UserStop,
     /// The user deflected the real joystick.

@@ -50,6 +50,10 @@ pub enum UserInput {
     Go,
     /// Quit the daemon.
     Quit,
+    /// "yes" to the chair's question (e.g. is it clear behind).
+    Yes,
+    /// "no" to the chair's question.
+    No,
 }
 
 /// Words that stop the chair wherever they appear in what was said.
@@ -82,6 +86,16 @@ impl UserInput {
         let w: Vec<&str> = words.iter().map(String::as_str).collect();
         match w.as_slice() {
             ["quit"] | ["exit"] => return UserInput::Quit,
+            ["yes"]
+            | ["yeah"]
+            | ["yep"]
+            | ["yes", "please"]
+            | ["ok"]
+            | ["okay"]
+            | ["clear"]
+            | ["it's", "clear"]
+            | ["all", "clear"] => return UserInput::Yes,
+            ["no"] | ["nope"] | ["no", "thanks"] | ["not", "clear"] => return UserInput::No,
             ["go"] | ["go", "on"] | ["continue"] | ["resume"] | ["carry", "on"] => {
                 return UserInput::Go
             }
@@ -118,6 +132,14 @@ mod tests {
             "a bare switch press stops"
         );
         assert_eq!(UserInput::parse("quit"), UserInput::Quit);
+        assert_eq!(UserInput::parse("Yes."), UserInput::Yes);
+        assert_eq!(UserInput::parse("it's clear"), UserInput::Yes);
+        assert_eq!(UserInput::parse("no"), UserInput::No);
+        // "no" inside a goal phrase is not an answer
+        assert_eq!(
+            UserInput::parse("go to the nook"),
+            UserInput::Goto("nook".into())
+        );
     }
 
     #[test]

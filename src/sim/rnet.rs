@@ -275,6 +275,7 @@ pub async fn run_control_stand_in(c: ControlStandIn) -> Supervisor {
     } = c;
     // no camera here: the stand-in checks the writer, not perception
     supervisor.limits.camera_max_age = None;
+    supervisor.limits.turn_needs_seen_rear = false;
     supervisor.goal_active();
     let mut tick = tokio::time::interval(period);
     let mut last_planner: Option<Stamped<VelocityCmd>> = None;
@@ -305,6 +306,7 @@ pub async fn run_control_stand_in(c: ControlStandIn) -> Supervisor {
                     command: last_planner.as_ref(),
                     // this harness checks the writer, not perception
                     camera: None,
+                    rear: None,
                 });
                 commands.send_replace(Some(out));
             }

@@ -12,6 +12,8 @@
 //! (latched) when the chair moves faster than the caps for longer than the
 //! overspeed window. Otherwise it caps speeds and accelerations.
 
+pub mod rear;
+
 use std::time::Duration;
 
 use crate::msg::{
@@ -47,6 +49,9 @@ pub struct SafetyLimits {
     /// Of the laser steps through the corridor (or the turn circle), the
     /// fraction that may be blind before the way counts as not seen.
     pub max_blind_fraction: f64,
+    /// A turn on the spot needs the rear seen (remembered or vouched for
+    /// by the person, [`rear`]).
+    pub turn_needs_seen_rear: bool,
 }
 
 /// The latest inputs, each with its acquisition stamp.
@@ -59,6 +64,8 @@ pub struct SupervisorInputs<'a> {
     /// The depth camera's obstacles and drop-offs in `base_link` now,
     /// stamped with their newest frame.
     pub camera: Option<&'a Stamped<Obstacles>>,
+    /// What is known of the space behind the chair (None: nothing).
+    pub rear: Option<&'a rear::RearView>,
 }
 
 /// Below this the chair counts as not moving along / not turning (m/s,
@@ -334,12 +341,18 @@ impl Supervisor {
                 } else {
                     &turns[..1]
                 };
+                let turning_on_the_spot =
+                    turns.iter().any(|(v, w)| v.abs() < 0.05 && w.abs() > 0.05);
+                let rear_seen = inputs.rear.is_some_and(|r| r.seen);
                 let blocked = if blocked_by(&[
                     &obs.value.points_base,
                     &obs.value.drop_offs_base,
                     camera.map_or(no_points, |c| &c.points_base),
+                    inputs.rear.map_or(no_points, |r| &r.points_base),
                 ]) {
                     Some(StopReason::Obstacle)
+                } else if turning_on_the_spot && l.turn_needs_seen_rear && !rear_seen {
+                    Some(StopReason::RearUnseen)
                 } else if blocked_by(&[camera.map_or(no_points, |c| &c.drop_offs_base)]) {
                     Some(StopReason::DropOff)
                 } else if self.way_unseen(
@@ -397,6 +410,8 @@ mod tests {
         cmd: Stamped<VelocityCmd>,
         /// The depth camera's obstacles: none, fresh.
         camera: Stamped<Obstacles>,
+        /// The rear: seen (as after driving here), nothing remembered.
+        rear: rear::RearView,
     }
 
     impl World {
@@ -411,6 +426,10 @@ mod tests {
                 ),
                 odom: Stamped::new(ms(t), Odometry::default()),
                 camera: Stamped::new(ms(t), Obstacles::default()),
+                rear: rear::RearView {
+                    seen: true,
+                    points_base: Vec::new(),
+                },
                 cmd: Stamped::new(
                     ms(t),
                     VelocityCmd {
@@ -426,6 +445,7 @@ mod tests {
                 odometry: Some(&self.odom),
                 command: Some(&self.cmd),
                 camera: Some(&self.camera),
+                rear: Some(&self.rear),
             }
         }
     }
@@ -769,6 +789,50 @@ mod tests {
         // without a depth camera (camera_max_age None) the lasers decide
         s.limits.camera_max_age = None;
         assert_eq!(s.step(ms(30), &inputs).state, SupervisorState::Navigating);
+    }
+
+    #[test]
+    fn a_turn_on_the_spot_needs_the_rear_seen_and_what_was_seen_there_counts() {
+        // not seen (just woke up): refused, asked for or happening
+        let mut s = moving(0.0);
+        let mut w = World::new(20, 0.0, 0.5);
+        w.rear.seen = false;
+        let c = s.step(ms(20), &w.inputs());
+        assert_eq!(c.state, SupervisorState::Stopped(StopReason::RearUnseen));
+        assert_eq!(c.cmd, VelocityCmd::default());
+        let mut s = moving(0.0);
+        let mut w = World::new(20, 0.0, 0.0);
+        w.rear.seen = false;
+        w.odom.value.omega_radps = 0.4;
+        assert_eq!(
+            s.step(ms(20), &w.inputs()).state,
+            SupervisorState::Stopped(StopReason::RearUnseen)
+        );
+        // driving (not on the spot) does not need it; nor does the switch off
+        let mut s = moving(0.2);
+        let mut w = World::new(20, 0.2, 0.3);
+        w.rear.seen = false;
+        assert_eq!(
+            s.step(ms(20), &w.inputs()).state,
+            SupervisorState::Navigating
+        );
+        let mut s = moving(0.0);
+        s.limits.turn_needs_seen_rear = false;
+        let mut w = World::new(20, 0.0, 0.5);
+        w.rear.seen = false;
+        assert_eq!(
+            s.step(ms(20), &w.inputs()).state,
+            SupervisorState::Navigating
+        );
+        // seen, but the lasers saw a wall corner 0.6 m behind: the sweep
+        // would hit it
+        let mut s = moving(0.0);
+        let mut w = World::new(20, 0.0, 0.5);
+        w.rear.points_base = vec![[-0.6, 0.2]];
+        assert_eq!(
+            s.step(ms(20), &w.inputs()).state,
+            SupervisorState::Stopped(StopReason::Obstacle)
+        );
     }
 
     #[test]

@@ -1,0 +1,285 @@
+//! Turning on the spot sweeps the chair's rear corners through the space
+//! behind it, which the lasers never see now: they look forward from the
+//! front corners (240° each), and the chair's own back and its user hide
+//! the rest. So a turn on the spot needs the rear *seen*, one of two ways:
+//!
+//! - remembered: the blind sector behind the chair (±`blind_half_angle`
+//!   about straight back, from base_link) was inside the lasers' view from
+//!   about here (within `near_m`) in the last `memory`, and what they saw
+//!   there is remembered (laser points in `odom` within `points_radius_m`,
+//!   for the turn check). A chair that drove forward to here has seen its
+//!   rear; one that just woke up has not.
+//! - vouched: the person in the chair (or the carer) said it is clear
+//!   behind ("yes" to the chair's question), for this spot (`near_m`) and
+//!   `confirm_for`.
+//!
+//! Otherwise the supervisor refuses the turn (`RearUnseen`) and the chair
+//! asks. Pure: scans with the chair's pose and the time in.
+
+use std::collections::VecDeque;
+use std::time::Duration;
+
+use crate::msg::{Pose2, Stamp};
+
+/// Config `[safety]` (rear keys).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RearSettings {
+    /// Half the angle of the blind sector about straight back.
+    pub blind_half_angle_rad: f64,
+    /// Half the lasers' seen sector about straight ahead (the rest of the
+    /// circle is blind).
+    pub seen_half_angle_rad: f64,
+    /// How far from here a past view still counts, metres.
+    pub near_m: f64,
+    /// How long a past view (and the points it saw) counts.
+    pub memory: Duration,
+    /// How long the person's "clear behind" counts, at this spot.
+    pub confirm_for: Duration,
+    /// Laser points kept this close to the chair, metres.
+    pub points_radius_m: f64,
+}
+
+impl Default for RearSettings {
+    fn default() -> Self {
+        RearSettings {
+            blind_half_angle_rad: 60f64.to_radians(),
+            seen_half_angle_rad: 120f64.to_radians(),
+            near_m: 0.15,
+            memory: Duration::from_secs(30),
+            confirm_for: Duration::from_secs(60),
+            points_radius_m: 1.5,
+        }
+    }
+}
+
+/// What the supervisor needs about the rear now.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct RearView {
+    /// The blind sector was seen (remembered) or vouched for.
+    pub seen: bool,
+    /// Remembered laser points near the chair, in `base_link` now.
+    pub points_base: Vec<[f32; 2]>,
+}
+
+#[derive(Debug, Clone)]
+pub struct RearWatch {
+    pub settings: RearSettings,
+    /// Where the lasers looked from: (stamp, pose), thinned.
+    views: VecDeque<(Stamp, Pose2)>,
+    /// Laser points in odom with their stamp, on a 5 cm grid.
+    points: VecDeque<(Stamp, [f64; 2])>,
+    cells: std::collections::HashSet<(i64, i64)>,
+    confirmed: Option<(Stamp, Pose2)>,
+}
+
+const CELL_M: f64 = 0.05;
+/// A new view is kept when the chair turned this much (or moved `near_m`/2).
+const VIEW_STEP_RAD: f64 = 0.09;
+/// The blind sector is checked every this many radians.
+const CHECK_STEP_RAD: f64 = 0.05;
+
+fn wrap(a: f64) -> f64 {
+    crate::msg::wrap_angle(a)
+}
+
+impl RearWatch {
+    pub fn new(settings: RearSettings) -> Self {
+        RearWatch {
+            settings,
+            views: VecDeque::new(),
+            points: VecDeque::new(),
+            cells: Default::default(),
+            confirmed: None,
+        }
+    }
+
+    /// A merged scan at `stamp` seen from `pose` (odom), its points in
+    /// `base_link`.
+    pub fn on_scan(&mut self, stamp: Stamp, pose: Pose2, points_base: &[[f32; 2]]) {
+        self.forget(stamp, pose);
+        let keep = self.views.back().is_none_or(|(_, p)| {
+            wrap(p.theta_rad - pose.theta_rad).abs() >= VIEW_STEP_RAD
+                || (p.x_m - pose.x_m).hypot(p.y_m - pose.y_m) >= self.settings.near_m / 2.0
+        });
+        if keep {
+            self.views.push_back((stamp, pose));
+        }
+        let (c, s) = (pose.theta_rad.cos(), pose.theta_rad.sin());
+        for q in points_base {
+            let (x, y) = (q[0] as f64, q[1] as f64);
+            if x.hypot(y) > self.settings.points_radius_m {
+                continue;
+            }
+            let p = [pose.x_m + c * x - s * y, pose.y_m + s * x + c * y];
+            let cell = (
+                (p[0] / CELL_M).floor() as i64,
+                (p[1] / CELL_M).floor() as i64,
+            );
+            if self.cells.insert(cell) {
+                self.points.push_back((stamp, p));
+            }
+        }
+    }
+
+    /// The person said it is clear behind, with the chair at `pose`.
+    pub fn confirm(&mut self, stamp: Stamp, pose: Pose2) {
+        self.confirmed = Some((stamp, pose));
+    }
+
+    fn forget(&mut self, now: Stamp, pose: Pose2) {
+        let s = self.settings;
+        while self
+            .views
+            .front()
+            .is_some_and(|(t, _)| t.age_at(now) > s.memory)
+        {
+            self.views.pop_front();
+        }
+        let radius = s.points_radius_m + 1.0;
+        let before = self.points.len();
+        self.points.retain(|(t, p)| {
+            t.age_at(now) <= s.memory && (p[0] - pose.x_m).hypot(p[1] - pose.y_m) <= radius
+        });
+        if self.points.len() != before {
+            self.cells = self
+                .points
+                .iter()
+                .map(|(_, p)| {
+                    (
+                        (p[0] / CELL_M).floor() as i64,
+                        (p[1] / CELL_M).floor() as i64,
+                    )
+                })
+                .collect();
+        }
+    }
+
+    fn near(&self, a: &Pose2, b: &Pose2) -> bool {
+        (a.x_m - b.x_m).hypot(a.y_m - b.y_m) <= self.settings.near_m
+    }
+
+    /// Whether the person's "clear behind" holds at `pose` now.
+    fn vouched(&self, now: Stamp, pose: &Pose2) -> bool {
+        self.confirmed
+            .is_some_and(|(t, p)| t.age_at(now) <= self.settings.confirm_for && self.near(&p, pose))
+    }
+
+    /// Whether every direction of the blind sector behind `pose` was in
+    /// the lasers' view from about here within the memory.
+    fn remembered(&self, now: Stamp, pose: &Pose2) -> bool {
+        let s = self.settings;
+        let views: Vec<&Pose2> = self
+            .views
+            .iter()
+            .filter(|(t, p)| t.age_at(now) <= s.memory && self.near(p, pose))
+            .map(|(_, p)| p)
+            .collect();
+        if views.is_empty() {
+            return false;
+        }
+        let back = pose.theta_rad + std::f64::consts::PI;
+        let n = (2.0 * s.blind_half_angle_rad / CHECK_STEP_RAD).ceil() as usize;
+        (0..=n).all(|k| {
+            let dir = back - s.blind_half_angle_rad
+                + k as f64 * (2.0 * s.blind_half_angle_rad / n as f64);
+            views
+                .iter()
+                .any(|v| wrap(dir - v.theta_rad).abs() < s.seen_half_angle_rad)
+        })
+    }
+
+    /// The rear as the supervisor needs it at `now`, the chair at `pose`.
+    pub fn view(&self, now: Stamp, pose: Pose2) -> RearView {
+        let (c, s) = (pose.theta_rad.cos(), pose.theta_rad.sin());
+        RearView {
+            seen: self.vouched(now, &pose) || self.remembered(now, &pose),
+            points_base: self
+                .points
+                .iter()
+                .filter(|(t, _)| t.age_at(now) <= self.settings.memory)
+                .map(|(_, p)| {
+                    let (dx, dy) = (p[0] - pose.x_m, p[1] - pose.y_m);
+                    [(c * dx + s * dy) as f32, (-s * dx + c * dy) as f32]
+                })
+                .collect(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn at(s: f64) -> Stamp {
+        Stamp::from_secs_f64(s)
+    }
+
+    fn pose(x: f64, th_deg: f64) -> Pose2 {
+        Pose2 {
+            x_m: x,
+            y_m: 0.0,
+            theta_rad: th_deg.to_radians(),
+        }
+    }
+
+    #[test]
+    fn a_chair_that_just_woke_up_has_not_seen_its_rear() {
+        let mut w = RearWatch::new(RearSettings::default());
+        w.on_scan(at(0.0), pose(0.0, 0.0), &[]);
+        assert!(!w.view(at(0.1), pose(0.0, 0.0)).seen);
+    }
+
+    #[test]
+    fn driving_forward_to_here_or_having_turned_here_has() {
+        // drove 1 m forward (+x) to here: behind (-x) was ahead at the start
+        // — but far away; what counts is the view from about here
+        let mut w = RearWatch::new(RearSettings::default());
+        for k in 0..=10 {
+            w.on_scan(at(k as f64 * 0.1), pose(k as f64 * 0.1, 0.0), &[]);
+        }
+        assert!(!w.view(at(1.1), pose(1.0, 0.0)).seen);
+        // here, facing back the way it came, then turned to face +x again
+        let mut w = RearWatch::new(RearSettings::default());
+        w.on_scan(at(0.0), pose(1.0, 180.0), &[]);
+        w.on_scan(at(1.0), pose(1.0, 0.0), &[]);
+        assert!(w.view(at(1.1), pose(1.0, 0.0)).seen);
+        // a view from 0.5 m away does not count, nor one older than the memory
+        assert!(!w.view(at(1.1), pose(1.5, 0.0)).seen);
+        assert!(!w.view(at(40.0), pose(1.0, 0.0)).seen);
+    }
+
+    #[test]
+    fn a_half_turn_seen_covers_only_part_of_the_sector() {
+        let mut w = RearWatch::new(RearSettings::default());
+        // facing +90°, then 0°: back (180° ± 60°) was seen from +90° up to
+        // 210°; 210..240° never
+        w.on_scan(at(0.0), pose(0.0, 90.0), &[]);
+        w.on_scan(at(0.5), pose(0.0, 0.0), &[]);
+        assert!(!w.view(at(0.6), pose(0.0, 0.0)).seen);
+        w.on_scan(at(0.7), pose(0.0, -90.0), &[]);
+        w.on_scan(at(0.8), pose(0.0, 0.0), &[]);
+        assert!(w.view(at(0.9), pose(0.0, 0.0)).seen);
+    }
+
+    #[test]
+    fn the_persons_word_vouches_for_this_spot_for_a_while() {
+        let mut w = RearWatch::new(RearSettings::default());
+        w.confirm(at(0.0), pose(0.0, 0.0));
+        // turning on the spot keeps it
+        assert!(w.view(at(5.0), pose(0.0, 120.0)).seen);
+        assert!(!w.view(at(5.0), pose(0.5, 0.0)).seen, "another spot");
+        assert!(!w.view(at(61.0), pose(0.0, 0.0)).seen, "expired");
+    }
+
+    #[test]
+    fn laser_points_are_remembered_where_they_were() {
+        let mut w = RearWatch::new(RearSettings::default());
+        // a wall 0.8 m ahead while facing back
+        w.on_scan(at(0.0), pose(0.0, 180.0), &[[0.8, 0.0], [3.0, 0.0]]);
+        let v = w.view(at(1.0), pose(0.0, 0.0));
+        // now behind: at -0.8 m; the far point is not kept
+        assert_eq!(v.points_base.len(), 1);
+        assert!((v.points_base[0][0] + 0.8).abs() < 1e-3, "{v:?}");
+        assert!(w.view(at(31.0), pose(0.0, 0.0)).points_base.is_empty());
+    }
+}
