@@ -10,6 +10,7 @@ pub mod crc;
 pub mod daemon;
 pub mod estimation;
 pub mod eval;
+pub mod input;
 pub mod msg;
 pub mod navigation;
 pub mod output;

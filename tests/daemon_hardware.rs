@@ -99,7 +99,8 @@ fn opennav_on(dir: &std::path::Path) -> Command {
         .env("OPENNAV_ACTUATION__BACKEND", "rebus")
         .env("OPENNAV_ACTUATION__REBUS__PORT", p("rebus"))
         .env("OPENNAV_RUNTIME__LOCK_FILE", p("opennav.lock"))
-        .env("OPENNAV_RUNTIME__STATE_DIR", p("state"));
+        .env("OPENNAV_RUNTIME__STATE_DIR", p("state"))
+        .env("OPENNAV_INPUT__CONTROL_SOCKET", p("control.sock"));
     c
 }
 

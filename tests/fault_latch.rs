@@ -15,7 +15,7 @@ use opennav::sim::devices::SimSummary;
 use opennav::sim::world::SimWorld;
 use tokio_util::sync::CancellationToken;
 
-/// Looking for the cabinet (the chair turns at once) for 4 s of the
+/// Looking for the cabinet (the chair turns after "yes") for 4 s of the
 /// virtual clock; with `bus_off_at`, the bus goes off then.
 async fn run(state: &std::path::Path, bus_off_at: Option<Duration>) -> (RunReport, SimSummary) {
     let settings = Settings::load(None).expect("defaults");
@@ -34,6 +34,12 @@ async fn run(state: &std::path::Path, bus_off_at: Option<Duration>) -> (RunRepor
     tx.send(UserInput::Goto("cabinet".into()))
         .await
         .expect("word");
+    // "yes" to the question about the rear (never seen at start-up)
+    let yes = tx.clone();
+    tokio::spawn(async move {
+        tokio::time::sleep(Duration::from_millis(2500)).await;
+        yes.send(UserInput::Yes).await.ok();
+    });
     let opts = RunOptions {
         max_duration: Some(Duration::from_secs(4)),
         state_dir: Some(state.to_path_buf()),
@@ -95,8 +101,10 @@ async fn a_bus_off_holds_across_a_restart_until_acknowledged() {
     assert_eq!(cleared.fault, FaultReason::CanBus);
     let (r, s) = run(dir.path(), None).await;
     assert!(!matches!(r.supervisor, SupervisorState::Fault(_)), "{r:?}");
+    // it turned to look (or drove)
     assert!(
-        s.world.omega_radps.abs() > 0.1 || s.world.distance_travelled_m > 0.0,
+        (s.world.truth.theta_rad - start.theta_rad).abs() > 0.1
+            || s.world.distance_travelled_m > 0.0,
         "{s:?}"
     );
 }
@@ -108,6 +116,11 @@ fn ack_fault_clears_the_record_and_says_what_it_was() {
         Command::new(env!("CARGO_BIN_EXE_opennav"))
             .arg("ack-fault")
             .env("OPENNAV_RUNTIME__STATE_DIR", dir.path())
+            // no daemon listens there
+            .env(
+                "OPENNAV_INPUT__CONTROL_SOCKET",
+                dir.path().join("control.sock"),
+            )
             .output()
             .expect("runs")
     };

@@ -125,8 +125,14 @@ fn daemon_unit_allows_no_ip_and_only_the_chairs_devices() {
     }
     assert_eq!(keys(&text, "CapabilityBoundingSet"), [""]);
     assert_eq!(keys(&text, "MemoryDenyWriteExecute"), ["yes"]);
-    // no stdin words under systemd: nothing may wait on a terminal
+    // no stdin words under systemd (its end would be a stop): the words
+    // come on the control socket in the runtime directory
     assert!(keys(&text, "StandardInput").iter().all(|v| *v != "tty"));
+    assert!(
+        keys(&text, "ExecStart").iter().all(|v| v.contains("run --no-stdin")),
+        "{text}"
+    );
+    assert_eq!(keys(&text, "RuntimeDirectory"), ["opennav"]);
     // the drop-in is the one place IP comes back
     let dropin = unit_text("opennav-network.conf");
     assert!(keys(&dropin, "RestrictAddressFamilies")

@@ -2,6 +2,7 @@
 //! one-line messages; bad input exits with code 2, other failures with 1.
 
 pub mod check;
+pub mod client;
 pub mod detect;
 pub mod eval;
 pub mod run;
@@ -32,8 +33,27 @@ pub enum Command {
     /// Detect prompted objects in one RGB(-D) image: 2D boxes, and 3D objects with depth.
     Detect(detect::DetectArgs),
     /// A person checked the chair after a latched fault (CAN bus, motor
-    /// link, overspeed): clears it so the daemon may drive again.
-    AckFault,
+    /// link, overspeed, another writer): clears it — in the running daemon
+    /// (its control socket) and on disk — so the chair may drive again.
+    AckFault(client::SocketArg),
+    /// Tell the running daemon to go to an object (its control socket).
+    Go {
+        /// The word, e.g. "chair".
+        word: String,
+        #[command(flatten)]
+        socket: client::SocketArg,
+    },
+    /// Stop the chair (latched until `opennav resume`).
+    Stop(client::SocketArg),
+    /// Go on after a stop.
+    Resume(client::SocketArg),
+    /// Answer the chair's question with yes.
+    Yes(client::SocketArg),
+    /// Answer the chair's question with no.
+    No(client::SocketArg),
+    /// What the running daemon is doing: state, goal, pose, stop reason,
+    /// devices not heard yet, last sentences (one JSON line).
+    Status(client::SocketArg),
 }
 
 /// An error with its exit code.
@@ -124,19 +144,51 @@ fn dispatch(cli: Cli) -> Result<(), Failure> {
         Command::Check(cmd) => check::run(config, cmd),
         Command::Run(args) => run::run(config, args),
         Command::Detect(args) => detect::run(Settings::load(config).map_err(bad_input)?, args),
-        Command::AckFault => ack_fault(&Settings::load(config).map_err(bad_input)?),
+        Command::AckFault(socket) => {
+            ack_fault(&Settings::load(config).map_err(bad_input)?, &socket)
+        }
+        Command::Go { word, socket } => {
+            let s = Settings::load(config).map_err(bad_input)?;
+            client::send(&s, &socket, serde_json::json!({ "go": word }))
+        }
+        Command::Stop(socket) => request(config, &socket, "stop"),
+        Command::Resume(socket) => request(config, &socket, "resume"),
+        Command::Yes(socket) => request(config, &socket, "yes"),
+        Command::No(socket) => request(config, &socket, "no"),
+        Command::Status(socket) => request(config, &socket, "status"),
     }
 }
 
-/// `opennav ack-fault`: what was latched, cleared; one JSON line.
-fn ack_fault(settings: &Settings) -> Result<(), Failure> {
+/// `{"<key>": true}` to the daemon.
+fn request(
+    config: Option<&std::path::Path>,
+    socket: &client::SocketArg,
+    key: &str,
+) -> Result<(), Failure> {
+    let s = Settings::load(config).map_err(bad_input)?;
+    client::send(&s, socket, serde_json::json!({ key: true }))
+}
+
+/// `opennav ack-fault`: the running daemon told (when one listens), the
+/// record on disk cleared; one JSON line.
+fn ack_fault(settings: &Settings, socket: &client::SocketArg) -> Result<(), Failure> {
     let dir = settings.state_dir().ok_or_else(|| {
         failed(anyhow::anyhow!(
             "no state directory: set runtime.state_dir (or $STATE_DIRECTORY, $HOME)"
         ))
     })?;
+    let path = socket.path(settings);
+    let daemon = match opennav::input::socket::request(
+        &path,
+        &serde_json::json!({"ack_fault": true}),
+        std::time::Duration::from_secs(2),
+    ) {
+        Ok(reply) => reply,
+        // no daemon running: the record on disk is all there is
+        Err(e) => serde_json::json!({ "not_running": e.to_string() }),
+    };
     let cleared = opennav::daemon::latch::acknowledge(&dir).map_err(failed)?;
-    let line = serde_json::json!({ "state_dir": dir, "acknowledged": cleared });
+    let line = serde_json::json!({ "state_dir": dir, "acknowledged": cleared, "daemon": daemon });
     println!("{line}");
     Ok(())
 }

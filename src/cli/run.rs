@@ -8,12 +8,13 @@ use std::sync::Arc;
 
 use clap::{Args, ValueEnum};
 use serde::Serialize;
-use tokio::sync::mpsc;
+use tokio::sync::{mpsc, watch};
 use tokio_util::sync::CancellationToken;
 
 use opennav::config::Settings;
 use opennav::daemon::chair::CameraChoice;
 use opennav::daemon::{Outcome, RunOptions, RunReport};
+use opennav::input::{DaemonStatus, InputHub};
 use opennav::msg::{Clock, TokioClock, UserInput};
 use opennav::setup::PerceptionChoice;
 use opennav::sim::devices::SimSummary;
@@ -58,6 +59,12 @@ pub struct RunArgs {
     /// Record the sensors and perception's output to this MCAP file.
     #[arg(long)]
     pub record: Option<PathBuf>,
+    /// The control socket (one JSON request per line: go, stop, resume,
+    /// yes, no, ack_fault, status). On the chair's devices it is always
+    /// open, here or at `input.control_socket` (default
+    /// $RUNTIME_DIRECTORY/control.sock); with --sim only when given.
+    #[arg(long)]
+    pub control_socket: Option<PathBuf>,
     /// Fault-injection tests: the named task panics after this long
     /// (TASK@DURATION, e.g. perception@2s).
     #[arg(long, hide = true)]
@@ -98,6 +105,8 @@ pub fn run(config: Option<&std::path::Path>, args: RunArgs) -> Result<(), Failur
             }
         })
         .map_err(failed)?;
+    let (hub, receivers) = opennav::input::hub();
+    let (status_tx, status_rx) = watch::channel(DaemonStatus::default());
     let opts = RunOptions {
         exit_on_arrival: args.exit_on_arrival,
         max_duration: args.max_duration,
@@ -117,21 +126,33 @@ pub fn run(config: Option<&std::path::Path>, args: RunArgs) -> Result<(), Failur
             dir
         },
         inject_panic,
+        stops: Some(receivers.stops),
+        status: Some(status_tx),
     };
-    let (input_tx, input_rx) = mpsc::channel::<UserInput>(16);
+    let input_rx = receivers.words;
     for p in &args.prompt {
-        input_tx
-            .try_send(UserInput::parse(p))
-            .map_err(|_| bad_input(anyhow::anyhow!("--prompt: at most 16 words")))?;
+        hub.send(UserInput::parse(p)).map_err(|_| {
+            bad_input(anyhow::anyhow!(
+                "--prompt: at most {} words",
+                opennav::input::WORDS_QUEUED
+            ))
+        })?;
     }
     if !args.no_stdin {
-        let tx = input_tx.clone();
+        let tx = hub.clone();
         std::thread::Builder::new()
             .name("stdin".into())
             .spawn(move || read_words(std::io::stdin().lock(), &tx))
             .map_err(failed)?;
     }
-    drop(input_tx);
+    // the control socket: always on the chair, on request in the simulator
+    let socket_path = match (&args.control_socket, args.sim) {
+        (Some(p), _) => Some(p.clone()),
+        (None, false) => Some(opennav::input::socket::default_path(
+            &settings.input.control_socket,
+        )),
+        (None, true) => None,
+    };
     let rt = if virtual_clock {
         tokio::runtime::Builder::new_current_thread()
             .enable_all()
@@ -186,9 +207,23 @@ pub fn run(config: Option<&std::path::Path>, args: RunArgs) -> Result<(), Failur
             .map_err(failed)?;
             (d, None)
         };
+        // the devices are there: open the control socket (inside the
+        // runtime: its listener registers with it)
+        let socket = match &socket_path {
+            Some(p) => Some(opennav::input::socket::ControlSocket::bind(p).map_err(failed)?),
+            None => None,
+        };
+        let socket_stop = CancellationToken::new();
+        if let Some(s) = socket {
+            tracing::info!(path = %s.path().display(), "control socket open");
+            tokio::spawn(s.serve(hub.clone(), status_rx, socket_stop.clone()));
+        }
+        drop(hub);
         let report = opennav::daemon::run(devices, &settings, opts, input_rx, clock, cancel)
             .await
-            .map_err(failed)?;
+            .map_err(failed);
+        socket_stop.cancel();
+        let report = report?;
         let label = report.goal.label().map(str::to_string);
         let summary = world.and_then(|w| w.summary(label.as_deref()));
         Ok::<_, Failure>((report, summary))
@@ -214,7 +249,7 @@ pub fn run(config: Option<&std::path::Path>, args: RunArgs) -> Result<(), Failur
 /// Words from a stream, one a line, until it ends. Bytes that are not
 /// UTF-8 are replaced, never fatal. The end of the stream or a read error
 /// is a stop (this is the only input), with a log line.
-fn read_words(mut input: impl std::io::BufRead, tx: &mpsc::Sender<UserInput>) {
+fn read_words(mut input: impl std::io::BufRead, tx: &InputHub) {
     let mut line = Vec::new();
     loop {
         line.clear();
@@ -242,29 +277,33 @@ fn read_words(mut input: impl std::io::BufRead, tx: &mpsc::Sender<UserInput>) {
 mod tests {
     use super::*;
 
-    fn words(bytes: &[u8]) -> Vec<UserInput> {
-        let (tx, mut rx) = mpsc::channel(16);
-        read_words(bytes, &tx);
-        drop(tx);
+    /// The words and the number of stops read from `input`.
+    fn read(input: impl std::io::BufRead) -> (Vec<UserInput>, u64) {
+        let (hub, mut rx) = opennav::input::hub();
+        read_words(input, &hub);
+        drop(hub);
         let mut out = Vec::new();
-        while let Ok(w) = rx.try_recv() {
+        while let Ok(w) = rx.words.try_recv() {
             out.push(w);
         }
-        out
+        let stops = *rx.stops.borrow_and_update();
+        (out, stops)
     }
 
     #[test]
     fn bad_bytes_do_not_end_the_words_and_the_end_of_input_stops() {
         assert_eq!(
-            words(b"chair\n\xff\xfe desk\nSTOP!\n"),
-            vec![
-                UserInput::Goto("chair".into()),
-                UserInput::Goto("desk".into()),
-                UserInput::Stop,
-                UserInput::Stop,
-            ]
+            read(&b"chair\n\xff\xfe desk\nSTOP!\n"[..]),
+            (
+                vec![
+                    UserInput::Goto("chair".into()),
+                    UserInput::Goto("desk".into()),
+                ],
+                // STOP! and the end of the input
+                2
+            )
         );
-        assert_eq!(words(b""), vec![UserInput::Stop]);
+        assert_eq!(read(&b""[..]), (vec![], 1));
     }
 
     struct Broken;
@@ -276,8 +315,6 @@ mod tests {
 
     #[test]
     fn a_read_error_stops() {
-        let (tx, mut rx) = mpsc::channel(4);
-        read_words(std::io::BufReader::new(Broken), &tx);
-        assert_eq!(rx.try_recv().ok(), Some(UserInput::Stop));
+        assert_eq!(read(std::io::BufReader::new(Broken)), (vec![], 1));
     }
 }

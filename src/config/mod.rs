@@ -51,6 +51,13 @@ pub struct Settings {
     pub field: crate::navigation::apf::ApfParams,
     pub tracker: crate::estimation::tracker::TrackerParams,
     pub depth_obstacles: crate::perception::depth_obstacles::DepthObstacleSettings,
+    pub input: InputSection,
+}
+
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct InputSection {
+    pub control_socket: String,
 }
 
 #[derive(Debug, Clone, Deserialize, PartialEq)]

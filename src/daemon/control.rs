@@ -95,6 +95,8 @@ pub struct Control {
     asked_rear: Option<crate::msg::Pose2>,
     /// "yes" arrived: vouch for the rear at the next step.
     rear_yes: bool,
+    /// A person acknowledged the fault (the latch file goes too).
+    pub acknowledged: bool,
 }
 
 /// A turn on the spot refused this long for an unseen rear: the chair asks.
@@ -142,6 +144,7 @@ impl Control {
             rear_blocked_since: None,
             asked_rear: None,
             rear_yes: false,
+            acknowledged: false,
         }
     }
 
@@ -228,6 +231,17 @@ impl Control {
                 self.planner_cmd = None;
                 self.say("Staying here.".into());
             }
+            UserInput::AckFault => match self.supervisor.state() {
+                SupervisorState::Fault(FaultReason::Task) => self
+                    .say("An internal fault cannot be acknowledged: the daemon restarts.".into()),
+                SupervisorState::Fault(_) => {
+                    self.supervisor.clear_fault();
+                    self.fault_reason = None;
+                    self.acknowledged = true;
+                    self.say("Fault acknowledged. Say a word to go.".into());
+                }
+                _ => self.say("There is no fault to acknowledge.".into()),
+            },
             UserInput::Yes | UserInput::No => {
                 tracing::info!(input = ?input, "an answer while nothing was asked: ignored")
             }
@@ -464,6 +478,11 @@ impl Control {
 
     pub fn state(&self) -> SupervisorState {
         self.supervisor.state()
+    }
+
+    /// The chair asked a question and waits for "yes" or "no".
+    pub fn asking(&self) -> bool {
+        self.asked_rear.is_some()
     }
 
     pub fn goal_state(&self) -> &GoalState {

@@ -45,6 +45,10 @@ pub struct ControlTaskIo {
     pub cancel: CancellationToken,
     pub start: Stamp,
     pub max_duration: Option<Duration>,
+    /// Stops from any input: each change is one (never queued).
+    pub stops: Option<watch::Receiver<u64>>,
+    /// What the daemon is doing, for the control socket.
+    pub status: Option<watch::Sender<crate::input::DaemonStatus>>,
 }
 
 /// How the control task ended.
@@ -69,11 +73,31 @@ pub async fn run(mut control: Control, mut io: ControlTaskIo) -> ControlEnd {
     let mut persisted: Option<crate::msg::FaultReason> = None;
     let mut status_sent = String::new();
     let mut inputs_open = true;
+    let mut stops = io.stops.take();
+    let mut last_said: std::collections::VecDeque<String> = Default::default();
     let outcome = loop {
         tokio::select! {
             biased;
             Some((task, reason)) = io.faults.recv() => control.on_task_failure(&task, &reason),
             _ = io.cancel.cancelled() => break Outcome::Signal,
+            r = async {
+                match stops.as_mut() {
+                    Some(s) => s.changed().await,
+                    None => std::future::pending().await,
+                }
+            } => {
+                match r {
+                    Ok(()) => {
+                        if let Some(s) = stops.as_mut() {
+                            s.borrow_and_update();
+                        }
+                        control.on_input(UserInput::Stop);
+                    }
+                    // every sender gone (the daemon ending): no more stops
+                    // can come; the words' channel says the same
+                    Err(_) => stops = None,
+                }
+            }
             i = io.inputs.recv(), if inputs_open => match i {
                 Some(i) => control.on_input(i),
                 None => inputs_open = false,
@@ -111,6 +135,35 @@ pub async fn run(mut control: Control, mut io: ControlTaskIo) -> ControlEnd {
             }
             changed
         });
+        if std::mem::take(&mut control.acknowledged) {
+            persisted = None;
+            if let Some(dir) = &io.state_dir {
+                match latch::acknowledge(dir) {
+                    Ok(Some(f)) => tracing::warn!(fault = ?f.fault, "latched fault acknowledged"),
+                    Ok(None) => {}
+                    Err(e) => tracing::error!(error = %e, "the latched fault could not be cleared"),
+                }
+            }
+        }
+        for s in &out.said {
+            if last_said.len() == 5 {
+                last_said.pop_front();
+            }
+            last_said.push_back(s.clone());
+        }
+        if let Some(tx) = &io.status {
+            let goal = control.goal_state();
+            tx.send_replace(crate::input::DaemonStatus {
+                state: Some(out.cmd.state),
+                goal: goal.label().map(str::to_string),
+                goal_phase: goal.phase().map(str::to_string),
+                pose: odometry.map(|o| o.value.pose),
+                fault: control.fault_reason(),
+                waiting_for: io.waiting.iter().map(|w| w.to_string()).collect(),
+                asking: control.asking(),
+                said: last_said.iter().cloned().collect(),
+            });
+        }
         for s in out.said {
             tracing::info!(say = %s, "opennav");
             if let Some(tx) = &io.speech {

@@ -85,6 +85,10 @@ pub struct RunOptions {
     pub state_dir: Option<std::path::PathBuf>,
     /// Fault-injection tests: this task panics after this long.
     pub inject_panic: Option<(String, Duration)>,
+    /// Stops from the input hub (each change one stop, never queued).
+    pub stops: Option<watch::Receiver<u64>>,
+    /// Where the daemon publishes what it is doing (the control socket).
+    pub status: Option<watch::Sender<crate::input::DaemonStatus>>,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -519,6 +523,8 @@ pub async fn run(
                 cancel: shutdown.clone(),
                 start,
                 max_duration: opts.max_duration,
+                stops: opts.stops.clone(),
+                status: opts.status.clone(),
             },
         ),
     ));

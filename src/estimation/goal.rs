@@ -70,6 +70,17 @@ impl GoalState {
             | GoalState::Reached { label, .. } => Some(label),
         }
     }
+
+    /// The phase in a word (None without a goal).
+    pub fn phase(&self) -> Option<&'static str> {
+        match self {
+            GoalState::None => None,
+            GoalState::Searching { .. } => Some("searching"),
+            GoalState::Tracking { .. } => Some("tracking"),
+            GoalState::Holding { .. } => Some("holding"),
+            GoalState::Reached { .. } => Some("reached"),
+        }
+    }
 }
 
 /// What the user hears (and the log records).

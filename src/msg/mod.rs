@@ -54,6 +54,9 @@ pub enum UserInput {
     Yes,
     /// "no" to the chair's question.
     No,
+    /// A person checked the chair: clear a latched fault (the control
+    /// socket, `opennav ack-fault`; never from free speech).
+    AckFault,
 }
 
 /// Words that stop the chair wherever they appear in what was said.
