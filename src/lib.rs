@@ -20,3 +20,4 @@ pub mod safety;
 pub mod sensors;
 pub mod setup;
 pub mod sim;
+pub mod speech;

@@ -100,7 +100,9 @@ fn opennav_on(dir: &std::path::Path) -> Command {
         .env("OPENNAV_ACTUATION__REBUS__PORT", p("rebus"))
         .env("OPENNAV_RUNTIME__LOCK_FILE", p("opennav.lock"))
         .env("OPENNAV_RUNTIME__STATE_DIR", p("state"))
-        .env("OPENNAV_INPUT__CONTROL_SOCKET", p("control.sock"));
+        .env("OPENNAV_INPUT__CONTROL_SOCKET", p("control.sock"))
+        // spoken into files, not the sound card
+        .env("OPENNAV_SPEECH__WAV_DIR", p("speech"));
     c
 }
 
@@ -166,6 +168,26 @@ fn runs_on_emulated_devices_turns_to_search_and_stops_on_the_word() {
         "{r}"
     );
     assert_eq!(r["supervisor"]["Stopped"], "UserStop", "{r}");
+    // every sentence spoken (espeak-ng into WAV files), in order
+    let said: Vec<String> = r["said"]
+        .as_array()
+        .expect("said")
+        .iter()
+        .map(|l| l.as_str().expect("text").to_string())
+        .collect();
+    let speech = dir.path().join("speech");
+    let mut spoken = Vec::new();
+    for k in 1..=said.len() {
+        let wav = speech.join(format!("{k:04}.wav"));
+        let bytes = std::fs::read(&wav).unwrap_or_else(|e| panic!("{}: {e}", wav.display()));
+        assert!(
+            bytes.starts_with(b"RIFF") && bytes.len() > 4000,
+            "{}",
+            wav.display()
+        );
+        spoken.push(std::fs::read_to_string(wav.with_extension("txt")).expect("text"));
+    }
+    assert_eq!(spoken, said);
     assert_eq!(r["actuator"]["backend"], "rebus");
     assert_eq!(r["actuator"]["state"], "released", "{r}");
     assert!(left.scans_sent() > 10 && right.scans_sent() > 10);

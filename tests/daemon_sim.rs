@@ -300,6 +300,21 @@ fn without_sim_and_without_devices_it_exits_1_naming_them() {
 }
 
 #[test]
+fn speech_that_cannot_be_spoken_is_an_error_naming_the_synthesiser() {
+    let out = opennav()
+        .args(["--speak", "--no-stdin", "--max-duration", "1s"])
+        .env("OPENNAV_SPEECH__COMMAND", "/nonexistent/espeak-ng")
+        .output()
+        .expect("runs");
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("/nonexistent/espeak-ng") && err.contains("speech.enabled"),
+        "{err}"
+    );
+}
+
+#[test]
 fn a_second_opennav_driving_the_chair_refuses_to_start() {
     let dir = tempfile::tempdir().expect("tmp");
     let lock = dir.path().join("opennav.lock");

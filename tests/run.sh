@@ -17,8 +17,9 @@ as_root() {
 step "system packages"
 # AVR toolchain + simavr: firmware in the loop; qemu + busybox + cpio: the
 # vcan HIL VM (tests/vcan/run-vm.sh; binutils for objcopy); systemd +
-# iproute2: `systemd-analyze verify/security` on the units (tests/systemd_units.rs)
-apt_pkgs=(make gcc binutils gcc-avr avr-libc simavr libsimavr-dev libelf-dev qemu-system-x86 busybox-static cpio systemd iproute2)
+# iproute2: `systemd-analyze verify/security` on the units (tests/systemd_units.rs);
+# espeak-ng: the chair's spoken sentences (src/speech.rs)
+apt_pkgs=(make gcc binutils gcc-avr avr-libc simavr libsimavr-dev libelf-dev qemu-system-x86 busybox-static cpio systemd iproute2 espeak-ng)
 # a python3 with venv already on PATH (pyenv, say) is enough; else Debian's
 python3 -c 'import venv, ensurepip' 2>/dev/null || apt_pkgs+=(python3 python3-venv python3-pip)
 missing=()

@@ -119,7 +119,13 @@ fn daemon_unit_allows_no_ip_and_only_the_chairs_devices() {
     assert!(!allowed.is_empty());
     for d in &allowed {
         assert!(
-            ["char-ttyACM rw", "char-ttyUSB rw", "char-usb_device rw"].contains(d),
+            [
+                "char-ttyACM rw",
+                "char-ttyUSB rw",
+                "char-usb_device rw",
+                "char-alsa rw"
+            ]
+            .contains(d),
             "unexpected device {d}"
         );
     }
@@ -129,7 +135,9 @@ fn daemon_unit_allows_no_ip_and_only_the_chairs_devices() {
     // come on the control socket in the runtime directory
     assert!(keys(&text, "StandardInput").iter().all(|v| *v != "tty"));
     assert!(
-        keys(&text, "ExecStart").iter().all(|v| v.contains("run --no-stdin")),
+        keys(&text, "ExecStart")
+            .iter()
+            .all(|v| v.contains("run --no-stdin")),
         "{text}"
     );
     assert_eq!(keys(&text, "RuntimeDirectory"), ["opennav"]);

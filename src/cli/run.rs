@@ -65,6 +65,10 @@ pub struct RunArgs {
     /// $RUNTIME_DIRECTORY/control.sock); with --sim only when given.
     #[arg(long)]
     pub control_socket: Option<PathBuf>,
+    /// With --sim: speak the sentences too (espeak-ng, `[speech]`); on
+    /// the chair they are spoken unless speech.enabled = false.
+    #[arg(long)]
+    pub speak: bool,
     /// Fault-injection tests: the named task panics after this long
     /// (TASK@DURATION, e.g. perception@2s).
     #[arg(long, hide = true)]
@@ -95,13 +99,24 @@ pub fn run(config: Option<&std::path::Path>, args: RunArgs) -> Result<(), Failur
         }
         None => None,
     };
-    // what the chair says, on stderr as it is said
+    // what the chair says: spoken (espeak-ng) and on stderr, as it is said
+    let speaker = if settings.speech.enabled && (!args.sim || args.speak) {
+        Some(opennav::speech::Speaker::start(&settings.speech).map_err(failed)?)
+    } else {
+        None
+    };
     let (speech_tx, mut speech_rx) = mpsc::unbounded_channel::<String>();
     let speech = std::thread::Builder::new()
-        .name("speech".into())
+        .name("sentences".into())
         .spawn(move || {
             while let Some(s) = speech_rx.blocking_recv() {
                 eprintln!("opennav says: {s}");
+                if let Some(sp) = &speaker {
+                    sp.say(&s);
+                }
+            }
+            if let Some(sp) = speaker {
+                sp.finish();
             }
         })
         .map_err(failed)?;

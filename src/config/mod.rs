@@ -52,6 +52,7 @@ pub struct Settings {
     pub tracker: crate::estimation::tracker::TrackerParams,
     pub depth_obstacles: crate::perception::depth_obstacles::DepthObstacleSettings,
     pub input: InputSection,
+    pub speech: crate::speech::SpeechSettings,
 }
 
 #[derive(Debug, Clone, Deserialize, PartialEq)]

@@ -298,6 +298,18 @@ impl Settings {
             1e-6,
             10.0,
         )?;
+        let sp = &self.speech;
+        range("speech.rate_wpm", sp.rate_wpm, 80, 450)?;
+        range("speech.volume", sp.volume, 0, 200)?;
+        for (key, v) in [("speech.command", &sp.command), ("speech.voice", &sp.voice)] {
+            if v.trim().is_empty() {
+                return Err(ConfigError::Range {
+                    key: key.into(),
+                    value: format!("{v:?}"),
+                    reason: "must not be empty".into(),
+                });
+            }
+        }
         let o = &self.depth_obstacles;
         range("depth_obstacles.stride_px", o.stride_px, 1, 16)?;
         finite_range("depth_obstacles.floor_band_m", o.floor_band_m, 0.01, 0.2)?;
