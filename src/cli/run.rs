@@ -122,6 +122,7 @@ pub fn run(config: Option<&std::path::Path>, args: RunArgs) -> Result<(), Failur
         .map_err(failed)?;
     let (hub, receivers) = opennav::input::hub();
     let (status_tx, status_rx) = watch::channel(DaemonStatus::default());
+    let switch_sentences = speech_tx.clone();
     let opts = RunOptions {
         exit_on_arrival: args.exit_on_arrival,
         max_duration: args.max_duration,
@@ -231,13 +232,33 @@ pub fn run(config: Option<&std::path::Path>, args: RunArgs) -> Result<(), Failur
         let socket_stop = CancellationToken::new();
         if let Some(s) = socket {
             tracing::info!(path = %s.path().display(), "control socket open");
-            tokio::spawn(s.serve(hub.clone(), status_rx, socket_stop.clone()));
+            tokio::spawn(s.serve(hub.clone(), status_rx.clone(), socket_stop.clone()));
+        }
+        // the person's switch: configured means required
+        let switch_settings = &settings.input.switch;
+        let switch_stop = Arc::new(std::sync::atomic::AtomicBool::new(false));
+        if switch_settings.configured() {
+            let edges = opennav::input::switch::spawn_reader(switch_settings, switch_stop.clone())
+                .map_err(failed)?;
+            tracing::info!(device = %switch_settings.device, "switch open");
+            tokio::spawn(opennav::input::switch::run(
+                switch_settings.scan_settings(),
+                edges,
+                hub.clone(),
+                status_rx,
+                switch_sentences,
+                clock.clone(),
+                socket_stop.clone(),
+            ));
+        } else {
+            drop(switch_sentences);
         }
         drop(hub);
         let report = opennav::daemon::run(devices, &settings, opts, input_rx, clock, cancel)
             .await
             .map_err(failed);
         socket_stop.cancel();
+        switch_stop.store(true, std::sync::atomic::Ordering::Relaxed);
         let report = report?;
         let label = report.goal.label().map(str::to_string);
         let summary = world.and_then(|w| w.summary(label.as_deref()));

@@ -59,6 +59,7 @@ pub struct Settings {
 #[serde(deny_unknown_fields)]
 pub struct InputSection {
     pub control_socket: String,
+    pub switch: crate::input::switch::SwitchSettings,
 }
 
 #[derive(Debug, Clone, Deserialize, PartialEq)]
@@ -475,6 +476,43 @@ mod tests {
             let e = Settings::load_with_env(None, env(&[(k, v)])).unwrap_err();
             assert!(e.to_string().contains(key), "{e}");
         }
+    }
+
+    #[test]
+    fn jsmerror_needs_a_switch_of_the_persons_own() {
+        let e =
+            Settings::load_with_env(None, env(&[("OPENNAV_ACTUATION__RNET__MODE", "jsmerror")]))
+                .expect_err("no switch")
+                .to_string();
+        assert!(
+            e.contains("actuation.rnet.mode") && e.contains("input.switch.device"),
+            "{e}"
+        );
+        assert!(Settings::load_with_env(
+            None,
+            env(&[
+                ("OPENNAV_ACTUATION__RNET__MODE", "jsmerror"),
+                (
+                    "OPENNAV_INPUT__SWITCH__DEVICE",
+                    "/dev/input/by-id/usb-switch-event-kbd"
+                ),
+            ])
+        )
+        .is_ok());
+        // a switch with a key evdev does not know is refused, naming it
+        let e = Settings::load_with_env(
+            None,
+            env(&[
+                ("OPENNAV_INPUT__SWITCH__DEVICE", "/dev/input/event3"),
+                ("OPENNAV_INPUT__SWITCH__KEY", "KEY_NOPE"),
+            ]),
+        )
+        .expect_err("bad key")
+        .to_string();
+        assert!(
+            e.contains("input.switch.key") && e.contains("KEY_NOPE"),
+            "{e}"
+        );
     }
 
     #[test]

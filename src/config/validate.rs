@@ -298,6 +298,16 @@ impl Settings {
             1e-6,
             10.0,
         )?;
+        let sw = &self.input.switch;
+        finite_range("input.switch.dwell_s", sw.dwell_s, 0.5, 10.0)?;
+        finite_range("input.switch.long_press_s", sw.long_press_s, 0.5, 10.0)?;
+        if sw.configured() {
+            sw.keys().map_err(|e| ConfigError::Range {
+                key: "input.switch".into(),
+                value: format!("{:?}", sw.key),
+                reason: e.to_string(),
+            })?;
+        }
         let sp = &self.speech;
         range("speech.rate_wpm", sp.rate_wpm, 80, 450)?;
         range("speech.volume", sp.volume, 0, 200)?;
@@ -325,6 +335,22 @@ impl Settings {
             10.0,
         )?;
         let a = &self.actuation;
+        // JSMerror silences the chair's own joystick while opennav drives
+        // and after it exits: the person needs a stop of their own
+        if a.backend == super::ActuationBackend::Rnet
+            && a.rnet.mode == crate::actuation::rnet::TakeoverMode::JsmError
+            && !self.input.switch.configured()
+        {
+            return Err(ConfigError::Range {
+                key: "actuation.rnet.mode".into(),
+                value: "\"jsmerror\"".into(),
+                reason:
+                    "silences the chair's joystick (also after opennav exits, until the chair is \
+                         switched off and on): it needs an independent stop, a switch in \
+                         input.switch.device; or use \"followjsm\""
+                        .into(),
+            });
+        }
         range(
             "actuation.rnet.max_speed_percent",
             a.rnet.max_speed_percent,

@@ -161,6 +161,34 @@ pub async fn run(mut control: Control, mut io: ControlTaskIo) -> ControlEnd {
                 fault: control.fault_reason(),
                 waiting_for: io.waiting.iter().map(|w| w.to_string()).collect(),
                 asking: control.asking(),
+                moving: out.cmd.cmd.v_mps.abs() > 0.0
+                    || out.cmd.cmd.omega_radps.abs() > 0.0
+                    || odometry.is_some_and(|o| {
+                        o.value.v_mps.abs() > 0.02 || o.value.omega_radps.abs() > 0.05
+                    }),
+                seen: {
+                    let tracks = io.tracks.borrow();
+                    let here = odometry.map(|o| o.value.pose).unwrap_or_default();
+                    let mut seen: Vec<(f64, String)> = tracks
+                        .tracks()
+                        .iter()
+                        .filter(|t| t.confirmed)
+                        .map(|t| {
+                            (
+                                (t.center_m[0] - here.x_m).hypot(t.center_m[1] - here.y_m),
+                                t.label.clone(),
+                            )
+                        })
+                        .collect();
+                    seen.sort_by(|a, b| a.0.total_cmp(&b.0));
+                    let mut labels: Vec<String> = Vec::new();
+                    for (_, l) in seen {
+                        if !labels.contains(&l) {
+                            labels.push(l);
+                        }
+                    }
+                    labels
+                },
                 said: last_said.iter().cloned().collect(),
             });
         }

@@ -6,7 +6,9 @@
 //! task watches, so a stop is always accepted, however busy the word
 //! channel is.
 
+pub mod scan;
 pub mod socket;
+pub mod switch;
 
 use serde::Serialize;
 use tokio::sync::{mpsc, watch};
@@ -93,6 +95,10 @@ pub struct DaemonStatus {
     pub waiting_for: Vec<String>,
     /// The chair is asking a question ("yes" / "no" answer it).
     pub asking: bool,
+    /// The chair moves (measured), or is commanded to.
+    pub moving: bool,
+    /// Labels of the confirmed objects it knows, nearest first.
+    pub seen: Vec<String>,
     /// The last sentences the chair said, oldest first.
     pub said: Vec<String>,
 }
