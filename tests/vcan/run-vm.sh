@@ -20,7 +20,9 @@ set -euo pipefail
 # written. If the mirror no longer has it, the current one is used (loudly).
 KVER_PINNED="6.1.0-56-amd64"
 PKGVER_PINNED="6.1.192-2"
-MODULES="kernel/net/can/can.ko kernel/drivers/net/can/dev/can-dev.ko kernel/net/can/can-raw.ko kernel/drivers/net/can/vcan.ko"
+# CAN for the R-Net tests; evdev + uinput for the switch tests (a virtual
+# input device read through /dev/input/event*)
+MODULES="kernel/net/can/can.ko kernel/drivers/net/can/dev/can-dev.ko kernel/net/can/can-raw.ko kernel/drivers/net/can/vcan.ko kernel/drivers/input/evdev.ko kernel/drivers/input/misc/uinput.ko"
 
 die() { echo "run-vm: $*" >&2; exit 3; }
 [ $# -ge 1 ] || die "usage: $0 BINARY [ARGS...]"
@@ -40,7 +42,8 @@ mkdir -p "$CACHE"
 
 fetch_kernel() { # $1 = kernel version, $2 = package version (or empty)
     local kver="$1" pkg="linux-image-$1" dir="$CACHE/$1"
-    if [ -f "$dir/vmlinuz" ] && [ -f "$dir/ok" ]; then echo "$dir"; return 0; fi
+    # the cache holds the kernel and exactly the modules listed above
+    if [ -f "$dir/vmlinuz" ] && [ -f "$dir/ok" ] && [ "$(cat "$dir/ok")" = "$MODULES" ]; then echo "$dir"; return 0; fi
     local tmp; tmp="$(mktemp -d)"
     local spec="$pkg"; [ -n "$2" ] && spec="$pkg=$2"
     if ! (cd "$tmp" && apt-get download "$spec" >/dev/null 2>&1); then
@@ -55,7 +58,7 @@ fetch_kernel() { # $1 = kernel version, $2 = package version (or empty)
     for m in $MODULES; do
         cp "$tmp/root/lib/modules/$kver/$m" "$dir/modules/" || { rm -rf "$tmp"; return 1; }
     done
-    touch "$dir/ok"
+    printf '%s' "$MODULES" > "$dir/ok"
     rm -rf "$tmp"
     echo "$dir"
 }
@@ -102,7 +105,7 @@ cat > "$ROOT/init" <<EOF
 mount -t proc proc /proc
 mount -t sysfs sys /sys
 mount -t devtmpfs dev /dev
-for m in can can-dev can-raw vcan; do insmod /lib/modules/\$m.ko || echo "insmod \$m failed"; done
+for m in can can-dev can-raw vcan evdev uinput; do insmod /lib/modules/\$m.ko || echo "insmod \$m failed"; done
 ip link add vcan0 type vcan && ip link set vcan0 up || echo "vcan0 setup failed"
 ip link set lo up
 cd /tmp
