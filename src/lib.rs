@@ -21,3 +21,5 @@ pub mod sensors;
 pub mod setup;
 pub mod sim;
 pub mod speech;
+#[cfg(feature = "voice")]
+pub mod voice;

@@ -18,8 +18,10 @@ step "system packages"
 # AVR toolchain + simavr: firmware in the loop; qemu + busybox + cpio: the
 # vcan HIL VM (tests/vcan/run-vm.sh; binutils for objcopy); systemd +
 # iproute2: `systemd-analyze verify/security` on the units (tests/systemd_units.rs);
-# espeak-ng: the chair's spoken sentences (src/speech.rs)
-apt_pkgs=(make gcc binutils gcc-avr avr-libc simavr libsimavr-dev libelf-dev qemu-system-x86 busybox-static cpio systemd iproute2 espeak-ng)
+# espeak-ng: the chair's spoken sentences (src/speech.rs); PocketSphinx:
+# speech recognition (the `voice` feature), sox to prepare test speech
+apt_pkgs=(make gcc binutils gcc-avr avr-libc simavr libsimavr-dev libelf-dev qemu-system-x86 busybox-static cpio systemd iproute2 espeak-ng
+  libpocketsphinx-dev libsphinxbase-dev pocketsphinx-en-us sox)
 # a python3 with venv already on PATH (pyenv, say) is enough; else Debian's
 python3 -c 'import venv, ensurepip' 2>/dev/null || apt_pkgs+=(python3 python3-venv python3-pip)
 missing=()
@@ -58,12 +60,13 @@ cargo fmt --all -- --check
 
 step "lint"
 # Every feature this machine can build: the default set (ONNX Runtime is
-# loaded at run time; CUDA/TensorRT providers are compiled in). The
+# loaded at run time; CUDA/TensorRT providers are compiled in) and voice. The
 # `realsense` feature links librealsense2, which no registry ships: its
 # source is type-checked without the library (realsense-rust/docs-only
 # skips the link step), not linked.
-cargo clippy --all-targets -- -D warnings
+cargo clippy --all-targets --features voice -- -D warnings
 cargo clippy --lib --bins --features realsense,realsense-rust/docs-only -- -D warnings
 
 step "tests"
-cargo test --no-fail-fast 2>&1 | tee target/test-output.txt
+# the `voice` feature too (PocketSphinx, installed above)
+cargo test --no-fail-fast --features voice 2>&1 | tee target/test-output.txt

@@ -1,0 +1,243 @@
+//! The few PocketSphinx calls opennav needs, behind a safe [`Recognizer`]:
+//! a decoder configured with an acoustic model and a dictionary, searching
+//! a JSGF grammar; one utterance of 16 kHz mono 16-bit samples in, the
+//! best hypothesis, its score and its posterior probability out.
+
+use std::ffi::{c_char, c_int, CStr, CString};
+use std::path::{Path, PathBuf};
+
+#[repr(C)]
+struct CmdLn {
+    _private: [u8; 0],
+}
+#[repr(C)]
+struct ArgT {
+    _private: [u8; 0],
+}
+#[repr(C)]
+struct Decoder {
+    _private: [u8; 0],
+}
+#[repr(C)]
+struct LogMath {
+    _private: [u8; 0],
+}
+
+extern "C" {
+    fn ps_args() -> *const ArgT;
+    fn cmd_ln_init(inout: *mut CmdLn, defn: *const ArgT, strict: i32, ...) -> *mut CmdLn;
+    fn cmd_ln_free_r(cmdln: *mut CmdLn) -> c_int;
+    fn ps_init(config: *mut CmdLn) -> *mut Decoder;
+    fn ps_free(ps: *mut Decoder) -> c_int;
+    fn ps_set_jsgf_string(ps: *mut Decoder, name: *const c_char, jsgf: *const c_char) -> c_int;
+    fn ps_set_search(ps: *mut Decoder, name: *const c_char) -> c_int;
+    fn ps_start_utt(ps: *mut Decoder) -> c_int;
+    fn ps_process_raw(
+        ps: *mut Decoder,
+        data: *const i16,
+        n_samples: usize,
+        no_search: c_int,
+        full_utt: c_int,
+    ) -> c_int;
+    fn ps_end_utt(ps: *mut Decoder) -> c_int;
+    fn ps_get_hyp(ps: *mut Decoder, out_best_score: *mut i32) -> *const c_char;
+    fn ps_get_prob(ps: *mut Decoder) -> i32;
+    fn ps_get_logmath(ps: *mut Decoder) -> *mut LogMath;
+    fn logmath_exp(lmath: *mut LogMath, logb_p: c_int) -> f64;
+}
+
+/// Where the models are (Debian's `pocketsphinx-en-us`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModelPaths {
+    /// The acoustic model directory (`-hmm`).
+    pub hmm: PathBuf,
+    /// The pronunciation dictionary (`-dict`).
+    pub dict: PathBuf,
+}
+
+impl ModelPaths {
+    /// Debian 12's US English model.
+    pub fn debian_en_us() -> ModelPaths {
+        let base = Path::new("/usr/share/pocketsphinx/model/en-us");
+        ModelPaths {
+            hmm: base.join("en-us"),
+            dict: base.join("cmudict-en-us.dict"),
+        }
+    }
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum SphinxError {
+    #[error("speech model {path}: {reason}")]
+    Model { path: String, reason: String },
+    #[error("speech recogniser: {0}")]
+    Decoder(String),
+    #[error("grammar: {0}")]
+    Grammar(String),
+}
+
+/// One decoded utterance.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Hypothesis {
+    /// The words heard (lower case, as the grammar spells them).
+    pub text: String,
+    /// The path score (log domain, larger is better; comparable between
+    /// hypotheses of one utterance only).
+    pub score: i32,
+    /// The posterior probability of the hypothesis, 0..1.
+    pub probability: f64,
+}
+
+/// A PocketSphinx decoder searching one JSGF grammar.
+pub struct Recognizer {
+    config: *mut CmdLn,
+    ps: *mut Decoder,
+}
+
+// the decoder is used from one thread at a time (it is moved, never shared)
+unsafe impl Send for Recognizer {}
+
+fn cstring(what: &str, s: &str) -> Result<CString, SphinxError> {
+    CString::new(s).map_err(|_| SphinxError::Decoder(format!("{what} contains a NUL byte")))
+}
+
+impl Recognizer {
+    /// A decoder on `models` searching `jsgf` (the grammar's text).
+    pub fn new(models: &ModelPaths, jsgf: &str) -> Result<Recognizer, SphinxError> {
+        for p in [&models.hmm, &models.dict] {
+            if !p.exists() {
+                return Err(SphinxError::Model {
+                    path: p.display().to_string(),
+                    reason: "not found (Debian: apt-get install pocketsphinx-en-us)".into(),
+                });
+            }
+        }
+        let path = |p: &Path| cstring("a model path", &p.display().to_string());
+        let (hmm, dict) = (path(&models.hmm)?, path(&models.dict)?);
+        let k = |s: &str| cstring("an option", s);
+        let (k_hmm, k_dict, k_log, v_log, k_bs, v_bs) = (
+            k("-hmm")?,
+            k("-dict")?,
+            k("-logfn")?,
+            k("/dev/null")?,
+            k("-bestpath")?,
+            k("yes")?,
+        );
+        // SAFETY: the variadic list is (name, value) C strings that live
+        // until the call returns, terminated by NULL, as cmd_ln_init reads it
+        let config = unsafe {
+            cmd_ln_init(
+                std::ptr::null_mut(),
+                ps_args(),
+                1,
+                k_hmm.as_ptr(),
+                hmm.as_ptr(),
+                k_dict.as_ptr(),
+                dict.as_ptr(),
+                k_log.as_ptr(),
+                v_log.as_ptr(),
+                k_bs.as_ptr(),
+                v_bs.as_ptr(),
+                std::ptr::null::<c_char>(),
+            )
+        };
+        if config.is_null() {
+            return Err(SphinxError::Decoder("the configuration was refused".into()));
+        }
+        // SAFETY: a valid configuration
+        let ps = unsafe { ps_init(config) };
+        if ps.is_null() {
+            // SAFETY: ours, not used again
+            unsafe { cmd_ln_free_r(config) };
+            return Err(SphinxError::Decoder(format!(
+                "cannot load the models in {}",
+                models.hmm.display()
+            )));
+        }
+        let mut r = Recognizer { config, ps };
+        r.set_grammar(jsgf)?;
+        Ok(r)
+    }
+
+    /// Replaces the grammar (the active vocabulary changed).
+    pub fn set_grammar(&mut self, jsgf: &str) -> Result<(), SphinxError> {
+        let name = cstring("a search name", "opennav")?;
+        let text = cstring("the grammar", jsgf)?;
+        // SAFETY: valid decoder and NUL-terminated strings
+        let rc = unsafe { ps_set_jsgf_string(self.ps, name.as_ptr(), text.as_ptr()) };
+        if rc != 0 {
+            return Err(SphinxError::Grammar(
+                "PocketSphinx refused it (a syntax error, or a word not in the dictionary)".into(),
+            ));
+        }
+        // SAFETY: as above
+        if unsafe { ps_set_search(self.ps, name.as_ptr()) } != 0 {
+            return Err(SphinxError::Grammar("cannot select it".into()));
+        }
+        Ok(())
+    }
+
+    /// Decodes one whole utterance (16 kHz mono samples); None when
+    /// nothing in the grammar was heard.
+    pub fn decode(&mut self, samples: &[i16]) -> Result<Option<Hypothesis>, SphinxError> {
+        // SAFETY: valid decoder; the samples outlive the call
+        unsafe {
+            if ps_start_utt(self.ps) < 0 {
+                return Err(SphinxError::Decoder("cannot start an utterance".into()));
+            }
+            if ps_process_raw(self.ps, samples.as_ptr(), samples.len(), 0, 1) < 0 {
+                ps_end_utt(self.ps);
+                return Err(SphinxError::Decoder("cannot process the audio".into()));
+            }
+            if ps_end_utt(self.ps) < 0 {
+                return Err(SphinxError::Decoder("cannot end the utterance".into()));
+            }
+            let mut score = 0i32;
+            let hyp = ps_get_hyp(self.ps, &mut score);
+            if hyp.is_null() {
+                return Ok(None);
+            }
+            let text = CStr::from_ptr(hyp).to_string_lossy().trim().to_string();
+            if text.is_empty() {
+                return Ok(None);
+            }
+            let prob = ps_get_prob(self.ps);
+            let lmath = ps_get_logmath(self.ps);
+            let probability = if lmath.is_null() {
+                0.0
+            } else {
+                logmath_exp(lmath, prob).clamp(0.0, 1.0)
+            };
+            Ok(Some(Hypothesis {
+                text,
+                score,
+                probability,
+            }))
+        }
+    }
+}
+
+impl Drop for Recognizer {
+    fn drop(&mut self) {
+        // SAFETY: ours, freed once
+        unsafe {
+            ps_free(self.ps);
+            cmd_ln_free_r(self.config);
+        }
+    }
+}
+
+/// 16-bit little-endian mono samples from raw bytes (an odd trailing byte
+/// is an error naming the input).
+pub fn samples_from_s16le(bytes: &[u8], what: &str) -> Result<Vec<i16>, SphinxError> {
+    if !bytes.len().is_multiple_of(2) {
+        return Err(SphinxError::Decoder(format!(
+            "{what}: {} bytes is not a whole number of 16-bit samples",
+            bytes.len()
+        )));
+    }
+    Ok(bytes
+        .chunks_exact(2)
+        .map(|c| i16::from_le_bytes([c[0], c[1]]))
+        .collect())
+}
