@@ -21,5 +21,4 @@ pub mod sensors;
 pub mod setup;
 pub mod sim;
 pub mod speech;
-#[cfg(feature = "voice")]
 pub mod voice;

@@ -35,3 +35,92 @@ fn a_grammar_with_an_unknown_word_is_an_error() {
     .expect("refused");
     assert!(e.to_string().contains("grammar"), "{e}");
 }
+
+fn opennav_check_voice(files: &[&std::path::Path], vocabulary: &str) -> Vec<serde_json::Value> {
+    let mut c = std::process::Command::new(env!("CARGO_BIN_EXE_opennav"));
+    c.args(["check", "voice", "--vocabulary", vocabulary, "--wav"]);
+    c.args(files);
+    let out = c.output().expect("runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("one JSON object per line"))
+        .collect()
+}
+
+/// `text` spoken by espeak-ng, as 16 kHz mono WAV (sox resamples).
+fn spoken(dir: &std::path::Path, name: &str, text: &str) -> std::path::PathBuf {
+    let raw = dir.join(format!("{name}.22k.wav"));
+    let wav = dir.join(format!("{name}.wav"));
+    let ok = std::process::Command::new("espeak-ng")
+        .args(["-v", "en", "-s", "150", "-w"])
+        .arg(&raw)
+        .arg(text)
+        .status()
+        .expect("espeak-ng runs (Debian espeak-ng; tests/run.sh installs it)")
+        .success();
+    assert!(ok, "espeak-ng failed");
+    let ok = std::process::Command::new("sox")
+        .arg(&raw)
+        .args(["-r", "16000", "-c", "1", "-b", "16", "-e", "signed-integer"])
+        .arg(&wav)
+        .status()
+        .expect("sox runs (Debian sox; tests/run.sh installs it)")
+        .success();
+    assert!(ok, "sox failed");
+    wav
+}
+
+#[test]
+fn check_voice_reports_what_was_heard_and_meant_and_never_sends_nonsense_anywhere() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let real = common::asset(common::shared().join("data/speech/goforward.raw"));
+    let stop = spoken(dir.path(), "stop", "stop");
+    let fox = spoken(
+        dir.path(),
+        "fox",
+        "the quick brown fox jumps over the lazy dog",
+    );
+    let lines = opennav_check_voice(&[&real, &stop, &fox], "forward,toilet,door,chair");
+    assert_eq!(lines.len(), 3);
+    for l in &lines {
+        for k in ["file", "heard", "confidence", "intent", "label"] {
+            assert!(l.get(k).is_some(), "{k} missing in {l}");
+        }
+    }
+    // a real person: the grammar and free English agree on the target
+    assert_eq!(lines[0]["intent"], "go", "{}", lines[0]);
+    assert_eq!(lines[0]["label"], "forward", "{}", lines[0]);
+    assert_eq!(lines[0]["confidence"], 1.0, "{}", lines[0]);
+    // "stop" is a stop, whatever the confidence
+    assert_eq!(lines[1]["intent"], "stop", "{}", lines[1]);
+    // nonsense is never a target the chair would go to
+    assert_ne!(lines[2]["intent"], "go", "{}", lines[2]);
+    assert!(lines[2]["label"].is_null(), "{}", lines[2]);
+}
+
+#[test]
+fn check_voice_names_a_file_it_cannot_use() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let bad = dir.path().join("cd.wav");
+    let ok = std::process::Command::new("sox")
+        .args(["-n", "-r", "44100", "-c", "2"])
+        .arg(&bad)
+        .args(["synth", "0.2", "sine", "440"])
+        .status()
+        .expect("sox runs")
+        .success();
+    assert!(ok);
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_opennav"))
+        .args(["check", "voice", "--wav"])
+        .arg(&bad)
+        .output()
+        .expect("runs");
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("cd.wav") && err.contains("44100 Hz"), "{err}");
+}

@@ -12,6 +12,21 @@ use super::{bad_input, failed, Failure};
 
 #[derive(Subcommand, Debug)]
 pub enum CheckCommand {
+    /// Speech recognition on audio files (16 kHz mono WAV, or .raw s16le):
+    /// one JSON line per file {"file", "heard", "confidence", "intent",
+    /// "label"}, as the daemon hears (needs the `voice` feature).
+    Voice {
+        /// The audio files.
+        #[arg(long, num_args = 1.., required = true)]
+        wav: Vec<PathBuf>,
+        /// The words that may be asked for, comma separated (default:
+        /// config voice.vocabulary).
+        #[arg(long)]
+        vocabulary: Option<String>,
+        /// Output: json (one line per file; the only format).
+        #[arg(long, default_value = "json")]
+        format: String,
+    },
     /// Reads RGB-D frames (a RealSense, or a recording with --replay) and prints one JSON line per frame.
     Camera {
         /// A recording in the TUM RGB-D layout (rgb.txt, depth.txt, calibration.json).
@@ -312,5 +327,87 @@ pub fn run(config: Option<&std::path::Path>, cmd: CheckCommand) -> Result<(), Fa
         } => check_rnet(config, iface, listen, drive.as_deref(), drive_for, mode),
         CheckCommand::Encoders { port, count } => check_encoders(&port, count),
         CheckCommand::Camera { replay, count } => check_camera(config, replay.as_deref(), count),
+        CheckCommand::Voice {
+            wav,
+            vocabulary,
+            format,
+        } => {
+            if format != "json" {
+                return Err(super::bad_input(anyhow::anyhow!(
+                    "--format {format:?}: only json"
+                )));
+            }
+            let settings = Settings::load(config).map_err(super::bad_input)?;
+            check_voice(&settings, &wav, vocabulary.as_deref())
+        }
     }
+}
+
+#[cfg(not(feature = "voice"))]
+fn check_voice(_: &Settings, _: &[PathBuf], _: Option<&str>) -> Result<(), Failure> {
+    Err(failed(anyhow::anyhow!(
+        "this build has no speech recognition: build with --features voice \
+         (Debian: libpocketsphinx-dev libsphinxbase-dev pocketsphinx-en-us)"
+    )))
+}
+
+#[cfg(feature = "voice")]
+fn check_voice(
+    settings: &Settings,
+    files: &[PathBuf],
+    vocabulary: Option<&str>,
+) -> Result<(), Failure> {
+    use opennav::voice::{grammar, intent, sphinx, wav};
+    let v = &settings.voice;
+    let words: Vec<String> = match vocabulary {
+        Some(list) => list
+            .split(',')
+            .map(|w| w.trim().to_string())
+            .filter(|w| !w.is_empty())
+            .collect(),
+        None => v.vocabulary.clone(),
+    };
+    let dict_path = PathBuf::from(&v.dict);
+    let dict = grammar::dictionary_words(&dict_path).map_err(|e| failed(anyhow::anyhow!(e)))?;
+    let g = grammar::build(&words, &dict).map_err(|e| super::bad_input(anyhow::anyhow!(e)))?;
+    if !g.skipped.is_empty() {
+        eprintln!(
+            "opennav: not in the pronunciation dictionary, left out: {}",
+            g.skipped.join(", ")
+        );
+    }
+    let models = sphinx::ModelPaths {
+        hmm: PathBuf::from(&v.hmm),
+        dict: dict_path,
+        english_lm: PathBuf::from(&v.english_lm),
+    };
+    let mut r = sphinx::Recognizer::new(&models, &g.jsgf).map_err(failed)?;
+    for f in files {
+        let samples = wav::read_audio(f).map_err(|e| super::bad_input(anyhow::anyhow!(e)))?;
+        let h = r.decode(&samples).map_err(failed)?;
+        let heard = h.as_ref().map(|h| h.text.clone());
+        let (meant, label) = intent::meaning(heard.as_deref().unwrap_or(""), &g.targets);
+        let confidence = intent::agreement(
+            &meant,
+            label.as_deref(),
+            h.as_ref().and_then(|h| h.english.as_deref()),
+        );
+        let reported = intent::reported(&meant, confidence, v.min_confidence);
+        let label = if reported == intent::Intent::Go {
+            label
+        } else {
+            None
+        };
+        println!(
+            "{}",
+            serde_json::json!({
+                "file": f,
+                "heard": heard,
+                "confidence": (confidence * 1000.0).round() / 1000.0,
+                "intent": reported,
+                "label": label,
+            })
+        );
+    }
+    Ok(())
 }

@@ -53,6 +53,7 @@ pub struct Settings {
     pub depth_obstacles: crate::perception::depth_obstacles::DepthObstacleSettings,
     pub input: InputSection,
     pub speech: crate::speech::SpeechSettings,
+    pub voice: crate::voice::VoiceSettings,
 }
 
 #[derive(Debug, Clone, Deserialize, PartialEq)]

@@ -308,6 +308,7 @@ impl Settings {
                 reason: e.to_string(),
             })?;
         }
+        finite_range("voice.min_confidence", self.voice.min_confidence, 0.0, 1.0)?;
         let sp = &self.speech;
         range("speech.rate_wpm", sp.rate_wpm, 80, 450)?;
         range("speech.volume", sp.volume, 0, 200)?;

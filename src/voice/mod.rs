@@ -1,4 +1,28 @@
-//! Speech recognition on the chair's laptop, offline: PocketSphinx
-//! (Debian's 0.8 libraries, the `voice` feature) with a JSGF grammar.
+//! The person's voice: speech recognition on the chair's laptop, offline.
+//! The grammar made from the active vocabulary, the meaning of what was
+//! heard and the decision (act, ask back, ignore) are pure; the recogniser
+//! is PocketSphinx (Debian's 0.8 libraries) behind the `voice` feature.
 
+pub mod grammar;
+pub mod intent;
+#[cfg(feature = "voice")]
 pub mod sphinx;
+pub mod wav;
+
+/// Config `[voice]`.
+#[derive(Debug, Clone, PartialEq, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct VoiceSettings {
+    /// What may be asked for when the detector gives no vocabulary of its
+    /// own (an open-vocabulary detector's word list).
+    pub vocabulary: Vec<String>,
+    /// When to ask back before going: always, unsure, never.
+    pub confirm: intent::Confirm,
+    /// Below this posterior probability an utterance is unsure (0..1).
+    pub min_confidence: f64,
+    /// The acoustic model directory and the pronunciation dictionary.
+    pub hmm: String,
+    pub dict: String,
+    /// A general English language model, to check what the grammar heard.
+    pub english_lm: String,
+}

@@ -22,6 +22,10 @@ struct Decoder {
 struct LogMath {
     _private: [u8; 0],
 }
+#[repr(C)]
+struct Seg {
+    _private: [u8; 0],
+}
 
 extern "C" {
     fn ps_args() -> *const ArgT;
@@ -31,6 +35,7 @@ extern "C" {
     fn ps_free(ps: *mut Decoder) -> c_int;
     fn ps_set_jsgf_string(ps: *mut Decoder, name: *const c_char, jsgf: *const c_char) -> c_int;
     fn ps_set_search(ps: *mut Decoder, name: *const c_char) -> c_int;
+    fn ps_set_lm_file(ps: *mut Decoder, name: *const c_char, path: *const c_char) -> c_int;
     fn ps_start_utt(ps: *mut Decoder) -> c_int;
     fn ps_process_raw(
         ps: *mut Decoder,
@@ -44,6 +49,9 @@ extern "C" {
     fn ps_get_prob(ps: *mut Decoder) -> i32;
     fn ps_get_logmath(ps: *mut Decoder) -> *mut LogMath;
     fn logmath_exp(lmath: *mut LogMath, logb_p: c_int) -> f64;
+    fn ps_seg_iter(ps: *mut Decoder) -> *mut Seg;
+    fn ps_seg_next(seg: *mut Seg) -> *mut Seg;
+    fn ps_seg_prob(seg: *mut Seg, ascr: *mut i32, lscr: *mut i32, lback: *mut i32) -> i32;
 }
 
 /// Where the models are (Debian's `pocketsphinx-en-us`).
@@ -53,6 +61,9 @@ pub struct ModelPaths {
     pub hmm: PathBuf,
     /// The pronunciation dictionary (`-dict`).
     pub dict: PathBuf,
+    /// A general English language model: the same audio decoded without
+    /// the grammar says whether the grammar's words were really spoken.
+    pub english_lm: PathBuf,
 }
 
 impl ModelPaths {
@@ -62,6 +73,7 @@ impl ModelPaths {
         ModelPaths {
             hmm: base.join("en-us"),
             dict: base.join("cmudict-en-us.dict"),
+            english_lm: base.join("en-us.lm.bin"),
         }
     }
 }
@@ -81,11 +93,14 @@ pub enum SphinxError {
 pub struct Hypothesis {
     /// The words heard (lower case, as the grammar spells them).
     pub text: String,
-    /// The path score (log domain, larger is better; comparable between
-    /// hypotheses of one utterance only).
+    /// The path's acoustic score (log domain, larger is better; without
+    /// language or grammar weights).
     pub score: i32,
     /// The posterior probability of the hypothesis, 0..1.
     pub probability: f64,
+    /// What a general English decode of the same audio heard (free
+    /// words, no grammar): agreement with `text` is the confidence.
+    pub english: Option<String>,
 }
 
 /// A PocketSphinx decoder searching one JSGF grammar.
@@ -104,7 +119,7 @@ fn cstring(what: &str, s: &str) -> Result<CString, SphinxError> {
 impl Recognizer {
     /// A decoder on `models` searching `jsgf` (the grammar's text).
     pub fn new(models: &ModelPaths, jsgf: &str) -> Result<Recognizer, SphinxError> {
-        for p in [&models.hmm, &models.dict] {
+        for p in [&models.hmm, &models.dict, &models.english_lm] {
             if !p.exists() {
                 return Err(SphinxError::Model {
                     path: p.display().to_string(),
@@ -155,6 +170,17 @@ impl Recognizer {
             )));
         }
         let mut r = Recognizer { config, ps };
+        let (name, lm) = (
+            cstring("a search name", "english")?,
+            path(&models.english_lm)?,
+        );
+        // SAFETY: valid decoder and NUL-terminated strings
+        if unsafe { ps_set_lm_file(r.ps, name.as_ptr(), lm.as_ptr()) } != 0 {
+            return Err(SphinxError::Model {
+                path: models.english_lm.display().to_string(),
+                reason: "PocketSphinx could not load it".into(),
+            });
+        }
         r.set_grammar(jsgf)?;
         Ok(r)
     }
@@ -170,16 +196,23 @@ impl Recognizer {
                 "PocketSphinx refused it (a syntax error, or a word not in the dictionary)".into(),
             ));
         }
-        // SAFETY: as above
+        self.select("opennav")
+    }
+
+    fn select(&mut self, search: &str) -> Result<(), SphinxError> {
+        let name = cstring("a search name", search)?;
+        // SAFETY: valid decoder, NUL-terminated name
         if unsafe { ps_set_search(self.ps, name.as_ptr()) } != 0 {
-            return Err(SphinxError::Grammar("cannot select it".into()));
+            return Err(SphinxError::Decoder(format!(
+                "cannot select the {search} search"
+            )));
         }
         Ok(())
     }
 
-    /// Decodes one whole utterance (16 kHz mono samples); None when
-    /// nothing in the grammar was heard.
-    pub fn decode(&mut self, samples: &[i16]) -> Result<Option<Hypothesis>, SphinxError> {
+    /// One pass over the utterance with the selected search: the text and
+    /// score of its best path, and its posterior.
+    fn pass(&mut self, samples: &[i16]) -> Result<Option<(String, i32, f64)>, SphinxError> {
         // SAFETY: valid decoder; the samples outlive the call
         unsafe {
             if ps_start_utt(self.ps) < 0 {
@@ -192,15 +225,23 @@ impl Recognizer {
             if ps_end_utt(self.ps) < 0 {
                 return Err(SphinxError::Decoder("cannot end the utterance".into()));
             }
-            let mut score = 0i32;
-            let hyp = ps_get_hyp(self.ps, &mut score);
+            let mut path_score = 0i32;
+            let hyp = ps_get_hyp(self.ps, &mut path_score);
             if hyp.is_null() {
                 return Ok(None);
             }
             let text = CStr::from_ptr(hyp).to_string_lossy().trim().to_string();
-            if text.is_empty() {
-                return Ok(None);
+            // the acoustic part of the best path: its segments' scores
+            let mut score = 0i64;
+            let mut seg = ps_seg_iter(self.ps);
+            while !seg.is_null() {
+                let (mut ascr, mut lscr, mut lback) = (0i32, 0i32, 0i32);
+                ps_seg_prob(seg, &mut ascr, &mut lscr, &mut lback);
+                score += ascr as i64;
+                // ps_seg_next frees the iterator at the end
+                seg = ps_seg_next(seg);
             }
+            let score = score.clamp(i32::MIN as i64, i32::MAX as i64) as i32;
             let prob = ps_get_prob(self.ps);
             let lmath = ps_get_logmath(self.ps);
             let probability = if lmath.is_null() {
@@ -208,12 +249,30 @@ impl Recognizer {
             } else {
                 logmath_exp(lmath, prob).clamp(0.0, 1.0)
             };
-            Ok(Some(Hypothesis {
-                text,
-                score,
-                probability,
-            }))
+            Ok(Some((text, score, probability)))
         }
+    }
+
+    /// Decodes one whole utterance (16 kHz mono samples) with the grammar,
+    /// and again as free phones for the comparison; None when nothing in
+    /// the grammar was heard.
+    pub fn decode(&mut self, samples: &[i16]) -> Result<Option<Hypothesis>, SphinxError> {
+        self.select("opennav")?;
+        let Some((text, score, probability)) = self.pass(samples)? else {
+            return Ok(None);
+        };
+        if text.is_empty() {
+            return Ok(None);
+        }
+        self.select("english")?;
+        let english = self.pass(samples);
+        self.select("opennav")?;
+        Ok(Some(Hypothesis {
+            text,
+            score,
+            probability,
+            english: english?.map(|(t, _, _)| t),
+        }))
     }
 }
 
