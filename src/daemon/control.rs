@@ -95,6 +95,8 @@ pub struct Control {
     asked_rear: Option<crate::msg::Pose2>,
     /// "yes" arrived: vouch for the rear at the next step.
     rear_yes: bool,
+    /// The chair asked "Did you say the X?" (an unsure utterance).
+    asked_goal: Option<String>,
     /// A person acknowledged the fault (the latch file goes too).
     pub acknowledged: bool,
 }
@@ -144,6 +146,7 @@ impl Control {
             rear_blocked_since: None,
             asked_rear: None,
             rear_yes: false,
+            asked_goal: None,
             acknowledged: false,
         }
     }
@@ -194,11 +197,14 @@ impl Control {
     pub fn on_input(&mut self, input: UserInput) {
         match input {
             UserInput::Goto(word) if self.latched => {
+                self.asked_goal = None;
                 // a word alone does not clear a stop
                 self.say(format!("Stopped. Say go to go to the {word}."));
                 self.pending = Some(word);
             }
             UserInput::Goto(word) => {
+                // a sure word answers the question too
+                self.asked_goal = None;
                 self.goal.set_prompt(&word);
                 self.say(format!("Looking for a {word}."));
             }
@@ -222,6 +228,19 @@ impl Control {
                 }
             }
             UserInput::Go => tracing::info!("\"go\" while not stopped: nothing to clear"),
+            UserInput::Unsure(word) => {
+                self.say(format!("Did you say the {word}? Say yes, or say it again."));
+                self.asked_goal = Some(word);
+            }
+            UserInput::Yes if self.asked_goal.is_some() => {
+                if let Some(word) = self.asked_goal.take() {
+                    // as if the word had been said surely
+                    self.on_input(UserInput::Goto(word));
+                }
+            }
+            UserInput::No if self.asked_goal.take().is_some() => {
+                self.say("Say the word again.".into());
+            }
             UserInput::Yes if self.asked_rear.is_some() => {
                 self.rear_yes = true;
                 self.say("Thank you. Turning.".into());
@@ -482,7 +501,7 @@ impl Control {
 
     /// The chair asked a question and waits for "yes" or "no".
     pub fn asking(&self) -> bool {
-        self.asked_rear.is_some()
+        self.asked_rear.is_some() || self.asked_goal.is_some()
     }
 
     pub fn goal_state(&self) -> &GoalState {
@@ -639,6 +658,36 @@ mod tests {
         for k in 0..10 {
             assert_eq!(step_empty(&mut c, 50 * k).cmd.cmd, VelocityCmd::default());
         }
+    }
+
+    #[test]
+    fn an_unsure_word_is_asked_back_and_only_yes_goes() {
+        let mut c = control(false);
+        c.on_input(UserInput::Unsure("door".into()));
+        assert!(c.asking());
+        let out = step_empty(&mut c, 0);
+        assert_eq!(
+            out.said,
+            vec!["Did you say the door? Say yes, or say it again.".to_string()]
+        );
+        // nothing is looked for until the answer
+        assert!(out.wanted.is_empty(), "{:?}", out.wanted);
+        assert!(step_empty(&mut c, 50).wanted.is_empty());
+        c.on_input(UserInput::Yes);
+        let out = step_empty(&mut c, 100);
+        assert_eq!(out.wanted, vec!["door".to_string()]);
+        assert!(!c.asking());
+        // "no": asked to say it again, nothing looked for
+        let mut c = control(false);
+        c.on_input(UserInput::Unsure("toilet".into()));
+        c.on_input(UserInput::No);
+        let out = step_empty(&mut c, 0);
+        assert!(
+            out.said.iter().any(|l| l == "Say the word again."),
+            "{:?}",
+            out.said
+        );
+        assert!(out.wanted.is_empty());
     }
 
     #[test]

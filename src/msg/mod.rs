@@ -57,6 +57,9 @@ pub enum UserInput {
     /// A person checked the chair: clear a latched fault (the control
     /// socket, `opennav ack-fault`; never from free speech).
     AckFault,
+    /// The recogniser is unsure it heard this word: ask "Did you say the
+    /// X?" and go only after "yes" (never from typed text).
+    Unsure(String),
 }
 
 /// Words that stop the chair wherever they appear in what was said.
