@@ -124,3 +124,109 @@ fn check_voice_names_a_file_it_cannot_use() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("cd.wav") && err.contains("44100 Hz"), "{err}");
 }
+
+/// Speech made by espeak-ng, padded and joined: `parts` are (text, silence
+/// after, seconds), as one 16 kHz mono WAV.
+fn spoken_sequence(dir: &std::path::Path, name: &str, parts: &[(&str, f64)]) -> std::path::PathBuf {
+    let mut pieces = Vec::new();
+    for (i, (text, after)) in parts.iter().enumerate() {
+        let w = spoken(dir, &format!("{name}{i}"), text);
+        let padded = dir.join(format!("{name}{i}.pad.wav"));
+        let ok = std::process::Command::new("sox")
+            .arg(&w)
+            .arg(&padded)
+            .args(["pad", "0.3", &after.to_string()])
+            .status()
+            .expect("sox")
+            .success();
+        assert!(ok);
+        pieces.push(padded);
+    }
+    let out = dir.join(format!("{name}.wav"));
+    let ok = std::process::Command::new("sox")
+        .args(&pieces)
+        .arg(&out)
+        .status()
+        .expect("sox")
+        .success();
+    assert!(ok);
+    out
+}
+
+/// The simulated daemon at the wall clock's pace, listening to `wav`.
+fn run_listening(
+    wav: &std::path::Path,
+    confirm: &str,
+    max: &str,
+    exit_on_arrival: bool,
+) -> serde_json::Value {
+    let mut c = std::process::Command::new(env!("CARGO_BIN_EXE_opennav"));
+    c.args(["run", "--sim", "--clock", "realtime", "--no-stdin"]);
+    if exit_on_arrival {
+        c.arg("--exit-on-arrival");
+    }
+    let out = c
+        .args(["--max-duration", max, "--voice-wav"])
+        .arg(wav)
+        .env("OPENNAV_VOICE__CONFIRM", confirm)
+        .output()
+        .expect("runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    serde_json::from_str(text.lines().last().expect("report")).expect("report JSON")
+}
+
+#[test]
+fn a_spoken_command_drives_the_chair_and_a_spoken_stop_brings_it_to_rest() {
+    let dir = tempfile::tempdir().expect("tmp");
+    // synthetic speech is never sure (free English does not understand
+    // espeak-ng): with confirm = never the word goes at once
+    let wav = spoken_sequence(dir.path(), "chair", &[("take me to the chair", 1.0)]);
+    let r = run_listening(&wav, "never", "30s", true);
+    assert_eq!(r["outcome"], "arrived", "{r}");
+    assert_eq!(r["sim"]["world"]["collision_steps"], 0, "{r}");
+    // "stop" two seconds into the trip
+    let wav = spoken_sequence(
+        dir.path(),
+        "stop",
+        &[("take me to the chair", 2.0), ("stop", 2.0)],
+    );
+    let r = run_listening(&wav, "never", "12s", false);
+    assert_eq!(r["outcome"], "timeout", "{r}");
+    assert!(r["said"].to_string().contains("Stopped."), "{r}");
+    assert_eq!(r["supervisor"]["Stopped"], "UserStop", "{r}");
+    assert!(
+        r["sim"]["world"]["v_mps"].as_f64().expect("v").abs() < 0.02,
+        "{r}"
+    );
+    assert!(
+        r["sim"]["world"]["distance_travelled_m"]
+            .as_f64()
+            .expect("d")
+            > 0.05,
+        "{r}"
+    );
+}
+
+#[test]
+fn an_unsure_utterance_is_asked_back_and_the_chair_waits() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let wav = spoken_sequence(dir.path(), "door", &[("take me to the chair", 1.0)]);
+    let r = run_listening(&wav, "unsure", "8s", true);
+    assert_eq!(r["outcome"], "timeout", "{r}");
+    let said = r["said"].to_string();
+    assert!(said.contains("Did you say the chair?"), "{said}");
+    // nothing is looked for until "yes"
+    assert_eq!(r["goal"]["state"], "none", "{r}");
+    assert!(
+        r["sim"]["world"]["distance_travelled_m"]
+            .as_f64()
+            .expect("d")
+            < 0.01,
+        "{r}"
+    );
+}

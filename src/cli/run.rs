@@ -65,6 +65,10 @@ pub struct RunArgs {
     /// $RUNTIME_DIRECTORY/control.sock); with --sim only when given.
     #[arg(long)]
     pub control_socket: Option<PathBuf>,
+    /// Listen to this audio file (16 kHz mono WAV or .raw) as if it came
+    /// from the microphone (needs the `voice` feature).
+    #[arg(long)]
+    pub voice_wav: Option<PathBuf>,
     /// With --sim: speak the sentences too (espeak-ng, `[speech]`); on
     /// the chair they are spoken unless speech.enabled = false.
     #[arg(long)]
@@ -123,6 +127,8 @@ pub fn run(config: Option<&std::path::Path>, args: RunArgs) -> Result<(), Failur
     let (hub, receivers) = opennav::input::hub();
     let (status_tx, status_rx) = watch::channel(DaemonStatus::default());
     let switch_sentences = speech_tx.clone();
+    let voice_sentences = speech_tx.clone();
+    let voice_wav = args.voice_wav.clone();
     let opts = RunOptions {
         exit_on_arrival: args.exit_on_arrival,
         max_duration: args.max_duration,
@@ -253,6 +259,15 @@ pub fn run(config: Option<&std::path::Path>, args: RunArgs) -> Result<(), Failur
         } else {
             drop(switch_sentences);
         }
+        // the person's voice
+        let voice_input = match (&voice_wav, settings.voice.enabled) {
+            (Some(f), _) => Some(VoiceInput::File(f.clone())),
+            (None, true) => Some(VoiceInput::Device(settings.voice.capture_device.clone())),
+            (None, false) => None,
+        };
+        if let Some(input) = voice_input {
+            start_voice(&settings, input, hub.clone(), voice_sentences.clone())?;
+        }
         drop(hub);
         let report = opennav::daemon::run(devices, &settings, opts, input_rx, clock, cancel)
             .await
@@ -280,6 +295,47 @@ pub fn run(config: Option<&std::path::Path>, args: RunArgs) -> Result<(), Failur
         std::process::exit(1);
     }
     std::process::exit(0);
+}
+
+/// Where the voice comes from.
+enum VoiceInput {
+    File(PathBuf),
+    Device(String),
+}
+
+#[cfg(feature = "voice")]
+fn start_voice(
+    settings: &Settings,
+    input: VoiceInput,
+    hub: InputHub,
+    say: mpsc::UnboundedSender<String>,
+) -> Result<(), Failure> {
+    use opennav::voice::listen::{spawn, AudioInput};
+    let input = match input {
+        VoiceInput::File(f) => AudioInput::File(f),
+        VoiceInput::Device(d) => AudioInput::Device(d),
+    };
+    // the thread runs until the process ends
+    spawn(&settings.voice, input, &settings.voice.vocabulary, hub, say)
+        .map(drop)
+        .map_err(|e| failed(anyhow::anyhow!("voice: {e}")))
+}
+
+#[cfg(not(feature = "voice"))]
+fn start_voice(
+    _: &Settings,
+    input: VoiceInput,
+    _: InputHub,
+    _: mpsc::UnboundedSender<String>,
+) -> Result<(), Failure> {
+    let from = match input {
+        VoiceInput::File(f) => f.display().to_string(),
+        VoiceInput::Device(d) => format!("the microphone {d}"),
+    };
+    Err(failed(anyhow::anyhow!(
+        "voice: cannot listen to {from}: this build has no speech recognition \
+         (build with --features voice, or set voice.enabled = false)"
+    )))
 }
 
 /// Words from a stream, one a line, until it ends. Bytes that are not

@@ -6,13 +6,21 @@
 pub mod grammar;
 pub mod intent;
 #[cfg(feature = "voice")]
+pub mod listen;
+#[cfg(feature = "voice")]
 pub mod sphinx;
+pub mod vad;
 pub mod wav;
 
 /// Config `[voice]`.
 #[derive(Debug, Clone, PartialEq, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct VoiceSettings {
+    /// Listen to the microphone (`opennav run`; `--voice-wav FILE` listens
+    /// to a file instead, whatever this says).
+    pub enabled: bool,
+    /// The ALSA capture device (`arecord -L` lists them).
+    pub capture_device: String,
     /// What may be asked for when the detector gives no vocabulary of its
     /// own (an open-vocabulary detector's word list).
     pub vocabulary: Vec<String>,

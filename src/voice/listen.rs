@@ -1,0 +1,173 @@
+//! Listening: audio from the microphone (ALSA through `arecord`, 16 kHz
+//! mono) or from a file (tests, technicians: played at its own pace, as a
+//! microphone would deliver it), split into utterances, recognised, and
+//! handed to the input hub: a sure command acts, an unsure word is asked
+//! back, a stop always acts. On its own thread: the control path never
+//! waits for recognition.
+
+use std::io::Read;
+use std::path::PathBuf;
+use std::time::Duration;
+
+use tokio::sync::mpsc;
+
+use super::grammar::{self, Grammar};
+use super::intent::{self, Decision};
+use super::sphinx::{ModelPaths, Recognizer};
+use super::vad::{Vad, VadSettings};
+use super::VoiceSettings;
+use crate::input::InputHub;
+use crate::msg::UserInput;
+
+/// Where the audio comes from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum AudioInput {
+    /// An ALSA capture device (`arecord -D`).
+    Device(String),
+    /// A 16 kHz mono WAV or .raw file, played once at its own pace.
+    File(PathBuf),
+}
+
+/// The grammar and recogniser for `vocabulary` (errors name what is
+/// missing).
+pub fn recogniser(
+    s: &VoiceSettings,
+    vocabulary: &[String],
+) -> Result<(Recognizer, Grammar), String> {
+    let dict_path = PathBuf::from(&s.dict);
+    let dict = grammar::dictionary_words(&dict_path)?;
+    let g = grammar::build(vocabulary, &dict)?;
+    if !g.skipped.is_empty() {
+        tracing::warn!(skipped = ?g.skipped, "voice: words not in the pronunciation dictionary cannot be recognised");
+    }
+    let r = Recognizer::new(
+        &ModelPaths {
+            hmm: PathBuf::from(&s.hmm),
+            dict: dict_path,
+            english_lm: PathBuf::from(&s.english_lm),
+        },
+        &g.jsgf,
+    )
+    .map_err(|e| e.to_string())?;
+    Ok((r, g))
+}
+
+/// What one utterance is, as decided.
+fn hear(
+    r: &mut Recognizer,
+    g: &Grammar,
+    s: &VoiceSettings,
+    samples: &[i16],
+) -> Result<(Option<String>, f64, Decision), String> {
+    let h = r.decode(samples).map_err(|e| e.to_string())?;
+    let heard = h.as_ref().map(|h| h.text.clone());
+    let (meant, label) = intent::meaning(heard.as_deref().unwrap_or(""), &g.targets);
+    let confidence = intent::agreement(
+        &meant,
+        label.as_deref(),
+        h.as_ref().and_then(|h| h.english.as_deref()),
+    );
+    let d = intent::decide(
+        &meant,
+        label.as_deref(),
+        confidence,
+        s.confirm,
+        s.min_confidence,
+    );
+    Ok((heard, confidence, d))
+}
+
+fn act(hub: &InputHub, d: Decision) {
+    let input = match d {
+        Decision::Act(i) => i,
+        Decision::Ask(l) => UserInput::Unsure(l),
+        Decision::Ignore => return,
+    };
+    if let Err(e) = hub.send(input.clone()) {
+        tracing::warn!(input = ?input, error = %e, "voice: input not taken");
+    }
+}
+
+/// Starts listening on its own thread (the recogniser is built first: a
+/// missing model is an error here, not later).
+pub fn spawn(
+    s: &VoiceSettings,
+    input: AudioInput,
+    vocabulary: &[String],
+    hub: InputHub,
+    say: mpsc::UnboundedSender<String>,
+) -> Result<std::thread::JoinHandle<()>, String> {
+    let (mut r, g) = recogniser(s, vocabulary)?;
+    let s = s.clone();
+    std::thread::Builder::new()
+        .name("voice".into())
+        .spawn(move || {
+            let mut vad = Vad::new(VadSettings::default());
+            let mut handle = |u: Vec<i16>| match hear(&mut r, &g, &s, &u) {
+                Ok((heard, confidence, d)) => {
+                    tracing::info!(heard = ?heard, confidence, decision = ?d, "voice");
+                    act(&hub, d);
+                }
+                Err(e) => tracing::error!(error = %e, "voice: an utterance could not be decoded"),
+            };
+            match input {
+                AudioInput::File(path) => {
+                    let samples = match super::wav::read_audio(&path) {
+                        Ok(s) => s,
+                        Err(e) => {
+                            tracing::error!(error = %e, "voice: audio file");
+                            return;
+                        }
+                    };
+                    // 100 ms at a time, as a microphone delivers it
+                    for chunk in samples.chunks(1600) {
+                        for u in vad.push(chunk) {
+                            handle(u);
+                        }
+                        std::thread::sleep(Duration::from_millis(100));
+                    }
+                    if let Some(u) = vad.flush() {
+                        handle(u);
+                    }
+                    tracing::info!(file = %path.display(), "voice: the audio file ended");
+                }
+                AudioInput::Device(dev) => loop {
+                    let child = std::process::Command::new("arecord")
+                        .args(["-q", "-D", &dev, "-f", "S16_LE", "-r", "16000", "-c", "1", "-t", "raw"])
+                        .stdout(std::process::Stdio::piped())
+                        .stderr(std::process::Stdio::null())
+                        .spawn();
+                    let mut child = match child {
+                        Ok(c) => c,
+                        Err(e) => {
+                            tracing::error!(device = %dev, error = %e, "voice: cannot run arecord (alsa-utils)");
+                            say.send("I cannot hear: the microphone does not work.".into()).ok();
+                            return;
+                        }
+                    };
+                    let Some(mut out) = child.stdout.take() else { return };
+                    let mut buf = vec![0u8; 3200];
+                    loop {
+                        match out.read(&mut buf) {
+                            Ok(0) | Err(_) => break,
+                            Ok(n) => {
+                                let samples: Vec<i16> = buf[..n - n % 2]
+                                    .chunks_exact(2)
+                                    .map(|c| i16::from_le_bytes([c[0], c[1]]))
+                                    .collect();
+                                for u in vad.push(&samples) {
+                                    handle(u);
+                                }
+                            }
+                        }
+                    }
+                    let _ = child.kill();
+                    let _ = child.wait();
+                    tracing::error!(device = %dev, "voice: the microphone stopped; retrying");
+                    say.send("The microphone stopped. Trying again.".into()).ok();
+                    std::thread::sleep(Duration::from_secs(2));
+                },
+            }
+        })
+        .map_err(|e| format!("voice thread: {e}"))
+}
