@@ -357,7 +357,7 @@ fn check_voice(
     files: &[PathBuf],
     vocabulary: Option<&str>,
 ) -> Result<(), Failure> {
-    use opennav::voice::{grammar, intent, sphinx, wav};
+    use opennav::voice::{listen, wav};
     let v = &settings.voice;
     let words: Vec<String> = match vocabulary {
         Some(list) => list
@@ -367,47 +367,18 @@ fn check_voice(
             .collect(),
         None => v.vocabulary.clone(),
     };
-    let dict_path = PathBuf::from(&v.dict);
-    let dict = grammar::dictionary_words(&dict_path).map_err(|e| failed(anyhow::anyhow!(e)))?;
-    let g = grammar::build(&words, &dict).map_err(|e| super::bad_input(anyhow::anyhow!(e)))?;
+    let (mut r, g) =
+        listen::recogniser(v, &words).map_err(|e| super::bad_input(anyhow::anyhow!(e)))?;
     if !g.skipped.is_empty() {
         eprintln!(
             "opennav: not in the pronunciation dictionary, left out: {}",
             g.skipped.join(", ")
         );
     }
-    let models = sphinx::ModelPaths {
-        hmm: PathBuf::from(&v.hmm),
-        dict: dict_path,
-        english_lm: PathBuf::from(&v.english_lm),
-    };
-    let mut r = sphinx::Recognizer::new(&models, &g.jsgf).map_err(failed)?;
     for f in files {
         let samples = wav::read_audio(f).map_err(|e| super::bad_input(anyhow::anyhow!(e)))?;
-        let h = r.decode(&samples).map_err(failed)?;
-        let heard = h.as_ref().map(|h| h.text.clone());
-        let (meant, label) = intent::meaning(heard.as_deref().unwrap_or(""), &g.targets);
-        let confidence = intent::agreement(
-            &meant,
-            label.as_deref(),
-            h.as_ref().and_then(|h| h.english.as_deref()),
-        );
-        let reported = intent::reported(&meant, confidence, v.min_confidence);
-        let label = if reported == intent::Intent::Go {
-            label
-        } else {
-            None
-        };
-        println!(
-            "{}",
-            serde_json::json!({
-                "file": f,
-                "heard": heard,
-                "confidence": (confidence * 1000.0).round() / 1000.0,
-                "intent": reported,
-                "label": label,
-            })
-        );
+        let h = listen::hear(&mut r, &g, v, &samples).map_err(|e| failed(anyhow::anyhow!(e)))?;
+        println!("{}", h.json(f, v.min_confidence));
     }
     Ok(())
 }

@@ -90,6 +90,18 @@ fn rect(x0: f64, y0: f64, x1: f64, y1: f64) -> Vec<([f64; 2], [f64; 2])> {
     ]
 }
 
+/// Signed distance from `p` to the rectangle `[lo, hi]` on the floor
+/// (negative inside: how deep).
+fn box_distance(lo: [f64; 2], hi: [f64; 2], p: [f64; 2]) -> f64 {
+    let dx = (lo[0] - p[0]).max(p[0] - hi[0]);
+    let dy = (lo[1] - p[1]).max(p[1] - hi[1]);
+    if dx <= 0.0 && dy <= 0.0 {
+        dx.max(dy)
+    } else {
+        dx.max(0.0).hypot(dy.max(0.0))
+    }
+}
+
 /// Distance along the ray from `o` in direction `a` to the nearest
 /// segment, or None.
 pub fn ray_cast(o: [f64; 2], a: f64, segs: &[([f64; 2], [f64; 2])]) -> Option<f64> {
@@ -220,14 +232,7 @@ impl SimWorld {
         let mut best = f64::INFINITY;
         for p in self.outline_world() {
             for pit in &self.room.pits {
-                let dx = (pit.min_m[0] - p[0]).max(p[0] - pit.max_m[0]);
-                let dy = (pit.min_m[1] - p[1]).max(p[1] - pit.max_m[1]);
-                let d = if dx <= 0.0 && dy <= 0.0 {
-                    dx.max(dy)
-                } else {
-                    dx.max(0.0).hypot(dy.max(0.0))
-                };
-                best = best.min(d);
+                best = best.min(box_distance(pit.min_m, pit.max_m, p));
             }
         }
         best
@@ -309,14 +314,8 @@ impl SimWorld {
         for p in self.outline_world() {
             best = best.min(p[0]).min(p[1]).min(sx - p[0]).min(sy - p[1]);
             for o in self.room.objects.iter().filter(|o| o.max_m[2] > 0.05) {
-                let dx = (o.min_m[0] - p[0]).max(p[0] - o.max_m[0]);
-                let dy = (o.min_m[1] - p[1]).max(p[1] - o.max_m[1]);
-                let d = if dx <= 0.0 && dy <= 0.0 {
-                    dx.max(dy)
-                } else {
-                    dx.max(0.0).hypot(dy.max(0.0))
-                };
-                best = best.min(d);
+                let (lo, hi) = ([o.min_m[0], o.min_m[1]], [o.max_m[0], o.max_m[1]]);
+                best = best.min(box_distance(lo, hi, p));
             }
         }
         best

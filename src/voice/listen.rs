@@ -52,13 +52,45 @@ pub fn recogniser(
     Ok((r, g))
 }
 
-/// What one utterance is, as decided.
-fn hear(
+/// One utterance, understood.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Heard {
+    /// The grammar's words, None when nothing in it was heard.
+    pub heard: Option<String>,
+    pub confidence: f64,
+    pub intent: intent::Intent,
+    pub label: Option<String>,
+    pub decision: Decision,
+}
+
+impl Heard {
+    /// As `opennav check voice` reports it (`unsure` for what would be
+    /// asked back; a label only with `go`).
+    pub fn json(&self, file: &std::path::Path, min_confidence: f64) -> serde_json::Value {
+        let reported = intent::reported(&self.intent, self.confidence, min_confidence);
+        let label = if reported == intent::Intent::Go {
+            self.label.clone()
+        } else {
+            None
+        };
+        serde_json::json!({
+            "file": file,
+            "heard": self.heard,
+            "confidence": (self.confidence * 1000.0).round() / 1000.0,
+            "intent": reported,
+            "label": label,
+        })
+    }
+}
+
+/// Decodes one utterance and decides what it means (the daemon and
+/// `opennav check voice` alike).
+pub fn hear(
     r: &mut Recognizer,
     g: &Grammar,
     s: &VoiceSettings,
     samples: &[i16],
-) -> Result<(Option<String>, f64, Decision), String> {
+) -> Result<Heard, String> {
     let h = r.decode(samples).map_err(|e| e.to_string())?;
     let heard = h.as_ref().map(|h| h.text.clone());
     let (meant, label) = intent::meaning(heard.as_deref().unwrap_or(""), &g.targets);
@@ -67,14 +99,20 @@ fn hear(
         label.as_deref(),
         h.as_ref().and_then(|h| h.english.as_deref()),
     );
-    let d = intent::decide(
+    let decision = intent::decide(
         &meant,
         label.as_deref(),
         confidence,
         s.confirm,
         s.min_confidence,
     );
-    Ok((heard, confidence, d))
+    Ok(Heard {
+        heard,
+        confidence,
+        intent: meant,
+        label,
+        decision,
+    })
 }
 
 fn act(hub: &InputHub, d: Decision) {
@@ -104,9 +142,9 @@ pub fn spawn(
         .spawn(move || {
             let mut vad = Vad::new(VadSettings::default());
             let mut handle = |u: Vec<i16>| match hear(&mut r, &g, &s, &u) {
-                Ok((heard, confidence, d)) => {
-                    tracing::info!(heard = ?heard, confidence, decision = ?d, "voice");
-                    act(&hub, d);
+                Ok(h) => {
+                    tracing::info!(heard = ?h.heard, confidence = h.confidence, decision = ?h.decision, "voice");
+                    act(&hub, h.decision);
                 }
                 Err(e) => tracing::error!(error = %e, "voice: an utterance could not be decoded"),
             };
