@@ -1,0 +1,318 @@
+//! Tests of the module above (split out to keep it readable).
+
+use std::time::Duration;
+
+use super::*;
+use crate::msg::Pose2;
+
+fn control(exit_on_arrival: bool) -> Control {
+    Control::new(
+        // no depth camera in these tests: the lasers decide; the rear
+        // counts as seen (its own test turns the check on)
+        Supervisor::new(crate::safety::SafetyLimits {
+            camera_max_age: None,
+            turn_needs_seen_rear: false,
+            ..crate::config::Settings::defaults().safety_limits()
+        }),
+        GoalKeeper::new(crate::config::Settings::defaults().goal_settings()),
+        Planner::new(
+            crate::config::Settings::defaults().mpc,
+            crate::config::Settings::defaults().field,
+        ),
+        None,
+        exit_on_arrival,
+    )
+}
+
+/// One step at `ms_` in an empty room, nothing tracked.
+fn step_empty(c: &mut Control, ms_: u64) -> ControlOutput {
+    step_with_inputs_of(c, ms_, ms_)
+}
+
+/// One step at `ms_` with the empty room's inputs stamped `inputs_ms`.
+fn step_with_inputs_of(c: &mut Control, inputs_ms: u64, ms_: u64) -> ControlOutput {
+    let tracker = Tracker::new(crate::config::Settings::defaults().tracker);
+    let now = at(ms_);
+    let (o, odo) = fresh(at(inputs_ms));
+    c.step(
+        now,
+        ControlInputs {
+            obstacles: Some(&o),
+            odometry: Some(&odo),
+            tracker: &tracker,
+            camera: None,
+        },
+    )
+}
+
+fn at(ms: u64) -> Stamp {
+    Stamp(Duration::from_millis(ms))
+}
+
+/// An empty room's inputs at `now`: fresh obstacles (none near) and
+/// odometry at rest.
+fn fresh(now: Stamp) -> (Stamped<Obstacles>, Stamped<Odometry>) {
+    (
+        Stamped::new(
+            now,
+            Obstacles {
+                points_base: vec![[4.0, 0.0]],
+                ..Default::default()
+            },
+        ),
+        Stamped::new(
+            now,
+            Odometry {
+                pose: Pose2::default(),
+                v_mps: 0.0,
+                omega_radps: 0.0,
+            },
+        ),
+    )
+}
+
+#[test]
+fn a_word_starts_the_search_turn_and_a_stop_zeroes_it() {
+    let mut c = control(false);
+    let tracker = Tracker::new(crate::config::Settings::defaults().tracker);
+    c.on_input(UserInput::Goto("chair".into()));
+    let mut turning = false;
+    for k in 0..20 {
+        let now = at(50 * k);
+        let (o, odo) = fresh(now);
+        let out = c.step(
+            now,
+            ControlInputs {
+                obstacles: Some(&o),
+                odometry: Some(&odo),
+                tracker: &tracker,
+                camera: None,
+            },
+        );
+        assert_eq!(out.wanted, vec!["chair".to_string()]);
+        turning |= out.cmd.cmd.omega_radps > 0.0;
+        assert_eq!(out.cmd.cmd.v_mps, 0.0, "turning on the spot");
+    }
+    assert!(turning, "the search turns the chair");
+    c.on_input(UserInput::Stop);
+    let now = at(1000);
+    let (o, odo) = fresh(now);
+    let out = c.step(
+        now,
+        ControlInputs {
+            obstacles: Some(&o),
+            odometry: Some(&odo),
+            tracker: &tracker,
+            camera: None,
+        },
+    );
+    assert_eq!(out.cmd.cmd, VelocityCmd::default());
+    assert_eq!(out.said, vec!["Stopped.".to_string()]);
+    assert!(out.wanted.is_empty());
+    assert_eq!(out.done, None, "the daemon goes on after a stop");
+}
+
+#[test]
+fn an_unseen_rear_is_asked_about_once_and_yes_lets_the_search_turn() {
+    let mut c = control(false);
+    c.supervisor.limits.turn_needs_seen_rear = true;
+    c.on_input(UserInput::Goto("chair".into()));
+    let mut said = Vec::new();
+    for k in 0..40 {
+        let out = step_empty(&mut c, 50 * k);
+        assert_eq!(out.cmd.cmd, VelocityCmd::default(), "step {k}");
+        said.extend(out.said);
+    }
+    let asked: Vec<_> = said
+        .iter()
+        .filter(|l| l.contains("cannot see behind me"))
+        .collect();
+    assert_eq!(asked.len(), 1, "{said:?}");
+    assert_eq!(
+        c.state(),
+        SupervisorState::Stopped(crate::msg::StopReason::RearUnseen)
+    );
+    // a "yes" vouches for this spot: the search turn starts
+    c.on_input(UserInput::Yes);
+    let mut turning = false;
+    for k in 40..50 {
+        turning |= step_empty(&mut c, 50 * k).cmd.cmd.omega_radps > 0.0;
+    }
+    assert!(turning, "{:?}", c.state());
+    // "yes" with nothing asked changes nothing
+    let mut c = control(false);
+    c.supervisor.limits.turn_needs_seen_rear = true;
+    c.on_input(UserInput::Yes);
+    c.on_input(UserInput::Goto("chair".into()));
+    for k in 0..10 {
+        assert_eq!(step_empty(&mut c, 50 * k).cmd.cmd, VelocityCmd::default());
+    }
+}
+
+#[test]
+fn an_unsure_word_is_asked_back_and_only_yes_goes() {
+    let mut c = control(false);
+    c.on_input(UserInput::Unsure("door".into()));
+    assert!(c.asking());
+    let out = step_empty(&mut c, 0);
+    assert_eq!(
+        out.said,
+        vec!["Did you say the door? Say yes, or say it again.".to_string()]
+    );
+    // nothing is looked for until the answer
+    assert!(out.wanted.is_empty(), "{:?}", out.wanted);
+    assert!(step_empty(&mut c, 50).wanted.is_empty());
+    c.on_input(UserInput::Yes);
+    let out = step_empty(&mut c, 100);
+    assert_eq!(out.wanted, vec!["door".to_string()]);
+    assert!(!c.asking());
+    // "no": asked to say it again, nothing looked for
+    let mut c = control(false);
+    c.on_input(UserInput::Unsure("toilet".into()));
+    c.on_input(UserInput::No);
+    let out = step_empty(&mut c, 0);
+    assert!(
+        out.said.iter().any(|l| l == "Say the word again."),
+        "{:?}",
+        out.said
+    );
+    assert!(out.wanted.is_empty());
+}
+
+#[test]
+fn a_stop_latches_until_go_and_a_word_alone_does_not_clear_it() {
+    let mut c = control(false);
+    c.on_input(UserInput::Goto("chair".into()));
+    step_empty(&mut c, 0);
+    assert!(
+        step_empty(&mut c, 50).cmd.cmd.omega_radps > 0.0,
+        "searching"
+    );
+    c.on_input(UserInput::Stop);
+    assert_eq!(step_empty(&mut c, 100).cmd.cmd, VelocityCmd::default());
+    // a new word: remembered, but the chair stays stopped
+    c.on_input(UserInput::Goto("desk".into()));
+    for k in 3..10 {
+        let out = step_empty(&mut c, 50 * k);
+        assert_eq!(out.cmd.cmd, VelocityCmd::default());
+        assert_eq!(
+            out.cmd.state,
+            SupervisorState::Stopped(crate::msg::StopReason::UserStop)
+        );
+    }
+    // "go": the desk is looked for
+    c.on_input(UserInput::Go);
+    let out = step_empty(&mut c, 600);
+    assert!(
+        out.said
+            .iter()
+            .any(|s| s == "Going on. Looking for a desk."),
+        "{:?}",
+        out.said
+    );
+    assert_eq!(out.wanted, vec!["desk".to_string()]);
+    assert!(
+        step_empty(&mut c, 650).cmd.cmd.omega_radps > 0.0,
+        "searching again"
+    );
+    // the joystick takes over: latched the same way
+    c.on_actuator_event(&ActuatorEvent::UserDeflection { x: 0, y: 40 });
+    c.on_input(UserInput::Goto("desk".into()));
+    assert_eq!(step_empty(&mut c, 700).cmd.cmd, VelocityCmd::default());
+}
+
+#[test]
+fn a_takeover_that_does_not_happen_is_said_and_latched() {
+    let mut c = control(false);
+    c.on_input(UserInput::Goto("chair".into()));
+    step_empty(&mut c, 0);
+    // the writer learned the joystick id, but never became active
+    c.on_actuator_event(&ActuatorEvent::Ready {
+        joystick_id: Some(0x0200_0100),
+    });
+    let mut said = Vec::new();
+    for k in 1..40 {
+        said.extend(step_empty(&mut c, 50 * k).said);
+    }
+    assert!(
+        said.iter()
+            .any(|s| s.starts_with("I cannot take over the chair's joystick")),
+        "{said:?}"
+    );
+    let out = step_empty(&mut c, 2000);
+    assert_eq!(out.cmd.state, SupervisorState::Fault(FaultReason::Takeover));
+    assert_eq!(out.cmd.cmd, VelocityCmd::default());
+    // taken over in time: nothing said
+    let mut c = control(false);
+    step_empty(&mut c, 0);
+    c.on_actuator_event(&ActuatorEvent::Ready { joystick_id: None });
+    c.on_actuator_event(&ActuatorEvent::Active);
+    let said: Vec<String> = (1..200)
+        .flat_map(|k| step_empty(&mut c, 50 * k).said)
+        .collect();
+    assert!(said.is_empty(), "{said:?}");
+    // no joystick module at all: said once
+    let mut c = control(false);
+    let said: Vec<String> = (0..200)
+        .flat_map(|k| step_empty(&mut c, 50 * k).said)
+        .collect();
+    assert_eq!(
+        said,
+        vec!["The chair's joystick module does not answer: I cannot drive.".to_string()]
+    );
+}
+
+#[test]
+fn a_motor_link_fault_is_latched_as_one_and_a_bus_fault_as_a_bus_fault() {
+    for kind in [FaultReason::MotorLink, FaultReason::CanBus] {
+        let mut c = control(false);
+        let tracker = Tracker::new(crate::config::Settings::defaults().tracker);
+        c.on_actuator_event(&ActuatorEvent::Fault {
+            kind,
+            reason: "link down".into(),
+        });
+        let (o, odo) = fresh(at(0));
+        let out = c.step(
+            at(0),
+            ControlInputs {
+                obstacles: Some(&o),
+                odometry: Some(&odo),
+                tracker: &tracker,
+                camera: None,
+            },
+        );
+        assert_eq!(out.cmd.state, SupervisorState::Fault(kind));
+        assert_eq!(
+            out.said,
+            vec!["Motor interface fault: link down. Stopped.".to_string()]
+        );
+    }
+}
+
+#[test]
+fn stale_inputs_give_zero_and_a_dead_task_latches_a_fault() {
+    let mut c = control(true);
+    c.on_input(UserInput::Goto("chair".into()));
+    // odometry 300 ms old: nothing moves
+    let out = step_with_inputs_of(&mut c, 0, 300);
+    assert_eq!(out.cmd.cmd, VelocityCmd::default());
+    c.on_task_failure("perception", "panicked");
+    let out = step_empty(&mut c, 350);
+    assert_eq!(out.cmd.cmd, VelocityCmd::default());
+    assert_eq!(out.cmd.state, SupervisorState::Fault(FaultReason::Task));
+    assert_eq!(
+        out.done,
+        Some(Outcome::Fault {
+            task: "perception".into(),
+            reason: "panicked".into()
+        })
+    );
+    assert_eq!(
+        out.said,
+        vec!["Internal fault in perception. Stopped.".to_string()]
+    );
+    // a word does not clear the fault
+    c.on_input(UserInput::Goto("chair".into()));
+    let out = step_empty(&mut c, 400);
+    assert_eq!(out.cmd.cmd, VelocityCmd::default());
+}
