@@ -6,17 +6,16 @@
 //! depth obstacles off, the same trips end in a collision or a fall (so
 //! these tests fail without the feature).
 
-use std::sync::Arc;
+mod common;
+
 use std::time::Duration;
 
 use opennav::config::Settings;
 use opennav::daemon::{RunOptions, RunReport};
-use opennav::msg::{Clock, Pose2, StopReason, SupervisorState, TokioClock, UserInput};
+use opennav::msg::{Pose2, StopReason, SupervisorState, UserInput};
 use opennav::sim::devices::SimSummary;
 use opennav::sim::room::{Pit, Room, SimObject};
 use opennav::sim::world::SimWorld;
-use tokio::sync::mpsc;
-use tokio_util::sync::CancellationToken;
 
 const HALL_WIDTH_M: f64 = 1.4;
 /// Where the obstacle's near face (or the step's edge) is, x in metres.
@@ -75,7 +74,6 @@ fn hall(across: Across) -> Room {
 async fn trip(across: Across, depth_obstacles: bool) -> (RunReport, SimSummary) {
     let mut settings = Settings::load(None).expect("defaults");
     settings.depth_obstacles.enabled = depth_obstacles;
-    let clock: Arc<dyn Clock> = Arc::new(TokioClock::new());
     let mut world = SimWorld::living_room(settings.drive_params());
     world.room = hall(across);
     let start = Pose2 {
@@ -86,29 +84,18 @@ async fn trip(across: Across, depth_obstacles: bool) -> (RunReport, SimSummary) 
     world.truth = start;
     world.start = start;
     world.report.truth = start;
-    let (devices, sim) =
-        opennav::sim::devices::devices(&settings, world, clock.clone()).expect("devices");
-    let (tx, rx) = mpsc::channel(4);
-    tx.send(UserInput::Goto("cabinet".into()))
-        .await
-        .expect("send");
-    let report = opennav::daemon::run(
-        devices,
+    common::sim_run(
         &settings,
+        world,
+        vec![(Duration::ZERO, UserInput::Goto("cabinet".into()))],
         RunOptions {
             exit_on_arrival: true,
             max_duration: Some(Duration::from_secs(40)),
             ..Default::default()
         },
-        rx,
-        clock,
-        CancellationToken::new(),
+        |_, _| {},
     )
     .await
-    .expect("runs");
-    drop(tx);
-    let summary = sim.summary(Some("cabinet")).expect("summary");
-    (report, summary)
 }
 
 /// The chair went towards the cabinet, stopped before the obstacle (no

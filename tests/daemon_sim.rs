@@ -6,18 +6,17 @@
 //! failing task bring it to rest; two runs of one trip are identical; a
 //! real-time run reaches the same outcome.
 
+mod common;
+
 use std::process::{Command, Stdio};
-use std::sync::Arc;
 use std::time::Duration;
 
 use opennav::config::Settings;
 use opennav::daemon::{Devices, Outcome, RunOptions, RunReport};
-use opennav::msg::{Clock, TokioClock, UserInput};
+use opennav::msg::UserInput;
 use opennav::sim::devices::{SimHandle, SimSummary};
 use opennav::sim::world::SimWorld;
 use serde_json::Value;
-use tokio::sync::mpsc;
-use tokio_util::sync::CancellationToken;
 
 fn opennav() -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_opennav"));
@@ -35,43 +34,15 @@ fn report(stdout: &[u8]) -> Value {
     serde_json::from_str(line).expect("report JSON")
 }
 
-/// One simulated trip through `daemon::run` on the caller's (paused)
-/// runtime: `words` are said at their times; `adapt` may replace devices.
+/// One simulated trip in the living room (`common::sim_run`).
 async fn trip(
     words: Vec<(Duration, UserInput)>,
     opts: RunOptions,
     adapt: impl FnOnce(&mut Devices, &SimHandle),
 ) -> (RunReport, SimSummary) {
     let settings = Settings::load(None).expect("defaults");
-    let clock: Arc<dyn Clock> = Arc::new(TokioClock::new());
     let world = SimWorld::living_room(settings.drive_params());
-    let (mut devices, sim) =
-        opennav::sim::devices::devices(&settings, world, clock.clone()).expect("devices");
-    adapt(&mut devices, &sim);
-    let (tx, rx) = mpsc::channel(16);
-    tokio::spawn(async move {
-        for (at, w) in words {
-            tokio::time::sleep(at).await;
-            if tx.send(w).await.is_err() {
-                return;
-            }
-        }
-        // keep the channel open: the user may still speak
-        std::future::pending::<()>().await;
-    });
-    let r = opennav::daemon::run(
-        devices,
-        &settings,
-        opts,
-        rx,
-        clock,
-        CancellationToken::new(),
-    )
-    .await
-    .expect("runs");
-    let label = r.goal.label().map(str::to_string);
-    let s = sim.summary(label.as_deref()).expect("summary");
-    (r, s)
+    common::sim_run(&settings, world, words, opts, adapt).await
 }
 
 fn go(word: &str) -> Vec<(Duration, UserInput)> {

@@ -2,62 +2,44 @@
 //! to the state directory; the next start stays stopped and says why until
 //! a person acknowledges it (`opennav ack-fault`); then the chair drives.
 
+mod common;
+
 use std::process::Command;
-use std::sync::Arc;
 use std::time::Duration;
 
 use opennav::actuation::can::BusError;
 use opennav::config::Settings;
 use opennav::daemon::latch;
 use opennav::daemon::{RunOptions, RunReport};
-use opennav::msg::{Clock, FaultReason, SupervisorState, TokioClock, UserInput};
+use opennav::msg::{FaultReason, SupervisorState, UserInput};
 use opennav::sim::devices::SimSummary;
 use opennav::sim::world::SimWorld;
-use tokio_util::sync::CancellationToken;
 
 /// Looking for the cabinet (the chair turns after "yes") for 4 s of the
 /// virtual clock; with `bus_off_at`, the bus goes off then.
 async fn run(state: &std::path::Path, bus_off_at: Option<Duration>) -> (RunReport, SimSummary) {
     let settings = Settings::load(None).expect("defaults");
-    let clock: Arc<dyn Clock> = Arc::new(TokioClock::new());
     let world = SimWorld::living_room(settings.drive_params());
-    let (devices, sim) =
-        opennav::sim::devices::devices(&settings, world, clock.clone()).expect("devices");
-    if let Some(at) = bus_off_at {
-        let bus = sim.bus.clone();
-        tokio::spawn(async move {
-            tokio::time::sleep(at).await;
-            bus.inject_error(BusError::bus_off());
-        });
-    }
-    let (tx, rx) = tokio::sync::mpsc::channel(4);
-    tx.send(UserInput::Goto("cabinet".into()))
-        .await
-        .expect("word");
-    // "yes" to the question about the rear (never seen at start-up)
-    let yes = tx.clone();
-    tokio::spawn(async move {
-        tokio::time::sleep(Duration::from_millis(2500)).await;
-        yes.send(UserInput::Yes).await.ok();
-    });
+    let words = vec![
+        (Duration::ZERO, UserInput::Goto("cabinet".into())),
+        // "yes" to the question about the rear (never seen at start-up)
+        (Duration::from_millis(2500), UserInput::Yes),
+    ];
     let opts = RunOptions {
         max_duration: Some(Duration::from_secs(4)),
         state_dir: Some(state.to_path_buf()),
         ..Default::default()
     };
-    let r = opennav::daemon::run(
-        devices,
-        &settings,
-        opts,
-        rx,
-        clock,
-        CancellationToken::new(),
-    )
+    common::sim_run(&settings, world, words, opts, |_, sim| {
+        if let Some(at) = bus_off_at {
+            let bus = sim.bus.clone();
+            tokio::spawn(async move {
+                tokio::time::sleep(at).await;
+                bus.inject_error(BusError::bus_off());
+            });
+        }
+    })
     .await
-    .expect("runs");
-    drop(tx);
-    let s = sim.summary(Some("cabinet")).expect("summary");
-    (r, s)
 }
 
 #[tokio::test(start_paused = true)]

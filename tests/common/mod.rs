@@ -57,3 +57,48 @@ pub fn init_ort() {
 pub fn read_json(p: &Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(p).expect("readable")).expect("json")
 }
+
+/// The daemon on the simulator through `daemon::run` on the caller's
+/// (paused) runtime: `world` with `settings`; `words` said in order, each
+/// after its delay from the one before (the channel then stays open, as a
+/// user may still speak); `adapt` may change the devices first. The run's
+/// report and the simulator's measurements for the goal's word.
+pub async fn sim_run(
+    settings: &opennav::config::Settings,
+    world: opennav::sim::world::SimWorld,
+    words: Vec<(std::time::Duration, opennav::msg::UserInput)>,
+    opts: opennav::daemon::RunOptions,
+    adapt: impl FnOnce(&mut opennav::daemon::Devices, &opennav::sim::devices::SimHandle),
+) -> (
+    opennav::daemon::RunReport,
+    opennav::sim::devices::SimSummary,
+) {
+    use std::sync::Arc;
+    let clock: Arc<dyn opennav::msg::Clock> = Arc::new(opennav::msg::TokioClock::new());
+    let (mut devices, sim) =
+        opennav::sim::devices::devices(settings, world, clock.clone()).expect("devices");
+    adapt(&mut devices, &sim);
+    let (tx, rx) = tokio::sync::mpsc::channel(16);
+    tokio::spawn(async move {
+        for (at, w) in words {
+            tokio::time::sleep(at).await;
+            if tx.send(w).await.is_err() {
+                return;
+            }
+        }
+        std::future::pending::<()>().await;
+    });
+    let r = opennav::daemon::run(
+        devices,
+        settings,
+        opts,
+        rx,
+        clock,
+        tokio_util::sync::CancellationToken::new(),
+    )
+    .await
+    .expect("runs");
+    let label = r.goal.label().map(str::to_string);
+    let s = sim.summary(label.as_deref()).expect("summary");
+    (r, s)
+}
