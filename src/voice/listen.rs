@@ -93,7 +93,19 @@ pub fn hear(
 ) -> Result<Heard, String> {
     let h = r.decode(samples).map_err(|e| e.to_string())?;
     let heard = h.as_ref().map(|h| h.text.clone());
-    let (meant, label) = intent::meaning(heard.as_deref().unwrap_or(""), &g.targets);
+    let (mut meant, mut label) = intent::meaning(heard.as_deref().unwrap_or(""), &g.targets);
+    // a missed stop is dangerous, a false one is not: a stop among the
+    // grammar's close readings is a stop
+    let stop_nearby = h.as_ref().is_some_and(|h| {
+        h.alternatives
+            .iter()
+            .any(|a| intent::meaning(a, &g.targets).0 == intent::Intent::Stop)
+    });
+    if stop_nearby && meant != intent::Intent::Stop {
+        tracing::info!(heard = ?heard, "voice: a stop among the close readings: stopping");
+        meant = intent::Intent::Stop;
+        label = None;
+    }
     let confidence = intent::agreement(
         &meant,
         label.as_deref(),

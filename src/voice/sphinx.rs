@@ -26,6 +26,10 @@ struct LogMath {
 struct Seg {
     _private: [u8; 0],
 }
+#[repr(C)]
+struct NBest {
+    _private: [u8; 0],
+}
 
 extern "C" {
     fn ps_args() -> *const ArgT;
@@ -52,6 +56,10 @@ extern "C" {
     fn ps_seg_iter(ps: *mut Decoder) -> *mut Seg;
     fn ps_seg_next(seg: *mut Seg) -> *mut Seg;
     fn ps_seg_prob(seg: *mut Seg, ascr: *mut i32, lscr: *mut i32, lback: *mut i32) -> i32;
+    fn ps_nbest(ps: *mut Decoder) -> *mut NBest;
+    fn ps_nbest_next(nbest: *mut NBest) -> *mut NBest;
+    fn ps_nbest_hyp(nbest: *mut NBest, out_score: *mut i32) -> *const c_char;
+    fn ps_nbest_free(nbest: *mut NBest);
 }
 
 /// Where the models are (Debian's `pocketsphinx-en-us`).
@@ -101,6 +109,9 @@ pub struct Hypothesis {
     /// What a general English decode of the same audio heard (free
     /// words, no grammar): agreement with `text` is the confidence.
     pub english: Option<String>,
+    /// The grammar's next-best readings of the same audio, best first (a
+    /// "stop" among them is not ignored).
+    pub alternatives: Vec<String>,
 }
 
 /// A PocketSphinx decoder searching one JSGF grammar.
@@ -253,6 +264,32 @@ impl Recognizer {
         }
     }
 
+    /// The last utterance's best readings under the current search (at
+    /// most `n`, best first, distinct).
+    fn nbest(&mut self, n: usize) -> Vec<String> {
+        let mut out: Vec<String> = Vec::new();
+        // SAFETY: valid decoder after an utterance; the iterator is freed
+        // by ps_nbest_next at its end, or here when we stop early
+        unsafe {
+            let mut it = ps_nbest(self.ps);
+            while !it.is_null() && out.len() < n {
+                let mut score = 0i32;
+                let h = ps_nbest_hyp(it, &mut score);
+                if !h.is_null() {
+                    let t = CStr::from_ptr(h).to_string_lossy().trim().to_string();
+                    if !t.is_empty() && !out.contains(&t) {
+                        out.push(t);
+                    }
+                }
+                it = ps_nbest_next(it);
+            }
+            if !it.is_null() {
+                ps_nbest_free(it);
+            }
+        }
+        out
+    }
+
     /// Decodes one whole utterance (16 kHz mono samples) with the grammar,
     /// and again as free phones for the comparison; None when nothing in
     /// the grammar was heard.
@@ -264,6 +301,7 @@ impl Recognizer {
         if text.is_empty() {
             return Ok(None);
         }
+        let alternatives: Vec<String> = self.nbest(10).into_iter().filter(|t| *t != text).collect();
         self.select("english")?;
         let english = self.pass(samples);
         self.select("opennav")?;
@@ -272,6 +310,7 @@ impl Recognizer {
             score,
             probability,
             english: english?.map(|(t, _, _)| t),
+            alternatives,
         }))
     }
 }
