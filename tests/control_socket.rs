@@ -156,6 +156,32 @@ fn clients_drive_the_daemon_through_its_socket() {
         t.join().expect("client thread");
     }
 
+    // sixteen clients hold every slot: a seventeenth is refused as busy,
+    // unless it asks for a stop, which is always taken
+    let out = client(&["resume"], &socket);
+    assert!(out.status.success());
+    wait_status(&socket, Duration::from_secs(5), |s| {
+        s["state"] != serde_json::json!({"Stopped": "UserStop"})
+    });
+    let held: Vec<UnixStream> = (0..opennav::input::socket::MAX_CLIENTS)
+        .map(|_| UnixStream::connect(&socket).expect("connect"))
+        .collect();
+    std::thread::sleep(Duration::from_millis(200));
+    let one = |line: &[u8]| {
+        let stream = UnixStream::connect(&socket).expect("connect");
+        let mut conn = (stream.try_clone().expect("clone"), BufReader::new(stream));
+        exchange(&mut conn, line)
+    };
+    let r = one(b"{\"status\": true}\n");
+    assert_eq!(r["ok"], false, "{r}");
+    assert!(r["error"].as_str().expect("error").contains("busy"), "{r}");
+    let r = one(b"{\"stop\": true}\n");
+    assert_eq!(r["ok"], true, "{r}");
+    drop(held);
+    wait_status(&socket, Duration::from_secs(5), |s| {
+        s["state"] == serde_json::json!({"Stopped": "UserStop"})
+    });
+
     // the daemon ends: its socket goes with it
     // SAFETY: kill(2) on our own child
     assert_eq!(

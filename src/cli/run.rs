@@ -273,6 +273,17 @@ pub fn run(config: Option<&std::path::Path>, args: RunArgs) -> Result<(), Failur
             .await
             .map_err(failed);
         socket_stop.cancel();
+        // gone with the daemon (the process may end before the serving
+        // task sees the cancel and drops the socket)
+        if let Some(p) = &socket_path {
+            match std::fs::remove_file(p) {
+                Ok(()) => {}
+                Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+                Err(e) => {
+                    tracing::warn!(path = %p.display(), error = %e, "control socket not removed")
+                }
+            }
+        }
         switch_stop.store(true, std::sync::atomic::Ordering::Relaxed);
         let report = report?;
         let label = report.goal.label().map(str::to_string);

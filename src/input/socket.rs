@@ -32,6 +32,8 @@ use crate::msg::UserInput;
 pub const MAX_LINE: usize = 4096;
 /// Connections served at once.
 pub const MAX_CLIENTS: usize = 16;
+/// How long a connection waits for a slot before it is refused.
+const SLOT_WAIT: std::time::Duration = std::time::Duration::from_millis(500);
 
 /// One request.
 #[derive(Debug, Clone, PartialEq)]
@@ -152,14 +154,16 @@ impl ControlSocket {
                     }
                 },
             };
-            let Ok(permit) = slots.clone().try_acquire_owned() else {
-                let mut s = stream;
-                let line = reply_error(&format!("busy: at most {MAX_CLIENTS} connections"));
-                let _ = s.write_all(line.as_bytes()).await;
-                continue;
-            };
-            let (hub, status, cancel) = (hub.clone(), status.clone(), cancel.clone());
+            let (hub, status, cancel, slots) =
+                (hub.clone(), status.clone(), cancel.clone(), slots.clone());
             tokio::spawn(async move {
+                // a slot freed a moment ago may not be returned yet (its
+                // client's end not read): wait a little before refusing
+                let permit = tokio::time::timeout(SLOT_WAIT, slots.acquire_owned()).await;
+                let Ok(Ok(permit)) = permit else {
+                    busy(stream, &hub).await;
+                    return;
+                };
                 tokio::select! {
                     _ = cancel.cancelled() => {}
                     r = client(stream, hub, status) => {
@@ -171,6 +175,30 @@ impl ControlSocket {
                 drop(permit);
             });
         }
+    }
+}
+
+/// A connection beyond [`MAX_CLIENTS`]: its first line is still read, and
+/// a stop in it is taken; anything else is refused as busy.
+async fn busy(stream: UnixStream, hub: &InputHub) {
+    let (read, mut write) = stream.into_split();
+    let mut line = Vec::new();
+    let read = tokio::time::timeout(
+        SLOT_WAIT,
+        BufReader::new(read)
+            .take(MAX_LINE as u64)
+            .read_until(b'\n', &mut line),
+    )
+    .await;
+    let reply = if read.is_ok() && mentions_stop(&line) {
+        // a stop is always accepted
+        let _ = hub.send(UserInput::Stop);
+        format!("{}\n", json!({"ok": true}))
+    } else {
+        reply_error(&format!("busy: at most {MAX_CLIENTS} connections"))
+    };
+    if let Err(e) = write.write_all(reply.as_bytes()).await {
+        tracing::debug!(error = %e, "control socket: a busy reply was not delivered");
     }
 }
 
