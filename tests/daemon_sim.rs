@@ -24,15 +24,7 @@ fn opennav() -> Command {
     c
 }
 
-fn report(stdout: &[u8]) -> Value {
-    let text = String::from_utf8_lossy(stdout);
-    let line = text
-        .lines()
-        .rev()
-        .find(|l| l.trim_start().starts_with('{'))
-        .unwrap_or_else(|| panic!("no report in {text}"));
-    serde_json::from_str(line).expect("report JSON")
-}
+use common::report;
 
 /// One simulated trip in the living room (`common::sim_run`).
 async fn trip(

@@ -176,8 +176,7 @@ fn run_listening(
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let text = String::from_utf8_lossy(&out.stdout);
-    serde_json::from_str(text.lines().last().expect("report")).expect("report JSON")
+    common::report(&out.stdout)
 }
 
 #[test]

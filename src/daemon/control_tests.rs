@@ -74,38 +74,17 @@ fn fresh(now: Stamp) -> (Stamped<Obstacles>, Stamped<Odometry>) {
 #[test]
 fn a_word_starts_the_search_turn_and_a_stop_zeroes_it() {
     let mut c = control(false);
-    let tracker = Tracker::new(crate::config::Settings::defaults().tracker);
     c.on_input(UserInput::Goto("chair".into()));
     let mut turning = false;
     for k in 0..20 {
-        let now = at(50 * k);
-        let (o, odo) = fresh(now);
-        let out = c.step(
-            now,
-            ControlInputs {
-                obstacles: Some(&o),
-                odometry: Some(&odo),
-                tracker: &tracker,
-                camera: None,
-            },
-        );
+        let out = step_empty(&mut c, 50 * k);
         assert_eq!(out.wanted, vec!["chair".to_string()]);
         turning |= out.cmd.cmd.omega_radps > 0.0;
         assert_eq!(out.cmd.cmd.v_mps, 0.0, "turning on the spot");
     }
     assert!(turning, "the search turns the chair");
     c.on_input(UserInput::Stop);
-    let now = at(1000);
-    let (o, odo) = fresh(now);
-    let out = c.step(
-        now,
-        ControlInputs {
-            obstacles: Some(&o),
-            odometry: Some(&odo),
-            tracker: &tracker,
-            camera: None,
-        },
-    );
+    let out = step_empty(&mut c, 1000);
     assert_eq!(out.cmd.cmd, VelocityCmd::default());
     assert_eq!(out.said, vec!["Stopped.".to_string()]);
     assert!(out.wanted.is_empty());

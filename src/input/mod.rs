@@ -54,10 +54,16 @@ pub fn hub() -> (InputHub, InputReceivers) {
 }
 
 impl InputHub {
+    /// A stop: one tick of the counter the control task watches (it
+    /// cannot be full, and a closed control task has nothing to stop).
+    pub fn stop(&self) {
+        self.stops.send_modify(|n| *n += 1);
+    }
+
     /// Hands an input on now; a stop always.
     pub fn send(&self, input: UserInput) -> Result<(), InputError> {
         if input == UserInput::Stop {
-            self.stops.send_modify(|n| *n += 1);
+            self.stop();
             return Ok(());
         }
         self.words.try_send(input).map_err(|e| match e {
@@ -70,7 +76,7 @@ impl InputHub {
     /// is full, never for a stop.
     pub fn blocking_send(&self, input: UserInput) -> Result<(), InputError> {
         if input == UserInput::Stop {
-            self.stops.send_modify(|n| *n += 1);
+            self.stop();
             return Ok(());
         }
         self.words

@@ -192,7 +192,7 @@ async fn busy(stream: UnixStream, hub: &InputHub) {
     .await;
     let reply = if read.is_ok() && mentions_stop(&line) {
         // a stop is always accepted
-        let _ = hub.send(UserInput::Stop);
+        hub.stop();
         format!("{}\n", json!({"ok": true}))
     } else {
         reply_error(&format!("busy: at most {MAX_CLIENTS} connections"))
@@ -218,7 +218,7 @@ pub fn answer(line: &[u8], hub: &InputHub, status: &DaemonStatus) -> String {
         Ok(t) => t,
         Err(_) => {
             if mentions_stop(line) {
-                let _ = hub.send(UserInput::Stop);
+                hub.stop();
             }
             return reply_error("not UTF-8");
         }
@@ -232,7 +232,7 @@ pub fn answer(line: &[u8], hub: &InputHub, status: &DaemonStatus) -> String {
         Err(e) => {
             if mentions_stop(line) {
                 // garbled, but it asked for a stop: stopped
-                let _ = hub.send(UserInput::Stop);
+                hub.stop();
                 return reply_error(&format!("{e} (stopped anyway: the line asks for a stop)"));
             }
             reply_error(&e)
@@ -273,7 +273,7 @@ async fn client(
                 }
             }
             if stop {
-                let _ = hub.send(UserInput::Stop);
+                hub.stop();
             }
             reply_error(&format!("line longer than {MAX_LINE} bytes: dropped"))
         } else {

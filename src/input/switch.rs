@@ -213,7 +213,7 @@ pub async fn run(
                     Some(SwitchEdge::Back) => vec![ScanAction::Say("The switch is back.".into())],
                     None => {
                         tracing::error!("the switch reader ended: stopping the chair");
-                        let _ = hub.send(UserInput::Stop);
+                        hub.stop();
                         return;
                     }
                 }

@@ -211,8 +211,10 @@ pub fn spawn(
                             }
                         }
                     }
-                    let _ = child.kill();
-                    let _ = child.wait();
+                    // its output ended: make sure it is gone before the next
+                    if let Err(e) = child.kill().and_then(|_| child.wait().map(drop)) {
+                        tracing::debug!(error = %e, "voice: arecord already gone");
+                    }
                     tracing::error!(device = %dev, "voice: the microphone stopped; retrying");
                     say.send("The microphone stopped. Trying again.".into()).ok();
                     std::thread::sleep(Duration::from_secs(2));

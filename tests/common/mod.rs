@@ -102,3 +102,14 @@ pub async fn sim_run(
     let s = sim.summary(label.as_deref()).expect("summary");
     (r, s)
 }
+
+/// The JSON report `opennav run` prints last on stdout.
+pub fn report(stdout: &[u8]) -> serde_json::Value {
+    let text = String::from_utf8_lossy(stdout);
+    let line = text
+        .lines()
+        .rev()
+        .find(|l| l.trim_start().starts_with('{'))
+        .unwrap_or_else(|| panic!("no report in {text}"));
+    serde_json::from_str(line).expect("report JSON")
+}
