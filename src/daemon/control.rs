@@ -73,6 +73,10 @@ pub struct Control {
     pub view: Option<CameraView>,
     /// End the trip when the goal is reached, lost or not found.
     pub exit_on_arrival: bool,
+    /// What perception looks for without a goal (the words a person can
+    /// ask for), so the switch menu and the status can offer what is
+    /// around; empty: nothing is looked for until a word comes.
+    pub idle_words: Vec<String>,
     planner_cmd: Option<Stamped<VelocityCmd>>,
     said: Vec<String>,
     done: Option<Outcome>,
@@ -134,6 +138,7 @@ impl Control {
             planner,
             view,
             exit_on_arrival,
+            idle_words: Vec::new(),
             planner_cmd: None,
             said: Vec::new(),
             done: None,
@@ -366,7 +371,10 @@ impl Control {
         }
         ControlOutput {
             cmd,
-            wanted: self.goal.wanted(),
+            wanted: match self.goal.wanted() {
+                w if w.is_empty() => self.idle_words.clone(),
+                w => w,
+            },
             said: std::mem::take(&mut self.said),
             done: self.done.clone(),
         }

@@ -186,13 +186,17 @@ async fn panic_after<F: std::future::Future>(after: Option<Duration>, fut: F) ->
 
 /// The control step from config.
 fn new_control(settings: &Settings, view: Option<CameraView>, exit_on_arrival: bool) -> Control {
-    Control::new(
+    let mut control = Control::new(
         Supervisor::new(settings.safety_limits()),
         GoalKeeper::new(settings.goal_settings()),
         Planner::new(settings.mpc, settings.field),
         view,
         exit_on_arrival,
-    )
+    );
+    // without a goal perception looks for every word a person may ask
+    // for: the switch menu offers what is around
+    control.idle_words = settings.voice.vocabulary.clone();
+    control
 }
 
 /// The text of a panic's payload.

@@ -35,21 +35,65 @@ pub fn recogniser(
     vocabulary: &[String],
 ) -> Result<(Recognizer, Grammar), String> {
     let dict_path = PathBuf::from(&s.dict);
-    let dict = grammar::dictionary_words(&dict_path)?;
+    let dict = grammar::read_dictionary(&dict_path)?;
     let g = grammar::build(vocabulary, &dict)?;
     if !g.skipped.is_empty() {
         tracing::warn!(skipped = ?g.skipped, "voice: words not in the pronunciation dictionary cannot be recognised");
     }
-    let r = Recognizer::new(
+    let mut r = Recognizer::with_pronunciations(
         &ModelPaths {
             hmm: PathBuf::from(&s.hmm),
             dict: dict_path,
             english_lm: PathBuf::from(&s.english_lm),
         },
         &g.jsgf,
+        &g.extra_pronunciations,
     )
     .map_err(|e| e.to_string())?;
+    // each target's rival: the grammar without it
+    for i in 0..g.targets.len() {
+        if let Some(jsgf) = g.jsgf_without(i) {
+            r.add_grammar(&rival_search(i), &jsgf)
+                .map_err(|e| e.to_string())?;
+        }
+    }
     Ok((r, g))
+}
+
+fn rival_search(index: usize) -> String {
+    format!("rival{index}")
+}
+
+/// The standard deviation of the noise floor added before decoding, in
+/// 16-bit sample units (about −60 dBFS). A microphone always hears a room;
+/// digital silence (a file, a muted input) is outside what the acoustic
+/// model and PocketSphinx's noise estimate were made for, and recognition
+/// of such audio is measurably worse (`benches/voice_commands.rs`).
+pub const NOISE_FLOOR: f64 = 30.0;
+
+/// `samples` with the noise floor added: deterministic (the same audio is
+/// always heard the same way), Gaussian from a fixed-seed generator.
+pub fn with_noise_floor(samples: &[i16]) -> Vec<i16> {
+    let mut state: u64 = 0x9E37_79B9_7F4A_7C15;
+    let mut uniform = move || {
+        // xorshift64*
+        state ^= state >> 12;
+        state ^= state << 25;
+        state ^= state >> 27;
+        let x = state.wrapping_mul(0x2545_F491_4F6C_DD1D);
+        ((x >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+    };
+    samples
+        .iter()
+        .map(|&v| {
+            // Box–Muller
+            let (u1, u2) = (uniform(), uniform());
+            let n = (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos();
+            (v as f64 + NOISE_FLOOR * n)
+                .round()
+                .clamp(i16::MIN as f64, i16::MAX as f64) as i16
+        })
+        .collect()
 }
 
 /// One utterance, understood.
@@ -91,7 +135,8 @@ pub fn hear(
     s: &VoiceSettings,
     samples: &[i16],
 ) -> Result<Heard, String> {
-    let h = r.decode(samples).map_err(|e| e.to_string())?;
+    let samples = with_noise_floor(samples);
+    let h = r.decode(&samples).map_err(|e| e.to_string())?;
     let heard = h.as_ref().map(|h| h.text.clone());
     let (mut meant, mut label) = intent::meaning(heard.as_deref().unwrap_or(""), &g.targets);
     // a missed stop is dangerous, a false one is not: a stop among the
@@ -106,10 +151,34 @@ pub fn hear(
         meant = intent::Intent::Stop;
         label = None;
     }
-    let confidence = intent::agreement(
+    // a heard target against its rival: the best reading without it
+    let margin_per_frame = match (&meant, &label, &h) {
+        (intent::Intent::Go, Some(l), Some(h)) => match g.targets.iter().position(|t| t == l) {
+            Some(i) => r
+                .read(&rival_search(i), &samples)
+                .map_err(|e| e.to_string())?
+                .map(|rival| (h.score as f64 - rival.score as f64) / h.frames.max(1) as f64),
+            None => None,
+        },
+        _ => None,
+    };
+    let nbest_agreement = h.as_ref().map_or(0.0, |h| {
+        let same = h
+            .alternatives
+            .iter()
+            .filter(|a| intent::meaning(a, &g.targets) == (meant.clone(), label.clone()))
+            .count();
+        (1 + same) as f64 / (1 + h.alternatives.len()) as f64
+    });
+    let confidence = intent::confidence(
         &meant,
         label.as_deref(),
-        h.as_ref().and_then(|h| h.english.as_deref()),
+        &intent::Evidence {
+            english: h.as_ref().and_then(|h| h.english.as_deref()),
+            margin_per_frame,
+            nbest_agreement,
+            inner_silence_frames: h.as_ref().map_or(0, |h| h.inner_silence_frames),
+        },
     );
     let decision = intent::decide(
         &meant,

@@ -60,6 +60,44 @@ extern "C" {
     fn ps_nbest_next(nbest: *mut NBest) -> *mut NBest;
     fn ps_nbest_hyp(nbest: *mut NBest, out_score: *mut i32) -> *const c_char;
     fn ps_nbest_free(nbest: *mut NBest);
+    fn ps_add_word(
+        ps: *mut Decoder,
+        word: *const c_char,
+        phones: *const c_char,
+        update: c_int,
+    ) -> c_int;
+    fn ps_get_n_frames(ps: *mut Decoder) -> c_int;
+    fn ps_seg_word(seg: *mut Seg) -> *const c_char;
+    fn ps_seg_frames(seg: *mut Seg, out_sf: *mut c_int, out_ef: *mut c_int);
+}
+
+/// One pass's best path.
+struct Pass {
+    text: String,
+    score: i32,
+    probability: f64,
+    inner_silence_frames: i32,
+}
+
+/// A path's segments (word, frames) → the frames of silence and fillers
+/// between its first and last word.
+fn inner_silence(segments: &[(String, i32)]) -> i32 {
+    let filler =
+        |w: &str| w.starts_with('<') || w.starts_with('[') || w.starts_with('+') || w == "(NULL)";
+    let words: Vec<usize> = segments
+        .iter()
+        .enumerate()
+        .filter(|(_, (w, _))| !filler(w))
+        .map(|(i, _)| i)
+        .collect();
+    match (words.first(), words.last()) {
+        (Some(&a), Some(&b)) => segments[a..=b]
+            .iter()
+            .filter(|(w, _)| filler(w))
+            .map(|(_, f)| *f)
+            .sum(),
+        _ => 0,
+    }
 }
 
 /// Where the models are (Debian's `pocketsphinx-en-us`).
@@ -106,12 +144,26 @@ pub struct Hypothesis {
     pub score: i32,
     /// The posterior probability of the hypothesis, 0..1.
     pub probability: f64,
+    /// Frames of silence or filler the path put between its first and
+    /// last word (speech it skipped: outside the grammar).
+    pub inner_silence_frames: i32,
     /// What a general English decode of the same audio heard (free
     /// words, no grammar): agreement with `text` is the confidence.
     pub english: Option<String>,
     /// The grammar's next-best readings of the same audio, best first (a
     /// "stop" among them is not ignored).
     pub alternatives: Vec<String>,
+    /// The utterance's length in 10 ms frames.
+    pub frames: i32,
+}
+
+/// The best reading of an utterance under one named search.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Reading {
+    pub text: String,
+    /// The best path's acoustic score (log domain, larger is better).
+    pub score: i32,
+    pub frames: i32,
 }
 
 /// A PocketSphinx decoder searching one JSGF grammar.
@@ -130,6 +182,16 @@ fn cstring(what: &str, s: &str) -> Result<CString, SphinxError> {
 impl Recognizer {
     /// A decoder on `models` searching `jsgf` (the grammar's text).
     pub fn new(models: &ModelPaths, jsgf: &str) -> Result<Recognizer, SphinxError> {
+        Self::with_pronunciations(models, jsgf, &[])
+    }
+
+    /// A decoder on `models` that also knows `extra` readings (`word(N)`,
+    /// its phones) before it compiles `jsgf`.
+    pub fn with_pronunciations(
+        models: &ModelPaths,
+        jsgf: &str,
+        extra: &[(String, String)],
+    ) -> Result<Recognizer, SphinxError> {
         for p in [&models.hmm, &models.dict, &models.english_lm] {
             if !p.exists() {
                 return Err(SphinxError::Model {
@@ -181,6 +243,16 @@ impl Recognizer {
             )));
         }
         let mut r = Recognizer { config, ps };
+        for (word, phones) in extra {
+            let (w, p) = (cstring("a word", word)?, cstring("phones", phones)?);
+            // SAFETY: valid decoder and NUL-terminated strings
+            if unsafe { ps_add_word(r.ps, w.as_ptr(), p.as_ptr(), 0) } < 0 {
+                return Err(SphinxError::Model {
+                    path: models.dict.display().to_string(),
+                    reason: format!("the reading {word} = {phones} was refused (a phone the acoustic model lacks?)"),
+                });
+            }
+        }
         let (name, lm) = (
             cstring("a search name", "english")?,
             path(&models.english_lm)?,
@@ -210,6 +282,39 @@ impl Recognizer {
         self.select("opennav")
     }
 
+    /// Adds another grammar under `name` (searched only by [`Self::read`]).
+    pub fn add_grammar(&mut self, name: &str, jsgf: &str) -> Result<(), SphinxError> {
+        if name == "opennav" || name == "english" {
+            return Err(SphinxError::Grammar(format!(
+                "{name:?} is a reserved search name"
+            )));
+        }
+        let n = cstring("a search name", name)?;
+        let text = cstring("the grammar", jsgf)?;
+        // SAFETY: valid decoder and NUL-terminated strings
+        let rc = unsafe { ps_set_jsgf_string(self.ps, n.as_ptr(), text.as_ptr()) };
+        if rc != 0 {
+            return Err(SphinxError::Grammar(format!(
+                "PocketSphinx refused the grammar {name:?}"
+            )));
+        }
+        self.select("opennav")
+    }
+
+    /// The best reading of `samples` under the grammar added as `name`.
+    pub fn read(&mut self, name: &str, samples: &[i16]) -> Result<Option<Reading>, SphinxError> {
+        self.select(name)?;
+        let out = self.pass(samples);
+        self.select("opennav")?;
+        // SAFETY: valid decoder
+        let frames = unsafe { ps_get_n_frames(self.ps) };
+        Ok(out?.map(|p| Reading {
+            text: p.text,
+            score: p.score,
+            frames,
+        }))
+    }
+
     fn select(&mut self, search: &str) -> Result<(), SphinxError> {
         let name = cstring("a search name", search)?;
         // SAFETY: valid decoder, NUL-terminated name
@@ -223,7 +328,7 @@ impl Recognizer {
 
     /// One pass over the utterance with the selected search: the text and
     /// score of its best path, and its posterior.
-    fn pass(&mut self, samples: &[i16]) -> Result<Option<(String, i32, f64)>, SphinxError> {
+    fn pass(&mut self, samples: &[i16]) -> Result<Option<Pass>, SphinxError> {
         // SAFETY: valid decoder; the samples outlive the call
         unsafe {
             if ps_start_utt(self.ps) < 0 {
@@ -244,11 +349,21 @@ impl Recognizer {
             let text = CStr::from_ptr(hyp).to_string_lossy().trim().to_string();
             // the acoustic part of the best path: its segments' scores
             let mut score = 0i64;
+            let mut segments: Vec<(String, i32)> = Vec::new();
             let mut seg = ps_seg_iter(self.ps);
             while !seg.is_null() {
                 let (mut ascr, mut lscr, mut lback) = (0i32, 0i32, 0i32);
                 ps_seg_prob(seg, &mut ascr, &mut lscr, &mut lback);
                 score += ascr as i64;
+                let (mut sf, mut ef) = (0 as c_int, 0 as c_int);
+                ps_seg_frames(seg, &mut sf, &mut ef);
+                let w = ps_seg_word(seg);
+                let word = if w.is_null() {
+                    String::new()
+                } else {
+                    CStr::from_ptr(w).to_string_lossy().into_owned()
+                };
+                segments.push((word, (ef - sf + 1).max(0)));
                 // ps_seg_next frees the iterator at the end
                 seg = ps_seg_next(seg);
             }
@@ -260,7 +375,12 @@ impl Recognizer {
             } else {
                 logmath_exp(lmath, prob).clamp(0.0, 1.0)
             };
-            Ok(Some((text, score, probability)))
+            Ok(Some(Pass {
+                text,
+                score,
+                probability,
+                inner_silence_frames: inner_silence(&segments),
+            }))
         }
     }
 
@@ -295,13 +415,21 @@ impl Recognizer {
     /// the grammar was heard.
     pub fn decode(&mut self, samples: &[i16]) -> Result<Option<Hypothesis>, SphinxError> {
         self.select("opennav")?;
-        let Some((text, score, probability)) = self.pass(samples)? else {
+        let Some(Pass {
+            text,
+            score,
+            probability,
+            inner_silence_frames,
+        }) = self.pass(samples)?
+        else {
             return Ok(None);
         };
         if text.is_empty() {
             return Ok(None);
         }
         let alternatives: Vec<String> = self.nbest(10).into_iter().filter(|t| *t != text).collect();
+        // SAFETY: valid decoder after an utterance
+        let frames = unsafe { ps_get_n_frames(self.ps) };
         self.select("english")?;
         let english = self.pass(samples);
         self.select("opennav")?;
@@ -309,8 +437,10 @@ impl Recognizer {
             text,
             score,
             probability,
-            english: english?.map(|(t, _, _)| t),
+            inner_silence_frames,
+            english: english?.map(|p| p.text),
             alternatives,
+            frames,
         }))
     }
 }
@@ -338,4 +468,36 @@ pub fn samples_from_s16le(bytes: &[u8], what: &str) -> Result<Vec<i16>, SphinxEr
         .chunks_exact(2)
         .map(|c| i16::from_le_bytes([c[0], c[1]]))
         .collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn inner_silence_counts_only_between_words() {
+        let segs = |v: &[(&str, i32)]| -> Vec<(String, i32)> {
+            v.iter().map(|(w, f)| (w.to_string(), *f)).collect()
+        };
+        assert_eq!(
+            inner_silence(&segs(&[
+                ("<sil>", 30),
+                ("go", 10),
+                ("<sil>", 70),
+                ("sofa", 20),
+                ("<sil>", 40)
+            ])),
+            70
+        );
+        assert_eq!(
+            inner_silence(&segs(&[
+                ("<sil>", 30),
+                ("door", 10),
+                ("(NULL)", 1),
+                ("<sil>", 40)
+            ])),
+            0
+        );
+        assert_eq!(inner_silence(&segs(&[("<sil>", 30)])), 0);
+    }
 }
