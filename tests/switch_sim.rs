@@ -209,3 +209,58 @@ async fn one_switch_scanning_chooses_the_second_object_seen_after_two_dwell_time
         r.said
     );
 }
+
+#[tokio::test(start_paused = true)]
+async fn look_around_from_the_menu_turns_the_chair_once_and_says_what_is_around() {
+    let dwell = Settings::load(None).expect("defaults").input.switch.dwell_s;
+    // it sees the chairs from the start: "chair?", then "look around?"
+    let open = 3.0;
+    let choose = open + dwell + dwell / 2.0;
+    let t = trip(
+        None,
+        vec![
+            (secs(open - 0.1), Act::NoteSeen),
+            (secs(open), Act::Edge(SwitchEdge::Down(Switch::Select))),
+            (secs(open + 0.15), Act::Edge(SwitchEdge::Up(Switch::Select))),
+            (secs(choose), Act::Edge(SwitchEdge::Down(Switch::Select))),
+            (
+                secs(choose + 0.15),
+                Act::Edge(SwitchEdge::Up(Switch::Select)),
+            ),
+            // "Is it clear behind?": a press is yes
+            (
+                secs(choose + 2.5),
+                Act::Edge(SwitchEdge::Down(Switch::Select)),
+            ),
+            (
+                secs(choose + 2.65),
+                Act::Edge(SwitchEdge::Up(Switch::Select)),
+            ),
+        ],
+        secs(choose + 40.0),
+    )
+    .await;
+    let r = &t.report;
+    assert_eq!(t.seen.first().map(Vec::len), Some(1), "{:?}", t.seen);
+    assert!(r.said.contains(&"look around?".to_string()), "{:?}", r.said);
+    assert!(
+        r.said.contains(&"Looking around.".to_string()),
+        "{:?}",
+        r.said
+    );
+    let told = r
+        .said
+        .iter()
+        .find(|l| l.starts_with("I looked around. I see "))
+        .unwrap_or_else(|| panic!("{:?}", r.said));
+    // a whole turn shows more of the room than the start's view
+    for thing in ["the chair", "the table", "the sofa"] {
+        assert!(told.contains(thing), "{told}");
+    }
+    // back at rest, with no goal, where it started
+    assert_eq!(r.goal.label(), None, "{r:?}");
+    assert!(t.sim.world.v_mps.abs() < 0.02 && t.sim.world.omega_radps.abs() < 0.05);
+    let moved = (t.sim.world.truth.x_m - 3.4).hypot(t.sim.world.truth.y_m - 2.6);
+    assert!(moved < 0.1, "{:?}", t.sim);
+    assert_eq!(t.sim.world.collision_steps, 0);
+}

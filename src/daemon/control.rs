@@ -272,6 +272,15 @@ impl Control {
             UserInput::Quit => {
                 self.done.get_or_insert(Outcome::Quit);
             }
+            UserInput::LookAround if self.latched => {
+                self.say("Stopped. Say go first, then ask me to look around.".into());
+            }
+            UserInput::LookAround => {
+                self.asked_goal = None;
+                self.pending = None;
+                self.goal.look_around();
+                self.say("Looking around.".into());
+            }
         }
     }
 
@@ -468,7 +477,7 @@ impl Control {
             self.say(e.say());
         }
         match self.goal.state() {
-            GoalState::Tracking { .. } | GoalState::Searching { .. } => {
+            GoalState::Tracking { .. } | GoalState::Searching { .. } | GoalState::LookingAround => {
                 self.supervisor.goal_active()
             }
             GoalState::Holding { .. } => self.supervisor.goal_holding(),

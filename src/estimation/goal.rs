@@ -57,13 +57,15 @@ pub enum GoalState {
         label: String,
         track: u64,
     },
+    /// No word: turning once on the spot to see what is around.
+    LookingAround,
 }
 
 impl GoalState {
     /// The goal's word, if there is a goal.
     pub fn label(&self) -> Option<&str> {
         match self {
-            GoalState::None => None,
+            GoalState::None | GoalState::LookingAround => None,
             GoalState::Searching { label }
             | GoalState::Tracking { label, .. }
             | GoalState::Holding { label, .. }
@@ -79,6 +81,7 @@ impl GoalState {
             GoalState::Tracking { .. } => Some("tracking"),
             GoalState::Holding { .. } => Some("holding"),
             GoalState::Reached { .. } => Some("reached"),
+            GoalState::LookingAround => Some("looking around"),
         }
     }
 }
@@ -113,6 +116,10 @@ pub enum GoalEvent {
     NotFound {
         label: String,
     },
+    /// A turn to look around is done: what is known around, nearest first.
+    LookedAround {
+        seen: Vec<String>,
+    },
 }
 
 impl GoalEvent {
@@ -130,6 +137,13 @@ impl GoalEvent {
             }
             GoalEvent::Reached { label } => format!("Arrived at the {label}."),
             GoalEvent::NotFound { label } => format!("I cannot find a {label} here. Stopped."),
+            GoalEvent::LookedAround { seen } if seen.is_empty() => {
+                "I looked around and saw nothing I know.".into()
+            }
+            GoalEvent::LookedAround { seen } => {
+                let things: Vec<String> = seen.iter().map(|l| format!("the {l}")).collect();
+                format!("I looked around. I see {}.", things.join(", "))
+            }
         }
     }
 }
@@ -175,13 +189,25 @@ impl GoalKeeper {
         };
     }
 
+    /// Turn once on the spot (the search turn, with no word) and then say
+    /// what is around.
+    pub fn look_around(&mut self) {
+        self.search_heading = None;
+        self.search_turned_rad = 0.0;
+        self.state = GoalState::LookingAround;
+    }
+
     pub fn clear(&mut self) {
         self.state = GoalState::None;
     }
 
     /// While searching: turn on the spot, counter-clockwise.
     pub fn search_command(&self) -> Option<VelocityCmd> {
-        matches!(self.state, GoalState::Searching { .. }).then_some(VelocityCmd {
+        matches!(
+            self.state,
+            GoalState::Searching { .. } | GoalState::LookingAround
+        )
+        .then_some(VelocityCmd {
             v_mps: 0.0,
             omega_radps: self.settings.search_turn_radps,
         })
@@ -194,7 +220,7 @@ impl GoalKeeper {
             GoalState::Searching { label }
             | GoalState::Tracking { label, .. }
             | GoalState::Holding { label, .. } => vec![label.clone()],
-            GoalState::None | GoalState::Reached { .. } => Vec::new(),
+            GoalState::None | GoalState::Reached { .. } | GoalState::LookingAround => Vec::new(),
         }
     }
 
@@ -244,6 +270,33 @@ impl GoalKeeper {
         };
         match self.state.clone() {
             GoalState::None | GoalState::Reached { .. } => None,
+            GoalState::LookingAround => {
+                if let Some(prev) = self.search_heading {
+                    self.search_turned_rad += wrap_angle(chair.theta_rad - prev).abs();
+                }
+                self.search_heading = Some(chair.theta_rad);
+                if self.search_turned_rad < std::f64::consts::TAU {
+                    return None;
+                }
+                self.state = GoalState::None;
+                let mut seen: Vec<(f64, &str)> = tracker
+                    .tracks()
+                    .iter()
+                    .filter(|t| t.confirmed)
+                    .map(|t| {
+                        let d = (t.center_m[0] - from[0]).hypot(t.center_m[1] - from[1]);
+                        (d, t.label.as_str())
+                    })
+                    .collect();
+                seen.sort_by(|a, b| a.0.total_cmp(&b.0));
+                let mut labels: Vec<String> = Vec::new();
+                for (_, l) in seen {
+                    if !labels.iter().any(|x| x == l) {
+                        labels.push(l.to_string());
+                    }
+                }
+                Some(GoalEvent::LookedAround { seen: labels })
+            }
             GoalState::Searching { label } => {
                 if let Some(prev) = self.search_heading {
                     self.search_turned_rad += wrap_angle(chair.theta_rad - prev).abs();

@@ -48,6 +48,9 @@ pub enum ScanAction {
     Input(UserInput),
 }
 
+/// The menu item that turns the chair once to see what is around.
+pub const LOOK_AROUND: &str = "look around";
+
 #[derive(Debug, Clone, PartialEq)]
 enum Menu {
     Closed,
@@ -127,14 +130,12 @@ impl Scanner {
     }
 
     fn open(&mut self, now: Stamp, chair: &ChairNow) -> Vec<ScanAction> {
+        // what it sees, nearest first; then "look around"; then the
+        // favourites when it sees nothing
         let mut items = chair.seen.clone();
-        if items.is_empty() {
+        items.push(LOOK_AROUND.to_string());
+        if chair.seen.is_empty() {
             items.extend(self.settings.favourites.iter().cloned());
-        }
-        if items.is_empty() {
-            return vec![ScanAction::Say(
-                "I see nothing to go to, and no favourites are set.".into(),
-            )];
         }
         let first = Self::say_item(&items[0]);
         self.menu = Menu::Open {
@@ -165,6 +166,9 @@ impl Scanner {
             Menu::Open { items, index, .. } => {
                 // the candidate being said when the switch went down
                 let item = items[pressed_at.unwrap_or(index).min(items.len() - 1)].clone();
+                if item == LOOK_AROUND {
+                    return vec![ScanAction::Input(UserInput::LookAround)];
+                }
                 vec![
                     ScanAction::Say(format!("Going to the {item}.")),
                     ScanAction::Input(UserInput::Goto(item)),
@@ -275,22 +279,42 @@ mod tests {
     }
 
     #[test]
-    fn nothing_seen_offers_the_favourites_and_one_round_closes_the_menu() {
+    fn nothing_seen_offers_look_around_then_the_favourites_and_one_round_closes_the_menu() {
         let mut s = scanner(false);
         let chair = still(&[]);
         assert_eq!(
             click(&mut s, 0, &chair),
-            vec![ScanAction::Say("kitchen table?".into())]
+            vec![ScanAction::Say("look around?".into())]
         );
-        let said = run(&mut s, 200, 6000);
+        let said = run(&mut s, 200, 6200);
         assert_eq!(
             said,
             vec![
+                ScanAction::Say("kitchen table?".into()),
                 ScanAction::Say("bed?".into()),
                 ScanAction::Say("Nothing chosen.".into())
             ]
         );
         assert!(!s.menu_open());
+    }
+
+    #[test]
+    fn look_around_follows_what_is_seen_and_turns_the_chair_when_chosen() {
+        let mut s = scanner(false);
+        let chair = still(&["chair"]);
+        assert_eq!(
+            click(&mut s, 0, &chair),
+            vec![ScanAction::Say("chair?".into())]
+        );
+        // no favourites while something is seen
+        assert_eq!(
+            run(&mut s, 200, 2200),
+            vec![ScanAction::Say("look around?".into())]
+        );
+        assert_eq!(
+            click(&mut s, 3000, &chair),
+            vec![ScanAction::Input(UserInput::LookAround)]
+        );
     }
 
     #[test]

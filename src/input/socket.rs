@@ -76,6 +76,7 @@ pub fn parse_request(line: &str) -> Result<Request, String> {
         "yes" => flag(UserInput::Yes),
         "no" => flag(UserInput::No),
         "ack_fault" => flag(UserInput::AckFault),
+        "look_around" => flag(UserInput::LookAround),
         "status" => match value {
             Value::Bool(true) => Ok(Request::Status),
             other => Err(format!("\"status\" takes true, got {other}")),

@@ -50,6 +50,9 @@ pub enum UserInput {
     Go,
     /// Quit the daemon.
     Quit,
+    /// Turn once on the spot and say what is around (the switch menu's
+    /// "look around", or the words).
+    LookAround,
     /// "yes" to the chair's question (e.g. is it clear behind).
     Yes,
     /// "no" to the chair's question.
@@ -92,6 +95,7 @@ impl UserInput {
         let w: Vec<&str> = words.iter().map(String::as_str).collect();
         match w.as_slice() {
             ["quit"] | ["exit"] => return UserInput::Quit,
+            ["look", "around"] => return UserInput::LookAround,
             ["yes"]
             | ["yeah"]
             | ["yep"]
