@@ -134,7 +134,7 @@ async fn a_switch_press_mid_trip_brings_the_chair_to_rest() {
     let r = &t.report;
     assert_eq!(r.outcome, Outcome::Timeout, "{r:?}");
     assert_eq!(
-        serde_json::to_value(&r.supervisor).expect("state")["Stopped"],
+        serde_json::to_value(r.supervisor).expect("state")["Stopped"],
         "UserStop",
         "{r:?}"
     );

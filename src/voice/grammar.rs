@@ -151,7 +151,7 @@ fn clean(entry: &str) -> Option<String> {
 /// Builds the grammar for `vocabulary`, keeping entries whose every word
 /// `dict` knows.
 pub fn build(vocabulary: &[String], dict: &Dictionary) -> Result<Grammar, String> {
-    if let Some(missing) = COMMAND_WORDS.iter().find(|w| !dict.contains(**w)) {
+    if let Some(missing) = COMMAND_WORDS.iter().find(|w| !dict.contains(w)) {
         return Err(format!("the dictionary lacks the command word {missing:?}"));
     }
     let mut targets: Vec<String> = Vec::new();
