@@ -19,6 +19,32 @@ use super::VoiceSettings;
 use crate::input::InputHub;
 use crate::msg::UserInput;
 
+/// 16-bit little-endian samples from a byte stream read in pieces: a read
+/// that ends inside a sample keeps its odd byte for the next (dropping it
+/// would shift every sample after it by a byte).
+#[derive(Debug, Default)]
+pub struct S16Stream {
+    odd: Option<u8>,
+}
+
+impl S16Stream {
+    pub fn push(&mut self, bytes: &[u8]) -> Vec<i16> {
+        let mut out = Vec::with_capacity(bytes.len() / 2 + 1);
+        let mut rest = bytes;
+        if let (Some(lo), Some((&hi, tail))) = (self.odd, rest.split_first()) {
+            out.push(i16::from_le_bytes([lo, hi]));
+            self.odd = None;
+            rest = tail;
+        }
+        let mut chunks = rest.chunks_exact(2);
+        out.extend(chunks.by_ref().map(|c| i16::from_le_bytes([c[0], c[1]])));
+        if let [b] = chunks.remainder() {
+            self.odd = Some(*b);
+        }
+        out
+    }
+}
+
 /// Where the audio comes from.
 #[derive(Debug, Clone, PartialEq)]
 pub enum AudioInput {
@@ -266,15 +292,12 @@ pub fn spawn(
                     };
                     let Some(mut out) = child.stdout.take() else { return };
                     let mut buf = vec![0u8; 3200];
+                    let mut pcm = S16Stream::default();
                     loop {
                         match out.read(&mut buf) {
                             Ok(0) | Err(_) => break,
                             Ok(n) => {
-                                let samples: Vec<i16> = buf[..n - n % 2]
-                                    .chunks_exact(2)
-                                    .map(|c| i16::from_le_bytes([c[0], c[1]]))
-                                    .collect();
-                                for u in vad.push(&samples) {
+                                for u in vad.push(&pcm.push(&buf[..n])) {
                                     handle(u);
                                 }
                             }
@@ -291,4 +314,37 @@ pub fn spawn(
             }
         })
         .map_err(|e| format!("voice thread: {e}"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn samples_split_across_reads_are_joined() {
+        let samples: Vec<i16> = vec![1, -2, 300, -32768, 32767, 7];
+        let bytes: Vec<u8> = samples.iter().flat_map(|s| s.to_le_bytes()).collect();
+        for cut in [1usize, 3, 5] {
+            let mut s = S16Stream::default();
+            let mut got = Vec::new();
+            for piece in bytes.chunks(cut) {
+                got.extend(s.push(piece));
+            }
+            assert_eq!(got, samples, "pieces of {cut} bytes");
+        }
+    }
+
+    #[test]
+    fn the_noise_floor_is_small_and_the_same_every_time() {
+        let silence = vec![0i16; 16_000];
+        let a = with_noise_floor(&silence);
+        assert_eq!(a, with_noise_floor(&silence));
+        let rms = (a.iter().map(|&v| (v as f64).powi(2)).sum::<f64>() / a.len() as f64).sqrt();
+        assert!(
+            (NOISE_FLOOR * 0.9..NOISE_FLOOR * 1.1).contains(&rms),
+            "{rms}"
+        );
+        // loud samples stay within range
+        assert_eq!(with_noise_floor(&[i16::MAX; 4]).len(), 4);
+    }
 }
