@@ -167,21 +167,6 @@ fn main() {
             }
         }
     }
-    // the real recording: "go forward ten meters" with "forward" a target
-    let real = std::env::var_os("OPENNAV_SHARED")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from("../shared"))
-        .join("data/speech/goforward.raw");
-    let real_line = match recogniser(v, &["forward".to_string()]) {
-        Ok((mut rr, gg)) if real.exists() => {
-            let h = hear(&mut rr, &gg, v, &read_audio(&real).expect("audio")).expect("decodes");
-            format!(
-                "real recording goforward.raw: heard {:?}, decision {:?}",
-                h.heard, h.decision
-            )
-        }
-        _ => format!("real recording {} not found", real.display()),
-    };
     let pct = |a: usize, b: usize| 100.0 * a as f64 / b.max(1) as f64;
     println!(
         "voice commands (confirm = {:?}, min_confidence {}), {} utterances in {:.0} s:",
@@ -210,5 +195,20 @@ fn main() {
         pct(score.outside_sent, score.outside),
         pct(score.outside_asked, score.outside)
     );
+    // the real recording: "go forward ten meters" with "forward" a target
+    let real = std::env::var_os("OPENNAV_SHARED")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from("../shared"))
+        .join("data/speech/goforward.raw");
+    let real_line = match recogniser(v, &["forward".to_string()]) {
+        Ok((mut rr, gg)) if real.exists() => {
+            let h = hear(&mut rr, &gg, v, &read_audio(&real).expect("audio")).expect("decodes");
+            format!(
+                "real recording goforward.raw: heard {:?}, decision {:?}",
+                h.heard, h.decision
+            )
+        }
+        _ => format!("real recording {} not found", real.display()),
+    };
     println!("  {real_line}");
 }

@@ -113,11 +113,22 @@ impl Grammar {
             .filter(|(i, _)| *i != index)
             .map(|(_, t)| t.as_str())
             .collect();
-        (!others.is_empty() && index < self.targets.len()).then(|| jsgf(&others))
+        (index < self.targets.len()).then(|| jsgf(&others))
     }
 }
 
+/// The grammar for `targets` (without any: the commands alone).
 fn jsgf(targets: &[&str]) -> String {
+    if targets.is_empty() {
+        return "#JSGF V1.0;\n\
+                grammar opennav;\n\
+                public <command> = <stop> | <cancel> | <yes> | <no>;\n\
+                <stop> = stop [please] | halt;\n\
+                <cancel> = cancel;\n\
+                <yes> = yes [please];\n\
+                <no> = no;\n"
+            .to_string();
+    }
     let alternatives = targets.join(" | ");
     format!(
         "#JSGF V1.0;\n\
@@ -266,6 +277,13 @@ mod tests {
         let rival = g.jsgf_without(0).expect("rival");
         assert!(rival.contains("<target> = chair | table;"), "{rival}");
         assert!(g.jsgf_without(3).is_none());
+        // a single target's rival is the commands alone
+        let one = build(&["door".to_string()], &d).expect("grammar");
+        let rival = one.jsgf_without(0).expect("rival");
+        assert!(
+            !rival.contains("<target>") && rival.contains("<stop>"),
+            "{rival}"
+        );
     }
 
     #[test]

@@ -189,13 +189,17 @@ pub fn hear(
         _ => None,
     };
     let nbest_agreement = h.as_ref().map_or(0.0, |h| {
+        if h.top_paths.is_empty() {
+            return 0.0;
+        }
         let same = h
-            .alternatives
+            .top_paths
             .iter()
             .filter(|a| intent::meaning(a, &g.targets) == (meant.clone(), label.clone()))
             .count();
-        (1 + same) as f64 / (1 + h.alternatives.len()) as f64
+        same as f64 / h.top_paths.len() as f64
     });
+    tracing::debug!(heard = ?heard, margin_per_frame, nbest_agreement, inner_silence = h.as_ref().map_or(0, |h| h.inner_silence_frames), "voice: evidence");
     let confidence = intent::confidence(
         &meant,
         label.as_deref(),

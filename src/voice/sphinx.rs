@@ -153,6 +153,9 @@ pub struct Hypothesis {
     /// The grammar's next-best readings of the same audio, best first (a
     /// "stop" among them is not ignored).
     pub alternatives: Vec<String>,
+    /// The grammar's ten best paths as they come (one reading may be
+    /// several paths): how many agree with the best is a confidence.
+    pub top_paths: Vec<String>,
     /// The utterance's length in 10 ms frames.
     pub frames: i32,
 }
@@ -384,21 +387,34 @@ impl Recognizer {
         }
     }
 
-    /// The last utterance's best readings under the current search (at
-    /// most `n`, best first, distinct).
-    fn nbest(&mut self, n: usize) -> Vec<String> {
-        let mut out: Vec<String> = Vec::new();
+    /// The last utterance's best paths under the current search, best
+    /// first: the first `top` paths as they come (a reading found by
+    /// several paths counts each time), and up to `distinct` different
+    /// readings (walking at most `MAX_PATHS` paths).
+    fn nbest(&mut self, top: usize, distinct: usize) -> (Vec<String>, Vec<String>) {
+        const MAX_PATHS: usize = 200;
+        let (mut paths, mut readings): (Vec<String>, Vec<String>) = (Vec::new(), Vec::new());
         // SAFETY: valid decoder after an utterance; the iterator is freed
         // by ps_nbest_next at its end, or here when we stop early
         unsafe {
             let mut it = ps_nbest(self.ps);
-            while !it.is_null() && out.len() < n {
+            let mut walked = 0;
+            while !it.is_null()
+                && (paths.len() < top || readings.len() < distinct)
+                && walked < MAX_PATHS
+            {
+                walked += 1;
                 let mut score = 0i32;
                 let h = ps_nbest_hyp(it, &mut score);
                 if !h.is_null() {
                     let t = CStr::from_ptr(h).to_string_lossy().trim().to_string();
-                    if !t.is_empty() && !out.contains(&t) {
-                        out.push(t);
+                    if !t.is_empty() {
+                        if paths.len() < top {
+                            paths.push(t.clone());
+                        }
+                        if readings.len() < distinct && !readings.contains(&t) {
+                            readings.push(t);
+                        }
                     }
                 }
                 it = ps_nbest_next(it);
@@ -407,7 +423,7 @@ impl Recognizer {
                 ps_nbest_free(it);
             }
         }
-        out
+        (paths, readings)
     }
 
     /// Decodes one whole utterance (16 kHz mono samples) with the grammar,
@@ -427,7 +443,8 @@ impl Recognizer {
         if text.is_empty() {
             return Ok(None);
         }
-        let alternatives: Vec<String> = self.nbest(10).into_iter().filter(|t| *t != text).collect();
+        let (top_paths, readings) = self.nbest(10, 10);
+        let alternatives: Vec<String> = readings.into_iter().filter(|t| *t != text).collect();
         // SAFETY: valid decoder after an utterance
         let frames = unsafe { ps_get_n_frames(self.ps) };
         self.select("english")?;
@@ -440,6 +457,7 @@ impl Recognizer {
             inner_silence_frames,
             english: english?.map(|p| p.text),
             alternatives,
+            top_paths,
             frames,
         }))
     }
