@@ -283,6 +283,8 @@ pub struct Takeover {
     pub late_frames: u64,
     /// Frames on our joystick id in the current window, and its start.
     window: Option<(Stamp, u32)>,
+    /// The last whole window had more frames than accounted for.
+    last_window_over: bool,
     other_writer_reported: bool,
 }
 
@@ -302,6 +304,7 @@ impl Takeover {
             last_sent: None,
             late_frames: 0,
             window: None,
+            last_window_over: false,
             other_writer_reported: false,
         }
     }
@@ -320,16 +323,26 @@ impl Takeover {
         }
     }
 
-    /// Counts a frame on our id at `now`: too many in a window → the event
-    /// (once).
+    /// Counts a frame on our id at `now`: too many in two windows in a row
+    /// → the event (once). Frames are stamped when they are read, so a
+    /// reader that stalled reads the frames it missed in a burst: that
+    /// fills one window and leaves the next short, where another writer
+    /// fills every window.
     fn count_own_id(&mut self, now: Stamp) -> Option<TakeoverEvent> {
         let expected = self.expected_per_window()?;
+        let limit = expected + OTHER_WRITER_SLACK;
         let (start, n) = match self.window {
             Some((start, n)) if start.age_at(now) < OTHER_WRITER_WINDOW => (start, n + 1),
-            _ => (now, 1),
+            Some((start, n)) => {
+                // the window closed: was it over, and is the next adjacent
+                let adjacent = start.age_at(now) < OTHER_WRITER_WINDOW * 2;
+                self.last_window_over = n > limit && adjacent;
+                (now, 1)
+            }
+            None => (now, 1),
         };
         self.window = Some((start, n));
-        if n > expected + OTHER_WRITER_SLACK && !self.other_writer_reported {
+        if n > limit && self.last_window_over && !self.other_writer_reported {
             self.other_writer_reported = true;
             return Some(TakeoverEvent::OtherWriter {
                 frames: n,
@@ -637,6 +650,21 @@ mod tests {
                 expected: 10
             }]
         );
+
+        // a reader that stalled 60 ms reads the frames it missed at once:
+        // one full window, then a short one — not another writer
+        let mut t = Takeover::new(TakeoverMode::FollowJsm);
+        let mut events = Vec::new();
+        for k in 0..100u64 {
+            events.extend(t.on_frame(&joystick_frame(id, 0, 0), ms(k * 10)).1);
+        }
+        for _ in 0..6 {
+            events.extend(t.on_frame(&joystick_frame(id, 0, 0), ms(1060)).1);
+        }
+        for k in 107..300u64 {
+            events.extend(t.on_frame(&joystick_frame(id, 0, 0), ms(k * 10)).1);
+        }
+        assert_eq!(events, vec![TakeoverEvent::Learned(id)]);
 
         // JSMerror: once the JSM is silent, any steady stream on our id is
         // another writer
