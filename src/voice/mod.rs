@@ -26,7 +26,7 @@ pub struct VoiceSettings {
     pub vocabulary: Vec<String>,
     /// When to ask back before going: always, unsure, never.
     pub confirm: intent::Confirm,
-    /// Below this posterior probability an utterance is unsure (0..1).
+    /// Below this confidence (0..1, `intent::confidence`) an utterance is unsure.
     pub min_confidence: f64,
     /// The acoustic model directory and the pronunciation dictionary.
     pub hmm: String,
