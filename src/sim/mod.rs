@@ -12,4 +12,5 @@ pub mod rebus;
 pub mod replica;
 pub mod rnet;
 pub mod room;
+pub mod scene;
 pub mod world;
