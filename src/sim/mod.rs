@@ -13,4 +13,5 @@ pub mod replica;
 pub mod rnet;
 pub mod room;
 pub mod scene;
+pub mod trial;
 pub mod world;

@@ -132,8 +132,13 @@ impl SimWorld {
             y_m: 2.6,
             theta_rad: -2.0,
         };
+        SimWorld::in_room(Room::living_room(), start, drive)
+    }
+
+    /// The chair at `start` in `room` (a generated scene).
+    pub fn in_room(room: Room, start: Pose2, drive: DiffDriveParams) -> SimWorld {
         SimWorld {
-            room: Room::living_room(),
+            room,
             truth: start,
             start,
             v_mps: 0.0,
