@@ -33,3 +33,42 @@ fn twelve_generated_scenes_are_driven_without_touching_anything() {
         assert!(r.last_said.is_some(), "{r:?}");
     }
 }
+
+fn sim_lines(args: &[&str]) -> Vec<serde_json::Value> {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_opennav"))
+        .arg("sim")
+        .args(args)
+        .output()
+        .expect("runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("a JSON line"))
+        .collect()
+}
+
+#[test]
+fn the_command_prints_a_line_per_scene_and_a_summary_whatever_the_job_count() {
+    let one = sim_lines(&["--scenes", "3", "--seed", "5", "--jobs", "1", "--json"]);
+    let two = sim_lines(&["--scenes", "3", "--seed", "5", "--jobs", "2", "--json"]);
+    assert_eq!(one.len(), 4);
+    assert_eq!(one[..3], two[..3], "scenes differ with the job count");
+    let summary = &one[3]["summary"];
+    assert_eq!(summary["scenes"], 3);
+    let reached = one[..3].iter().filter(|l| l["reached"] == true).count();
+    assert_eq!(summary["reached"], reached);
+    // a scene re-runs alone
+    let alone = sim_lines(&["--scene", "2", "--seed", "5", "--json"]);
+    assert_eq!(alone[0], one[2]);
+    // no scene count: a clear error
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_opennav"))
+        .arg("sim")
+        .output()
+        .expect("runs");
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--scenes"));
+}

@@ -20,9 +20,9 @@ pub enum Command {
     /// Evaluation: the paper's Replica metric.
     #[command(subcommand)]
     Eval(eval::EvalCommand),
-    /// The simulator: synthetic data.
-    #[command(subcommand)]
-    Sim(sim::SimCommand),
+    /// The simulator: the closed loop over seeded apartments (`--scenes N
+    /// --seed S`), or synthetic data (`replica-scene`).
+    Sim(sim::SimArgs),
     /// Technician checks of the chair's devices: decoded readings as JSON lines.
     #[command(subcommand)]
     Check(check::CheckCommand),
@@ -140,7 +140,7 @@ fn dispatch(cli: Cli) -> Result<(), Failure> {
     let config = cli.config.as_deref();
     match cli.command {
         Command::Eval(cmd) => eval::run(Settings::load(config).map_err(bad_input)?, cmd),
-        Command::Sim(cmd) => sim::run(cmd),
+        Command::Sim(args) => sim::run(args),
         Command::Check(cmd) => check::run(config, cmd),
         Command::Run(args) => run::run(config, args),
         Command::Detect(args) => detect::run(Settings::load(config).map_err(bad_input)?, args),

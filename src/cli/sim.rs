@@ -1,12 +1,36 @@
-//! `opennav sim`: synthetic data from the simulator.
+//! `opennav sim`: the closed loop over seeded apartments (one JSON line
+//! per scene, then a summary), or synthetic data from the simulator.
 
 use std::path::PathBuf;
 
-use clap::Subcommand;
+use clap::{Args, Subcommand};
 
 use opennav::perception::detector::parse_prompts;
 
 use super::{bad_input, failed, Failure};
+
+#[derive(Args, Debug)]
+#[command(args_conflicts_with_subcommands = true)]
+pub struct SimArgs {
+    #[command(subcommand)]
+    pub command: Option<SimCommand>,
+    /// How many generated scenes to drive.
+    #[arg(long)]
+    pub scenes: Option<u64>,
+    /// The run's seed (scene k's own seed derives from it and k).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Only scene K (as numbered in a run of this seed).
+    #[arg(long)]
+    pub scene: Option<u64>,
+    /// Scenes run at once (default: the core count); the lines do not
+    /// depend on it.
+    #[arg(long)]
+    pub jobs: Option<usize>,
+    /// Only the JSON lines on stdout (no progress on stderr).
+    #[arg(long)]
+    pub json: bool,
+}
 
 #[derive(Subcommand, Debug)]
 pub enum SimCommand {
@@ -27,7 +51,10 @@ pub enum SimCommand {
     },
 }
 
-pub fn run(cmd: SimCommand) -> Result<(), Failure> {
+pub fn run(args: SimArgs) -> Result<(), Failure> {
+    let Some(cmd) = args.command else {
+        return trips(&args);
+    };
     match cmd {
         SimCommand::ReplicaScene {
             out,
@@ -53,4 +80,91 @@ pub fn run(cmd: SimCommand) -> Result<(), Failure> {
             Ok(())
         }
     }
+}
+
+/// Drives the scenes, `jobs` at a time, each on its own paused runtime;
+/// prints their lines in scene order, then the summary.
+fn trips(args: &SimArgs) -> Result<(), Failure> {
+    use opennav::sim::scene::{generate, scene_seed};
+    use opennav::sim::trial::{self, TrialResult};
+    let indices: Vec<u64> = match (args.scene, args.scenes) {
+        (Some(k), _) => vec![k],
+        (None, Some(0)) => return Err(bad_input(anyhow::anyhow!("--scenes: at least 1"))),
+        (None, Some(n)) => (0..n).collect(),
+        (None, None) => {
+            return Err(bad_input(anyhow::anyhow!(
+                "say --scenes N (or --scene K), or a subcommand (replica-scene)"
+            )))
+        }
+    };
+    let jobs = args
+        .jobs
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
+        .max(1);
+    let settings = opennav::config::Settings::load(None).map_err(failed)?;
+    let t0 = std::time::Instant::now();
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let done = std::sync::atomic::AtomicUsize::new(0);
+    let results: std::sync::Mutex<Vec<Option<Result<TrialResult, String>>>> =
+        std::sync::Mutex::new(vec![None; indices.len()]);
+    std::thread::scope(|scope| {
+        for _ in 0..jobs.min(indices.len()) {
+            scope.spawn(|| loop {
+                let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                let Some(&k) = indices.get(i) else { return };
+                let scene = generate(scene_seed(args.seed, k));
+                let r = tokio::runtime::Builder::new_current_thread()
+                    .enable_all()
+                    .start_paused(true)
+                    .build()
+                    .map_err(|e| e.to_string())
+                    .and_then(|rt| rt.block_on(trial::run(&settings, k, &scene)));
+                if let Ok(mut all) = results.lock() {
+                    all[i] = Some(r);
+                }
+                let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+                if !args.json {
+                    eprint!("\rscene {n}/{}", indices.len());
+                }
+            });
+        }
+    });
+    if !args.json {
+        eprintln!();
+    }
+    let results = results
+        .into_inner()
+        .map_err(|_| failed(anyhow::anyhow!("a scene's thread panicked")))?;
+    let mut ok = Vec::new();
+    for (i, r) in results.into_iter().enumerate() {
+        match r {
+            Some(Ok(t)) => {
+                println!("{}", serde_json::to_string(&t).map_err(failed)?);
+                ok.push(t);
+            }
+            Some(Err(e)) => return Err(failed(anyhow::anyhow!("scene {}: {e}", indices[i]))),
+            None => return Err(failed(anyhow::anyhow!("scene {} did not run", indices[i]))),
+        }
+    }
+    let median = |mut v: Vec<f64>| -> Option<f64> {
+        v.sort_by(f64::total_cmp);
+        (!v.is_empty()).then(|| v[v.len() / 2])
+    };
+    let ratios: Vec<f64> = ok
+        .iter()
+        .filter(|t| t.reached)
+        .filter_map(|t| t.shortest_path_m.filter(|s| *s > 0.1).map(|s| t.path_m / s))
+        .collect();
+    let summary = serde_json::json!({"summary": {
+        "scenes": ok.len(),
+        "reached": ok.iter().filter(|t| t.reached).count(),
+        "collisions": ok.iter().filter(|t| t.collision).count(),
+        "fell": ok.iter().filter(|t| t.fell).count(),
+        "min_clearance_m": ok.iter().map(|t| t.min_clearance_m).fold(f64::INFINITY, f64::min),
+        "path_ratio_median": median(ratios),
+        "time_s_median": median(ok.iter().map(|t| t.time_s).collect()),
+        "wall_s": t0.elapsed().as_secs_f64(),
+    }});
+    println!("{summary}");
+    Ok(())
 }
