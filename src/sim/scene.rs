@@ -65,6 +65,9 @@ const GAP_M: f64 = 0.05;
 /// The start pose keeps this far from every box, m (the chair's footprint
 /// reaches 0.55 m ahead of base_link and 0.45 m behind).
 pub const START_CLEARANCE_M: f64 = 0.75;
+/// The start pose is at least this far from every object of the word, m
+/// (a trip, not a chair already there).
+pub const START_TO_TARGET_M: f64 = 1.5;
 
 /// The label of the boxes that make walls between rooms.
 pub const WALL_LABEL: &str = "wall";
@@ -411,11 +414,13 @@ fn place_anywhere(
 }
 
 /// A start pose at least `START_CLEARANCE_M` from every box and the outer
-/// walls, facing anywhere; in a room too full for one, the last pieces
+/// walls and `START_TO_TARGET_M` from the word's objects, facing
+/// anywhere; in a room too full for one, the last pieces
 /// placed (never a wall, never the last of the prompted word) go until
 /// there is.
 fn free_pose(rng: &mut SplitMix64, room: &mut Room, n_walls: usize, prompt: &str) -> Pose2 {
     let [sx, sy, _] = room.size_m;
+    let mut keep_away = true;
     loop {
         for _ in 0..1000 {
             let (x, y) = (rng.range(0.0, sx), rng.range(0.0, sy));
@@ -426,7 +431,13 @@ fn free_pose(rng: &mut SplitMix64, room: &mut Room, n_walls: usize, prompt: &str
                 .map(|o| distance_to_box(x, y, o))
                 .fold(walls, f64::min);
             let theta_rad = rng.range(-std::f64::consts::PI, std::f64::consts::PI);
-            if clear >= START_CLEARANCE_M {
+            let away = !keep_away
+                || room
+                    .objects
+                    .iter()
+                    .filter(|o| o.label == prompt)
+                    .all(|o| distance_to_box(x, y, o) >= START_TO_TARGET_M);
+            if clear >= START_CLEARANCE_M && away {
                 return Pose2 {
                     x_m: x,
                     y_m: y,
@@ -442,8 +453,10 @@ fn free_pose(rng: &mut SplitMix64, room: &mut Room, n_walls: usize, prompt: &str
             Some(i) => {
                 room.objects.remove(i);
             }
-            // only walls and the one prompted object: the apartment is
-            // at least 3 m wide, so this is not reached
+            // only walls and the one prompted object, and no place far
+            // from it: a small room; closer, then
+            None if keep_away => keep_away = false,
+            // the apartment is at least 3 m wide: not reached
             None => {
                 return Pose2 {
                     x_m: sx / 2.0,
@@ -471,6 +484,7 @@ mod tests {
     #[test]
     fn scenes_are_plausible_apartments() {
         let mut room_counts = [0usize; 5];
+        let mut near_start = 0;
         for k in 0..300 {
             let s = generate(scene_seed(1, k));
             let n = s.rooms_x_m.len();
@@ -532,7 +546,19 @@ mod tests {
                 "seed {}: start {clear} m from a box",
                 s.seed
             );
+            let to_target = s
+                .room
+                .objects
+                .iter()
+                .filter(|o| o.label == s.prompt)
+                .map(|o| distance_to_box(s.start.x_m, s.start.y_m, o))
+                .fold(f64::INFINITY, f64::min);
+            if to_target < START_TO_TARGET_M {
+                near_start += 1;
+            }
         }
+        // a trip, not a chair already there (but for a few small rooms)
+        assert!(near_start <= 15, "{near_start} of 300 start near the word");
         // every size of apartment occurs
         assert!(room_counts[1..].iter().all(|&c| c > 30), "{room_counts:?}");
     }
