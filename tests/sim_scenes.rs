@@ -2,6 +2,8 @@
 //! scenes (`sim::scene`, seed 1) through the whole daemon
 //! (`sim::trial::run`), each on its own paused runtime.
 
+mod common;
+
 use opennav::config::Settings;
 use opennav::sim::scene::{generate, scene_seed};
 use opennav::sim::trial::{self, TrialResult};
@@ -35,20 +37,9 @@ fn twelve_generated_scenes_are_driven_without_touching_anything() {
 }
 
 fn sim_lines(args: &[&str]) -> Vec<serde_json::Value> {
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_opennav"))
-        .arg("sim")
-        .args(args)
-        .output()
-        .expect("runs");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout)
-        .lines()
-        .map(|l| serde_json::from_str(l).expect("a JSON line"))
-        .collect()
+    let mut all = vec![std::ffi::OsStr::new("sim")];
+    all.extend(args.iter().map(std::ffi::OsStr::new));
+    common::opennav_json_lines(&all)
 }
 
 #[test]

@@ -37,8 +37,25 @@ struct Trip {
     seen: Vec<Vec<String>>,
 }
 
-/// The living room, the chair facing `heading_rad` from its usual start.
-async fn trip(heading_rad: Option<f64>, acts: Vec<(Duration, Act)>, max: Duration) -> Trip {
+/// How long the switch is held for a press, s.
+const PRESS_S: f64 = 0.15;
+
+/// The living room, the chair facing `heading_rad` from its usual start;
+/// `acts` and a press of the select switch at each of `presses_s`.
+async fn trip(
+    heading_rad: Option<f64>,
+    mut acts: Vec<(Duration, Act)>,
+    presses_s: &[f64],
+    max: Duration,
+) -> Trip {
+    for &at in presses_s {
+        acts.push((secs(at), Act::Edge(SwitchEdge::Down(Switch::Select))));
+        acts.push((
+            secs(at + PRESS_S),
+            Act::Edge(SwitchEdge::Up(Switch::Select)),
+        ));
+    }
+    acts.sort_by_key(|(at, _)| *at);
     let settings = Settings::load(None).expect("defaults");
     let mut world = SimWorld::living_room(settings.drive_params());
     if let Some(h) = heading_rad {
@@ -123,11 +140,8 @@ fn secs(s: f64) -> Duration {
 async fn a_switch_press_mid_trip_brings_the_chair_to_rest() {
     let t = trip(
         None,
-        vec![
-            (secs(0.0), Act::Word(UserInput::Goto("chair".into()))),
-            (secs(2.5), Act::Edge(SwitchEdge::Down(Switch::Select))),
-            (secs(2.7), Act::Edge(SwitchEdge::Up(Switch::Select))),
-        ],
+        vec![(secs(0.0), Act::Word(UserInput::Goto("chair".into())))],
+        &[2.5],
         secs(8.0),
     )
     .await;
@@ -159,26 +173,9 @@ async fn one_switch_scanning_chooses_the_second_object_seen_after_two_dwell_time
     // facing the table and, further, the sofa
     let t = trip(
         Some(-2.8),
-        vec![
-            (secs(open - 0.1), Act::NoteSeen),
-            (secs(open), Act::Edge(SwitchEdge::Down(Switch::Select))),
-            (secs(open + 0.15), Act::Edge(SwitchEdge::Up(Switch::Select))),
-            (secs(choose), Act::Edge(SwitchEdge::Down(Switch::Select))),
-            (
-                secs(choose + 0.15),
-                Act::Edge(SwitchEdge::Up(Switch::Select)),
-            ),
-            // it must turn to face the sofa and asks whether it is clear
-            // behind: a press is "yes"
-            (
-                secs(choose + 2.5),
-                Act::Edge(SwitchEdge::Down(Switch::Select)),
-            ),
-            (
-                secs(choose + 2.65),
-                Act::Edge(SwitchEdge::Up(Switch::Select)),
-            ),
-        ],
+        vec![(secs(open - 0.1), Act::NoteSeen)],
+        // open the menu; choose; "yes" to "Is it clear behind?"
+        &[open, choose, choose + 2.5],
         secs(choose + 6.0),
     )
     .await;
@@ -218,25 +215,9 @@ async fn look_around_from_the_menu_turns_the_chair_once_and_says_what_is_around(
     let choose = open + dwell + dwell / 2.0;
     let t = trip(
         None,
-        vec![
-            (secs(open - 0.1), Act::NoteSeen),
-            (secs(open), Act::Edge(SwitchEdge::Down(Switch::Select))),
-            (secs(open + 0.15), Act::Edge(SwitchEdge::Up(Switch::Select))),
-            (secs(choose), Act::Edge(SwitchEdge::Down(Switch::Select))),
-            (
-                secs(choose + 0.15),
-                Act::Edge(SwitchEdge::Up(Switch::Select)),
-            ),
-            // "Is it clear behind?": a press is yes
-            (
-                secs(choose + 2.5),
-                Act::Edge(SwitchEdge::Down(Switch::Select)),
-            ),
-            (
-                secs(choose + 2.65),
-                Act::Edge(SwitchEdge::Up(Switch::Select)),
-            ),
-        ],
+        vec![(secs(open - 0.1), Act::NoteSeen)],
+        // open the menu; choose; "yes" to "Is it clear behind?"
+        &[open, choose, choose + 2.5],
         secs(choose + 40.0),
     )
     .await;

@@ -37,19 +37,10 @@ fn a_grammar_with_an_unknown_word_is_an_error() {
 }
 
 fn opennav_check_voice(files: &[&std::path::Path], vocabulary: &str) -> Vec<serde_json::Value> {
-    let mut c = std::process::Command::new(env!("CARGO_BIN_EXE_opennav"));
-    c.args(["check", "voice", "--vocabulary", vocabulary, "--wav"]);
-    c.args(files);
-    let out = c.output().expect("runs");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout)
-        .lines()
-        .map(|l| serde_json::from_str(l).expect("one JSON object per line"))
-        .collect()
+    let words = ["check", "voice", "--vocabulary", vocabulary, "--wav"];
+    let mut args: Vec<&std::ffi::OsStr> = words.iter().map(std::ffi::OsStr::new).collect();
+    args.extend(files.iter().map(|f| f.as_os_str()));
+    common::opennav_json_lines(&args)
 }
 
 /// `text` spoken by espeak-ng, as 16 kHz mono WAV (sox resamples).

@@ -7,6 +7,7 @@
 
 pub mod devices;
 pub mod hokuyo;
+pub mod path;
 pub mod pty;
 pub mod rebus;
 pub mod replica;

@@ -15,7 +15,8 @@ use crate::daemon::{Outcome, RunOptions};
 use crate::msg::{Clock, TokioClock, UserInput};
 
 use super::devices::devices;
-use super::scene::{shortest_path_m, Scene};
+use super::path::shortest_path_m;
+use super::scene::Scene;
 use super::world::SimWorld;
 
 /// One scene's line.

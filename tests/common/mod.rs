@@ -103,6 +103,23 @@ pub async fn sim_run(
     (r, s)
 }
 
+/// `opennav ARGS…`, which must succeed: its stdout's JSON lines.
+pub fn opennav_json_lines(args: &[&std::ffi::OsStr]) -> Vec<serde_json::Value> {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_opennav"))
+        .args(args)
+        .output()
+        .expect("runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("one JSON object per line"))
+        .collect()
+}
+
 /// The JSON report `opennav run` prints last on stdout.
 pub fn report(stdout: &[u8]) -> serde_json::Value {
     let text = String::from_utf8_lossy(stdout);
