@@ -129,14 +129,14 @@ pub fn overlay(image: &RgbImage, detections: &[Detection], masks: &[Mask]) -> Rg
     out
 }
 
-fn put(img: &mut RgbImage, u: usize, v: usize, c: [u8; 3]) {
+pub(crate) fn put(img: &mut RgbImage, u: usize, v: usize, c: [u8; 3]) {
     let (w, h) = (img.width(), img.height());
     if u < w && v < h {
         img.data_mut()[(v * w + u) * 3..(v * w + u) * 3 + 3].copy_from_slice(&c);
     }
 }
 
-fn draw_text(img: &mut RgbImage, x: usize, y: usize, text: &str, c: [u8; 3]) {
+pub(crate) fn draw_text(img: &mut RgbImage, x: usize, y: usize, text: &str, c: [u8; 3]) {
     for (i, ch) in text.chars().enumerate() {
         let Some(glyph) = font8x8::BASIC_FONTS.get(ch) else {
             continue;

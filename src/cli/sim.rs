@@ -30,6 +30,10 @@ pub struct SimArgs {
     /// Only the JSON lines on stdout (no progress on stderr).
     #[arg(long)]
     pub json: bool,
+    /// Write each failed trip's recording (scene-K.mcap) and top-down
+    /// picture (scene-K.png) here.
+    #[arg(long, value_name = "DIR")]
+    pub record: Option<PathBuf>,
 }
 
 #[derive(Subcommand, Debug)]
@@ -102,6 +106,11 @@ fn trips(args: &SimArgs) -> Result<(), Failure> {
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
         .max(1);
     let settings = opennav::config::Settings::load(None).map_err(failed)?;
+    if let Some(dir) = &args.record {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| bad_input(anyhow::anyhow!("--record {}: {e}", dir.display())))?;
+    }
+    let record = args.record.as_deref();
     let t0 = std::time::Instant::now();
     let next = std::sync::atomic::AtomicUsize::new(0);
     let done = std::sync::atomic::AtomicUsize::new(0);
@@ -118,13 +127,13 @@ fn trips(args: &SimArgs) -> Result<(), Failure> {
                     .start_paused(true)
                     .build()
                     .map_err(|e| e.to_string())
-                    .and_then(|rt| rt.block_on(trial::run(&settings, k, &scene)));
+                    .and_then(|rt| rt.block_on(trial::run(&settings, k, &scene, record)));
                 if let Ok(mut all) = results.lock() {
                     all[i] = Some(r);
                 }
                 let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
                 if !args.json {
-                    eprint!("\rscene {n}/{}", indices.len());
+                    progress(n, indices.len(), t0.elapsed().as_secs_f64());
                 }
             });
         }
@@ -158,6 +167,9 @@ fn trips(args: &SimArgs) -> Result<(), Failure> {
     let summary = serde_json::json!({"summary": {
         "scenes": ok.len(),
         "reached": ok.iter().filter(|t| t.reached).count(),
+        "success": ok.iter().filter(|t| t.success).count(),
+        "unreachable": ok.iter().filter(|t| t.shortest_path_m.is_none()).count(),
+        "stops": ok.iter().map(|t| t.stops).sum::<u64>(),
         "collisions": ok.iter().filter(|t| t.collision).count(),
         "fell": ok.iter().filter(|t| t.fell).count(),
         "min_clearance_m": ok.iter().map(|t| t.min_clearance_m).fold(f64::INFINITY, f64::min),
@@ -167,4 +179,16 @@ fn trips(args: &SimArgs) -> Result<(), Failure> {
     }});
     println!("{summary}");
     Ok(())
+}
+
+/// A progress bar on stderr: done of all, elapsed and the time left.
+fn progress(done: usize, all: usize, elapsed_s: f64) {
+    const WIDTH: usize = 30;
+    let filled = done * WIDTH / all.max(1);
+    let left_s = elapsed_s / done.max(1) as f64 * all.saturating_sub(done) as f64;
+    eprint!(
+        "\r[{}{}] {done}/{all} scenes, {elapsed_s:.0} s, ~{left_s:.0} s left ",
+        "#".repeat(filled),
+        " ".repeat(WIDTH - filled)
+    );
 }

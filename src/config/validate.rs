@@ -110,6 +110,12 @@ impl Settings {
         finite_range("safety.command_max_age_s", sf.command_max_age_s, 0.01, 1.0)?;
         finite_range("safety.chair_width_m", sf.chair_width_m, 0.3, 1.5)?;
         finite_range("safety.corridor_margin_m", sf.corridor_margin_m, 0.0, 0.5)?;
+        finite_range(
+            "safety.corridor_margin_slow_m",
+            sf.corridor_margin_slow_m,
+            0.0,
+            sf.corridor_margin_m,
+        )?;
         finite_range("safety.stop_distance_m", sf.stop_distance_m, 0.05, 2.0)?;
         finite_range("safety.front_offset_m", sf.front_offset_m, 0.0, 2.0)?;
         finite_range("safety.rear_offset_m", sf.rear_offset_m, 0.0, 2.0)?;
@@ -275,6 +281,15 @@ impl Settings {
             0.05,
             self.safety.omega_max_radps,
         )?;
+        let m = &self.map;
+        finite_range("map.size_m", m.size_m, 5.0, 100.0)?;
+        finite_range("map.resolution_m", m.resolution_m, 0.02, 0.2)?;
+        finite_range("map.free_range_m", m.free_range_m, 0.5, 5.6)?;
+        finite_range("map.half_width_m", m.half_width_m, 0.2, 1.0)?;
+        finite_range("map.comfort_m", m.comfort_m, m.half_width_m, 3.0)?;
+        finite_range("map.w_comfort", m.w_comfort, 0.0, 100.0)?;
+        finite_range("map.w_unknown", m.w_unknown, 0.0, 100.0)?;
+        finite_range("map.lookahead_m", m.lookahead_m, 0.3, 5.0)?;
         let t = &self.tracker;
         range("tracker.confirm_hits", t.confirm_hits, 1, 20)?;
         finite_range(

@@ -15,6 +15,7 @@ use crate::msg::{
     FaultReason, MapObstacles, Obstacles, Odometry, SafeCmd, Stamp, Stamped, SupervisorState,
     UserInput, VelocityCmd,
 };
+use crate::navigation::map::{GridMap, MapPath, MapSettings};
 use crate::navigation::mpc::UnicycleState;
 use crate::navigation::planner::Planner;
 use crate::safety::rear::{RearSettings, RearWatch};
@@ -103,6 +104,167 @@ pub struct Control {
     asked_goal: Option<String>,
     /// A person acknowledged the fault (the latch file goes too).
     pub acknowledged: bool,
+    /// The map of what the chair has seen, and the way through it to the
+    /// goal (None: drive straight at the goal, the local planner alone).
+    pub route: Option<Router>,
+}
+
+/// The map and the way to the goal through it.
+pub struct Router {
+    pub settings: MapSettings,
+    /// Made at the first odometry, centred where the chair is.
+    pub map: Option<GridMap>,
+    /// The newest laser set and camera set in the map.
+    scan: Option<Stamp>,
+    camera: Option<Stamp>,
+    /// The way, where it goes and when it was planned.
+    pub path: Option<(MapPath, [f64; 2], Stamp)>,
+    /// Ways planned, and goals no way reached.
+    pub planned: u64,
+    pub no_way: u64,
+    /// Since when the chair has stood stopped by an obstacle on the way,
+    /// and until when it backs off.
+    blocked_since: Option<Stamp>,
+    backing_until: Option<Stamp>,
+    pub backoffs: u64,
+}
+
+/// Replan this often, or when the goal moved this far (s, m).
+const REPLAN_EVERY: std::time::Duration = std::time::Duration::from_secs(1);
+const REPLAN_MOVED_M: f64 = 0.3;
+/// A new place to search is this far from the chair and from the places
+/// searched, m.
+const EXPLORE_MIN_M: f64 = 1.0;
+const EXPLORE_APART_M: f64 = 1.5;
+/// The way more than this off the heading: turn on the spot first (rad),
+/// at this rate (rad/s).
+const TURN_FIRST_RAD: f64 = 0.7;
+const TURN_FIRST_RADPS: f64 = 0.4;
+/// Closer than this to something on the map just ahead: crawl (m, m/s).
+const TIGHT_M: f64 = 0.55;
+const CRAWL_MPS: f64 = 0.09;
+/// Stopped by an obstacle this long: back off this long at this speed.
+const BACK_OFF_AFTER: std::time::Duration = std::time::Duration::from_secs(2);
+const BACK_OFF_FOR: std::time::Duration = std::time::Duration::from_millis(2500);
+const BACK_OFF_MPS: f64 = 0.08;
+
+impl Router {
+    pub fn new(settings: MapSettings) -> Router {
+        Router {
+            settings,
+            map: None,
+            scan: None,
+            camera: None,
+            path: None,
+            planned: 0,
+            no_way: 0,
+            blocked_since: None,
+            backing_until: None,
+            backoffs: 0,
+        }
+    }
+
+    /// Puts the newest laser set (seen from `pose`) and camera set in.
+    fn update(
+        &mut self,
+        pose: crate::msg::Pose2,
+        lasers: Option<&Stamped<Obstacles>>,
+        camera: Option<&Stamped<MapObstacles>>,
+    ) {
+        let settings = self.settings;
+        let map = self
+            .map
+            .get_or_insert_with(|| GridMap::new(settings, [pose.x_m, pose.y_m]));
+        if let Some(l) = lasers.filter(|l| Some(l.stamp) != self.scan) {
+            self.scan = Some(l.stamp);
+            map.add_scan(pose, &l.value.rays_base);
+        }
+        if let Some(c) = camera.filter(|c| Some(c.stamp) != self.camera) {
+            self.camera = Some(c.stamp);
+            map.set_camera(&c.value.obstacles_odom, &c.value.drop_offs_odom);
+        }
+    }
+
+    /// Whether the map has something within [`TIGHT_M`] of the chair's
+    /// centre line up to 0.6 m ahead.
+    fn tight_ahead(&mut self, pose: crate::msg::Pose2) -> bool {
+        let Some(map) = self.map.as_mut() else {
+            return false;
+        };
+        let (c, s) = (pose.theta_rad.cos(), pose.theta_rad.sin());
+        [0.0, 0.3, 0.6].iter().any(|d| {
+            map.cell([pose.x_m + c * d, pose.y_m + s * d])
+                .is_some_and(|i| map.distance_m(i) < TIGHT_M)
+        })
+    }
+
+    /// Whether the map has something within [`TIGHT_M`] of `at`.
+    fn tight_ahead_at(&mut self, at: [f64; 2]) -> bool {
+        self.map
+            .as_mut()
+            .is_some_and(|m| m.cell(at).is_some_and(|i| m.distance_m(i) < TIGHT_M))
+    }
+
+    /// Stopped by an obstacle on the way for [`BACK_OFF_AFTER`]: back off
+    /// for [`BACK_OFF_FOR`] (the supervisor checks the space behind as for
+    /// any reversing); the command to send instead of the planner's.
+    fn back_off(&mut self, now: Stamp, state: SupervisorState) -> Option<VelocityCmd> {
+        if let Some(until) = self.backing_until {
+            if now < until {
+                return Some(VelocityCmd {
+                    v_mps: -BACK_OFF_MPS,
+                    omega_radps: 0.0,
+                });
+            }
+            self.backing_until = None;
+            self.blocked_since = None;
+        }
+        if state != SupervisorState::Stopped(crate::msg::StopReason::Obstacle) {
+            self.blocked_since = None;
+            return None;
+        }
+        let since = *self.blocked_since.get_or_insert(now);
+        if since.age_at(now) >= BACK_OFF_AFTER {
+            self.backoffs += 1;
+            self.backing_until = Some(Stamp(now.0 + BACK_OFF_FOR));
+            self.path = None;
+        }
+        None
+    }
+
+    /// Where the local planner should head now on the way from `from`
+    /// to `to` (odom): a point `lookahead_m` along the map's way, or the
+    /// goal itself when it is near or no way is known.
+    fn carrot(&mut self, now: Stamp, from: [f64; 2], to: [f64; 2], within_m: f64) -> [f64; 2] {
+        // somewhere tight, a nearer point: the chair lines up with a
+        // doorway before it, rather than cutting the corner
+        let look = if self.tight_ahead_at(from) {
+            (self.settings.lookahead_m / 2.0).max(0.4)
+        } else {
+            self.settings.lookahead_m
+        };
+        if (to[0] - from[0]).hypot(to[1] - from[1]) <= look {
+            return to;
+        }
+        let stale = self.path.as_ref().is_none_or(|(_, goal, at)| {
+            at.age_at(now) >= REPLAN_EVERY
+                || (goal[0] - to[0]).hypot(goal[1] - to[1]) > REPLAN_MOVED_M
+        });
+        let Some(map) = self.map.as_mut() else {
+            return to;
+        };
+        if stale {
+            self.planned += 1;
+            self.path = map.path(from, to, within_m).map(|p| (p, to, now));
+            if self.path.is_none() {
+                self.no_way += 1;
+            }
+        }
+        self.path
+            .as_ref()
+            .and_then(|(p, _, _)| p.carrot(from, look))
+            .unwrap_or(to)
+    }
 }
 
 /// A turn on the spot refused this long for an unseen rear: the chair asks.
@@ -153,7 +315,16 @@ impl Control {
             rear_yes: false,
             asked_goal: None,
             acknowledged: false,
+            route: None,
         }
+    }
+
+    /// Plan the way on a map of what the chair sees (and search further
+    /// than one turn when the word is not in view).
+    pub fn with_map(mut self, settings: MapSettings) -> Control {
+        self.route = Some(Router::new(settings));
+        self.goal.explores = true;
+        self
     }
 
     /// What the latest fault was, in words.
@@ -357,6 +528,9 @@ impl Control {
             .camera
             .zip(inputs.odometry)
             .map(|(c, odo)| Stamped::new(c.stamp, c.value.to_base(&odo.value.pose)));
+        if let (Some(r), Some(odo)) = (self.route.as_mut(), inputs.odometry) {
+            r.update(odo.value.pose, inputs.obstacles, inputs.camera);
+        }
         if let (Some(o), Some(odo)) = (inputs.obstacles, inputs.odometry) {
             self.plan(now, o, camera.as_ref(), odo, inputs.tracker);
         }
@@ -473,18 +647,53 @@ impl Control {
         let event = self.goal.update(now, tracker, pose, &obstacles_odom, &|p| {
             view.is_some_and(|v| v.sees(&pose, p))
         });
+        let event = match event {
+            None if self.goal.wants_place() => {
+                let from = [pose.x_m, pose.y_m];
+                let place = self.route.as_mut().and_then(|r| {
+                    let map = r.map.as_mut()?;
+                    map.frontier(from, EXPLORE_MIN_M, &self.goal.searched, EXPLORE_APART_M)
+                });
+                self.goal.explore(now, place)
+            }
+            e => e,
+        };
         if let Some(e) = &event {
             self.say(e.say());
         }
         match self.goal.state() {
-            GoalState::Tracking { .. } | GoalState::Searching { .. } | GoalState::LookingAround => {
-                self.supervisor.goal_active()
-            }
+            GoalState::Tracking { .. }
+            | GoalState::Searching { .. }
+            | GoalState::LookingAround
+            | GoalState::Exploring { .. } => self.supervisor.goal_active(),
             GoalState::Holding { .. } => self.supervisor.goal_holding(),
             GoalState::None | GoalState::Reached { .. } => self.supervisor.goal_cleared(),
         }
-        self.planner_cmd = if let Some(a) = self.goal.approach() {
-            let out = self.planner.step(
+        let from = [pose.x_m, pose.y_m];
+        let target = self
+            .goal
+            .approach()
+            .map(|a| ([a.x_m, a.y_m], self.goal.settings.reached_within_m))
+            .or_else(|| self.goal.explore_target().map(|t| (t, 0.3)));
+        self.planner_cmd = if let Some((to, within)) = target {
+            let aim = match self.route.as_mut() {
+                Some(r) => r.carrot(now, from, to, within),
+                None => to,
+            };
+            let bearing = crate::msg::wrap_angle(
+                (aim[1] - pose.y_m).atan2(aim[0] - pose.x_m) - pose.theta_rad,
+            );
+            let far = (aim[0] - pose.x_m).hypot(aim[1] - pose.y_m) > 0.3;
+            // somewhere tight the chair lines up more closely before it
+            // moves on
+            let tight = self.route.as_mut().is_some_and(|r| r.tight_ahead(pose));
+            let limit = if tight {
+                TURN_FIRST_RAD / 2.0
+            } else {
+                TURN_FIRST_RAD
+            };
+            let turn_first = self.route.is_some() && far && bearing.abs() > limit;
+            let mut out = self.planner.step(
                 UnicycleState {
                     x_m: pose.x_m,
                     y_m: pose.y_m,
@@ -492,9 +701,23 @@ impl Control {
                     v_mps,
                     omega_radps,
                 },
-                [a.x_m, a.y_m],
+                aim,
                 &o,
             );
+            let state = self.supervisor.state();
+            if let Some(back) = self.route.as_mut().and_then(|r| r.back_off(now, state)) {
+                out.cmd = back;
+            } else if turn_first {
+                // the way goes off to the side: face it first, on the spot
+                out.cmd = VelocityCmd {
+                    v_mps: 0.0,
+                    omega_radps: TURN_FIRST_RADPS.copysign(bearing),
+                };
+            } else if tight {
+                // somewhere tight (a doorway): a crawl, whose stop
+                // corridor is the narrow one
+                out.cmd.v_mps = out.cmd.v_mps.min(CRAWL_MPS);
+            }
             Some(Stamped::new(now, out.cmd))
         } else {
             self.goal.search_command().map(|c| Stamped::new(now, c))

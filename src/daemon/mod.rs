@@ -100,6 +100,8 @@ pub struct RunReport {
     /// The last odometry (None: the wheels never reported).
     pub odometry: Option<Odometry>,
     pub planner: PlannerStats,
+    /// Stops on the way (see `Supervisor::stops`).
+    pub stops: u64,
     pub estimation: EstimationStats,
     pub actuator: ActuatorStatus,
     /// What the chair said, in order.
@@ -192,7 +194,8 @@ fn new_control(settings: &Settings, view: Option<CameraView>, exit_on_arrival: b
         Planner::new(settings.mpc, settings.field),
         view,
         exit_on_arrival,
-    );
+    )
+    .with_map(settings.map);
     // without a goal perception looks for every word a person may ask
     // for: the switch menu offers what is around
     control.idle_words = settings.voice.vocabulary.clone();
@@ -644,6 +647,7 @@ pub async fn run(
         supervisor: control.state(),
         odometry,
         planner: control.planner.stats.clone(),
+        stops: control.supervisor.stops,
         estimation,
         actuator: actuator_status,
         said,

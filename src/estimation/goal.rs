@@ -59,6 +59,13 @@ pub enum GoalState {
     },
     /// No word: turning once on the spot to see what is around.
     LookingAround,
+    /// Not seen after a turn: driving to the edge of what the chair has
+    /// seen (`target`, odom), to look again there.
+    Exploring {
+        label: String,
+        target: [f64; 2],
+        since: Stamp,
+    },
 }
 
 impl GoalState {
@@ -69,7 +76,8 @@ impl GoalState {
             GoalState::Searching { label }
             | GoalState::Tracking { label, .. }
             | GoalState::Holding { label, .. }
-            | GoalState::Reached { label, .. } => Some(label),
+            | GoalState::Reached { label, .. }
+            | GoalState::Exploring { label, .. } => Some(label),
         }
     }
 
@@ -82,6 +90,7 @@ impl GoalState {
             GoalState::Holding { .. } => Some("holding"),
             GoalState::Reached { .. } => Some("reached"),
             GoalState::LookingAround => Some("looking around"),
+            GoalState::Exploring { .. } => Some("exploring"),
         }
     }
 }
@@ -120,6 +129,10 @@ pub enum GoalEvent {
     LookedAround {
         seen: Vec<String>,
     },
+    /// Not seen from here: going on to look elsewhere.
+    LookingFurther {
+        label: String,
+    },
 }
 
 impl GoalEvent {
@@ -137,6 +150,9 @@ impl GoalEvent {
             }
             GoalEvent::Reached { label } => format!("Arrived at the {label}."),
             GoalEvent::NotFound { label } => format!("I cannot find a {label} here. Stopped."),
+            GoalEvent::LookingFurther { label } => {
+                format!("I cannot see a {label} from here. Looking further.")
+            }
             GoalEvent::LookedAround { seen } if seen.is_empty() => {
                 "I looked around and saw nothing I know.".into()
             }
@@ -159,7 +175,21 @@ pub struct GoalKeeper {
     /// turned since the search began, rad.
     search_heading: Option<f64>,
     search_turned_rad: f64,
+    /// After a turn without the word, search further (the daemon's map
+    /// gives the places, [`GoalKeeper::explore`]); false: "not found"
+    /// after one turn.
+    pub explores: bool,
+    /// Where the search has been (odom): the start and each place reached.
+    pub searched: Vec<[f64; 2]>,
 }
+
+/// At most this many places searched after the first turn.
+pub const MAX_EXPLORATIONS: usize = 6;
+/// A place to search is reached this close, m.
+const EXPLORED_WITHIN_M: f64 = 0.5;
+/// Driving to a place to search gives up after this long (and searches
+/// where it is).
+const EXPLORE_FOR: Duration = Duration::from_secs(40);
 
 /// A track of the same word this close to where the goal was last seen is
 /// the goal (the tracker split or renumbered it), m.
@@ -173,6 +203,8 @@ impl GoalKeeper {
             last_center: None,
             search_heading: None,
             search_turned_rad: 0.0,
+            explores: false,
+            searched: Vec::new(),
         }
     }
 
@@ -184,6 +216,7 @@ impl GoalKeeper {
     pub fn set_prompt(&mut self, label: &str) {
         self.search_heading = None;
         self.search_turned_rad = 0.0;
+        self.searched.clear();
         self.state = GoalState::Searching {
             label: label.trim().to_lowercase(),
         };
@@ -199,6 +232,44 @@ impl GoalKeeper {
 
     pub fn clear(&mut self) {
         self.state = GoalState::None;
+    }
+
+    /// Whether a turn found nothing and the keeper waits for a place to
+    /// search next ([`GoalKeeper::explore`]).
+    pub fn wants_place(&self) -> bool {
+        self.explores
+            && matches!(self.state, GoalState::Searching { .. })
+            && self.search_turned_rad >= std::f64::consts::TAU
+    }
+
+    /// The next place to search (odom), or None: no place is left, and the
+    /// word was not found.
+    pub fn explore(&mut self, now: Stamp, place: Option<[f64; 2]>) -> Option<GoalEvent> {
+        let GoalState::Searching { label } = self.state.clone() else {
+            return None;
+        };
+        match place {
+            Some(target) if self.searched.len() <= MAX_EXPLORATIONS => {
+                self.state = GoalState::Exploring {
+                    label: label.clone(),
+                    target,
+                    since: now,
+                };
+                Some(GoalEvent::LookingFurther { label })
+            }
+            _ => {
+                self.state = GoalState::None;
+                Some(GoalEvent::NotFound { label })
+            }
+        }
+    }
+
+    /// Where to drive to search (only while exploring).
+    pub fn explore_target(&self) -> Option<[f64; 2]> {
+        match &self.state {
+            GoalState::Exploring { target, .. } => Some(*target),
+            _ => None,
+        }
     }
 
     /// While searching: turn on the spot, counter-clockwise.
@@ -219,7 +290,8 @@ impl GoalKeeper {
         match &self.state {
             GoalState::Searching { label }
             | GoalState::Tracking { label, .. }
-            | GoalState::Holding { label, .. } => vec![label.clone()],
+            | GoalState::Holding { label, .. }
+            | GoalState::Exploring { label, .. } => vec![label.clone()],
             GoalState::None | GoalState::Reached { .. } | GoalState::LookingAround => Vec::new(),
         }
     }
@@ -306,9 +378,12 @@ impl GoalKeeper {
                     .goal(&label, from)
                     .filter(|t| t.last_seen.age_at(now) <= s.unseen_after);
                 let Some(t) = fresh else {
-                    if self.search_turned_rad >= std::f64::consts::TAU {
+                    if self.search_turned_rad >= std::f64::consts::TAU && !self.explores {
                         self.state = GoalState::None;
                         return Some(GoalEvent::NotFound { label });
+                    }
+                    if self.searched.is_empty() {
+                        self.searched.push(from);
                     }
                     return None;
                 };
@@ -331,6 +406,31 @@ impl GoalKeeper {
                     }
                     None => Some(GoalEvent::NoApproach { label, track: id }),
                 }
+            }
+            GoalState::Exploring {
+                label,
+                target,
+                since,
+            } => {
+                if tracker
+                    .goal(&label, from)
+                    .is_some_and(|t| t.last_seen.age_at(now) <= s.unseen_after)
+                {
+                    // seen on the way: as when a search turn finds it
+                    self.state = GoalState::Searching { label };
+                    self.search_heading = None;
+                    self.search_turned_rad = 0.0;
+                    return self.update(now, tracker, chair, obstacles_odom, visible);
+                }
+                let there = (target[0] - from[0]).hypot(target[1] - from[1]) <= EXPLORED_WITHIN_M;
+                if there || since.age_at(now) > EXPLORE_FOR {
+                    // look again from here
+                    self.searched.push(from);
+                    self.state = GoalState::Searching { label };
+                    self.search_heading = None;
+                    self.search_turned_rad = 0.0;
+                }
+                None
             }
             GoalState::Tracking {
                 label,

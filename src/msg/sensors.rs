@@ -62,6 +62,9 @@ pub struct LaserRay {
     /// — a black or shiny surface, glass —, a saturating reflector, a step
     /// not measurable): something may be there unseen.
     pub blind: bool,
+    /// Where the ray ended on something, m (None: no return — nothing in
+    /// range, or blind).
+    pub range_m: Option<f32>,
 }
 
 impl LaserRay {

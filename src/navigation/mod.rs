@@ -5,5 +5,6 @@
 
 pub mod apf;
 pub mod grid;
+pub mod map;
 pub mod mpc;
 pub mod planner;

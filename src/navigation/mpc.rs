@@ -233,11 +233,15 @@ pub fn solve(problem: &MpcProblem, p: &MpcParams) -> Result<MpcPlan, MpcError> {
         row += NX;
     }
     let n_eq = row;
+    let v0 = problem.state.v_mps;
     for k in 1..=n {
+        // a chair moving outside the speed bounds (backing off, which the
+        // plan does not do) gets back inside them at the rate limit
+        let ramp = p.accel_max_mps2 * dt * k as f64;
         push_bound(
             sx(k, 3),
-            p.v_min_mps,
-            p.v_max_mps,
+            p.v_min_mps.min(v0 + ramp),
+            p.v_max_mps.max(v0 - ramp),
             &mut ai,
             &mut aj,
             &mut av,
@@ -303,7 +307,12 @@ pub fn solve(problem: &MpcProblem, p: &MpcParams) -> Result<MpcPlan, MpcError> {
             } else {
                 (1.0, 0.0)
             };
-            let bb = nx * o[0] + ny * o[1] + p.clearance_m;
+            // a point already closer than the clearance (a doorway's
+            // jamb, a turn beside furniture): not closer than now, so that
+            // the problem stays feasible and the plan moves away
+            let now_m = (s0[0] - o[0]) * nx + (s0[1] - o[1]) * ny;
+            let clearance = p.clearance_m.min((now_m - 0.05).max(0.0));
+            let bb = nx * o[0] + ny * o[1] + clearance;
             // −n·p ≤ −b
             ai.push(row);
             aj.push(sx(k, 0));

@@ -34,6 +34,10 @@ pub struct SafetyLimits {
     pub command_max_age: Duration,
     pub chair_width_m: f64,
     pub corridor_margin_m: f64,
+    /// The corridor's margin at a crawl (≤ a third of the forward cap):
+    /// it grows linearly with speed to `corridor_margin_m` at the cap, so
+    /// that a 0.8–0.9 m doorway can be passed slowly, m.
+    pub corridor_margin_slow_m: f64,
     pub stop_distance_m: f64,
     /// From `base_link` to the chair's front edge / rear edge, metres.
     pub front_offset_m: f64,
@@ -84,6 +88,10 @@ pub struct Supervisor {
     state: SupervisorState,
     /// Since when the measured speed has been above a cap.
     overspeed_since: Option<Stamp>,
+    /// Times the state went from navigating to a stop for what is around
+    /// (an obstacle, a drop-off, the unseen rear, a blind laser, stale
+    /// data): the stops on a trip.
+    pub stops: u64,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -113,6 +121,7 @@ impl Supervisor {
             last: None,
             state: SupervisorState::Idle,
             overspeed_since: None,
+            stops: 0,
         }
     }
 
@@ -197,7 +206,11 @@ impl Supervisor {
     /// The corridor's box in `base_link` for travel at `v_mps` (None at 0).
     fn corridor_box(&self, v_mps: f64) -> Option<([f64; 2], [f64; 2])> {
         let l = &self.limits;
-        let half = l.chair_width_m / 2.0 + l.corridor_margin_m;
+        let speed = (v_mps.abs() / l.v_forward_max_mps.max(1e-6)).clamp(0.0, 1.0);
+        let crawl = ((speed - 1.0 / 3.0) * 1.5).clamp(0.0, 1.0);
+        let margin = l.corridor_margin_slow_m.min(l.corridor_margin_m)
+            + crawl * (l.corridor_margin_m - l.corridor_margin_slow_m).max(0.0);
+        let half = l.chair_width_m / 2.0 + margin;
         let (lo, hi) = if v_mps > 0.0 {
             (l.front_offset_m, l.front_offset_m + l.stop_distance_m)
         } else if v_mps < 0.0 {
@@ -383,6 +396,11 @@ impl Supervisor {
         }
         if state != self.state {
             tracing::info!(from = ?self.state, to = ?state, "supervisor state");
+            if self.state == SupervisorState::Navigating
+                && matches!(state, SupervisorState::Stopped(_))
+            {
+                self.stops += 1;
+            }
         }
         self.state = state;
         self.last = Some((out, now));

@@ -32,6 +32,7 @@ pub fn scan_rays(scan: &LaserScan, base_from_laser: &Isometry3<f64>) -> Vec<Lase
                 origin_m: [o.x as f32, o.y as f32],
                 dir: [d.x as f32, d.y as f32],
                 blind: matches!(r, Reading::NoReturn(n) if *n != NoReturn::NoObject),
+                range_m: scan.ranges_m.get(i).copied().flatten(),
             }
         })
         .collect()

@@ -14,5 +14,6 @@ pub mod replica;
 pub mod rnet;
 pub mod room;
 pub mod scene;
+pub mod topdown;
 pub mod trial;
 pub mod world;

@@ -1,10 +1,13 @@
 //! One trip on a generated scene: the whole daemon (`daemon::run`, the
 //! simulated devices, the real R-Net writer on the simulated chair's bus)
-//! on the caller's paused runtime, the prompted word said at the start and
-//! "yes" when the chair asks whether it is clear behind; the result as the
-//! benchmark reports it.
+//! on the caller's paused runtime, the prompted word said at the start; a
+//! simulated person answers the chair's questions truthfully (is it clear
+//! behind? — from the world, not from what the chair knows); the result as
+//! the benchmark reports it, and for a failed trip its recording and a
+//! top-down picture.
 
-use std::sync::Arc;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use serde::Serialize;
@@ -36,37 +39,129 @@ pub struct TrialResult {
     pub shortest_path_m: Option<f64>,
     pub time_s: f64,
     pub outcome: Outcome,
+    /// Times the chair stopped for safety on the way (the supervisor's
+    /// stops, the planner's) — not counting the stop on arrival.
+    pub stops: u64,
     /// The chair's last sentence.
     pub last_said: Option<String>,
+    /// The supervisor's state at the end (why a stuck chair stood).
+    pub supervisor: crate::msg::SupervisorState,
+    /// Reached, or (no place beside the object can be reached) the chair
+    /// said so and stopped; and no collision, no fall.
+    pub success: bool,
+    /// The failed trip's recording and picture.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub files: Vec<String>,
 }
 
 /// How long a trip may take, s.
 pub const TRIAL_LIMIT: Duration = Duration::from_secs(120);
 
+/// A person's time to answer a question, s.
+const ANSWER_AFTER: Duration = Duration::from_millis(1500);
+/// The chair's corners reach this far from base_link when it turns on the
+/// spot (0.55 m ahead, 0.45 m behind, 0.35 m to each side), plus a margin:
+/// nothing behind within this, the person says it is clear, m.
+const CLEAR_BEHIND_M: f64 = 0.80;
+
+/// What a truthful person sees behind the chair: nothing within
+/// [`CLEAR_BEHIND_M`] of base_link on the rear half (walls, boxes taller
+/// than 5 cm, steps down).
+fn clear_behind(w: &super::world::SimWorld) -> bool {
+    let t = w.truth;
+    let (c, s) = (t.theta_rad.cos(), t.theta_rad.sin());
+    let [sx, sy, _] = w.room.size_m;
+    let mut boxes: Vec<([f64; 2], [f64; 2])> = w
+        .room
+        .objects
+        .iter()
+        .filter(|o| o.max_m[2] > 0.05)
+        .map(|o| ([o.min_m[0], o.min_m[1]], [o.max_m[0], o.max_m[1]]))
+        .collect();
+    boxes.extend(w.room.pits.iter().map(|p| (p.min_m, p.max_m)));
+    // the outer walls as thin boxes
+    boxes.extend([
+        ([-1.0, -1.0], [sx + 1.0, 0.0]),
+        ([-1.0, sy], [sx + 1.0, sy + 1.0]),
+        ([-1.0, -1.0], [0.0, sy + 1.0]),
+        ([sx, -1.0], [sx + 1.0, sy + 1.0]),
+    ]);
+    // sample the rear half-disc
+    for i in 0..=12 {
+        let a = std::f64::consts::FRAC_PI_2 + std::f64::consts::PI * i as f64 / 12.0;
+        for k in 1..=8 {
+            let r = CLEAR_BEHIND_M * k as f64 / 8.0;
+            let (bx, by) = (r * a.cos(), r * a.sin());
+            let (x, y) = (t.x_m + c * bx - s * by, t.y_m + s * bx + c * by);
+            if boxes
+                .iter()
+                .any(|(lo, hi)| x >= lo[0] && x <= hi[0] && y >= lo[1] && y <= hi[1])
+            {
+                return false;
+            }
+        }
+    }
+    true
+}
+
+/// The simulated person: says the word, then listens to the chair and
+/// answers its questions from what is really there.
+async fn person(
+    word: String,
+    world: Arc<Mutex<super::world::SimWorld>>,
+    tx: tokio::sync::mpsc::Sender<UserInput>,
+    mut heard: tokio::sync::mpsc::UnboundedReceiver<String>,
+) {
+    {
+        if tx.send(UserInput::Goto(word)).await.is_err() {
+            return;
+        }
+        while let Some(sentence) = heard.recv().await {
+            let answer = if sentence.contains("Is it clear behind?") {
+                tokio::time::sleep(ANSWER_AFTER).await;
+                let clear = world.lock().map(|w| clear_behind(&w)).unwrap_or(false);
+                Some(if clear { UserInput::Yes } else { UserInput::No })
+            } else if sentence.starts_with("Staying here.") {
+                // the person would not let it turn: the trip is over
+                Some(UserInput::Quit)
+            } else {
+                None
+            };
+            if let Some(a) = answer {
+                if tx.send(a).await.is_err() {
+                    return;
+                }
+            }
+        }
+    }
+}
+
 /// Runs scene `index` (generated from `scene.seed`) on the current
-/// (paused, current-thread) runtime.
-pub async fn run(settings: &Settings, index: u64, scene: &Scene) -> Result<TrialResult, String> {
+/// (paused, current-thread) runtime; with `record`, a failed trip leaves
+/// `scene-K.mcap` and `scene-K.png` there.
+pub async fn run(
+    settings: &Settings,
+    index: u64,
+    scene: &Scene,
+    record: Option<&Path>,
+) -> Result<TrialResult, String> {
     let world = SimWorld::in_room(scene.room.clone(), scene.start, settings.drive_params());
     let clock: Arc<dyn Clock> = Arc::new(TokioClock::new());
     let (devs, sim) = devices(settings, world, clock.clone()).map_err(|e| e.to_string())?;
     let (tx, rx) = tokio::sync::mpsc::channel(4);
-    let word = scene.prompt.clone();
-    tokio::spawn(async move {
-        // the word, and "yes" to the question about the space behind
-        for (after, input) in [
-            (Duration::ZERO, UserInput::Goto(word)),
-            (Duration::from_millis(2500), UserInput::Yes),
-        ] {
-            tokio::time::sleep(after).await;
-            if tx.send(input).await.is_err() {
-                return;
-            }
-        }
-        std::future::pending::<()>().await;
-    });
+    let (speech_tx, speech_rx) = tokio::sync::mpsc::unbounded_channel();
+    tokio::spawn(person(
+        scene.prompt.clone(),
+        sim.world.clone(),
+        tx,
+        speech_rx,
+    ));
+    let mcap: Option<PathBuf> = record.map(|d| d.join(format!("scene-{index}.mcap")));
     let opts = RunOptions {
         exit_on_arrival: true,
         max_duration: Some(TRIAL_LIMIT),
+        record: mcap.clone(),
+        speech: Some(speech_tx),
         ..Default::default()
     };
     let r = crate::daemon::run(devs, settings, opts, rx, clock, CancellationToken::new())
@@ -83,25 +178,63 @@ pub async fn run(settings: &Settings, index: u64, scene: &Scene) -> Result<Trial
         && s.distance_to_goal_object_m.is_some_and(|d| {
             (d - (g.standoff_m + g.front_offset_m)).abs() <= g.reached_within_m + 0.25
         });
+    let shortest = shortest_path_m(
+        &scene.room,
+        [scene.start.x_m, scene.start.y_m],
+        &scene.prompt,
+        g.standoff_m + g.front_offset_m,
+        g.reached_within_m + 0.25,
+        0.4,
+    );
+    let collision = w.collision_steps > 0;
+    let fell = w.fell_steps > 0;
+    let said_unreachable = shortest.is_none()
+        && w.v_mps.abs() < 0.05
+        && matches!(r.outcome, Outcome::NotFound | Outcome::Lost | Outcome::Quit);
+    let success = (reached || said_unreachable) && !collision && !fell;
+    let mut files = Vec::new();
+    if let (Some(dir), Some(mcap)) = (record, mcap) {
+        if success {
+            std::fs::remove_file(&mcap).map_err(|e| format!("removing {}: {e}", mcap.display()))?;
+        } else {
+            files.push(mcap.display().to_string());
+            let png = dir.join(format!("scene-{index}.png"));
+            let caption = format!(
+                "scene {index} \"{}\": {:?}{}{}",
+                scene.prompt,
+                r.outcome,
+                if collision { ", collision" } else { "" },
+                if fell { ", fell" } else { "" },
+            );
+            let picture = sim
+                .world
+                .lock()
+                .map_err(|_| "the simulated world was poisoned".to_string())
+                .and_then(|w| {
+                    super::topdown::render(&w, &scene.prompt, &caption).map_err(|e| e.to_string())
+                })?;
+            picture
+                .save_png(&png)
+                .map_err(|e| format!("{}: {e}", png.display()))?;
+            files.push(png.display().to_string());
+        }
+    }
     Ok(TrialResult {
         scene: index,
         seed: scene.seed,
         prompt: scene.prompt.clone(),
         reached,
-        collision: w.collision_steps > 0,
-        fell: w.fell_steps > 0,
+        collision,
+        fell,
         min_clearance_m: w.min_clearance_m,
         path_m: w.distance_travelled_m,
-        shortest_path_m: shortest_path_m(
-            &scene.room,
-            [scene.start.x_m, scene.start.y_m],
-            &scene.prompt,
-            g.standoff_m + g.front_offset_m,
-            g.reached_within_m + 0.25,
-            0.4,
-        ),
+        shortest_path_m: shortest,
         time_s: r.duration_s,
         outcome: r.outcome,
+        stops: r.planner.stops + r.stops,
         last_said: r.said.last().cloned(),
+        supervisor: r.supervisor,
+        success,
+        files,
     })
 }

@@ -66,6 +66,8 @@ pub struct SimWorld {
     pub report: SimReport,
     /// The stamp of the last step (the daemon's clock).
     pub now: crate::msg::Stamp,
+    /// Where base_link went (world), a point every 5 cm.
+    pub trace: Vec<[f64; 2]>,
 }
 
 /// 2D segments of everything a laser at `height_m` sees: the walls and the
@@ -164,6 +166,7 @@ impl SimWorld {
                 distance_travelled_m: 0.0,
             },
             now: crate::msg::Stamp::ZERO,
+            trace: vec![[start.x_m, start.y_m]],
         }
     }
 
@@ -192,6 +195,14 @@ impl SimWorld {
         self.report.v_mps = self.v_mps;
         self.report.omega_radps = self.omega_radps;
         self.report.distance_travelled_m += ds.abs();
+        let here = [self.truth.x_m, self.truth.y_m];
+        if self
+            .trace
+            .last()
+            .is_none_or(|p| (p[0] - here[0]).hypot(p[1] - here[1]) >= 0.05)
+        {
+            self.trace.push(here);
+        }
         let c = self.clearance();
         self.report.min_clearance_m = self.report.min_clearance_m.min(c);
         if c <= 0.0 {
@@ -205,7 +216,7 @@ impl SimWorld {
     }
 
     /// The footprint's outline in the world, sampled.
-    fn outline_world(&self) -> Vec<[f64; 2]> {
+    pub fn outline_world(&self) -> Vec<[f64; 2]> {
         let f = self.footprint;
         let (c, s) = (self.truth.theta_rad.cos(), self.truth.theta_rad.sin());
         let mut outline = Vec::new();

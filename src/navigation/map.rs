@@ -1,0 +1,607 @@
+//! The chair's map of what it has seen (pure): an occupancy grid in `odom`
+//! from the lasers' rays (free along a ray, occupied where it ended) and
+//! the depth camera's remembered obstacles and drop-offs; the distance
+//! from each cell to the nearest blocked one; shortest paths (A*) that
+//! keep the chair's half width from everything and prefer the middle of a
+//! doorway; frontiers (seen free space next to unseen space) where a
+//! search can go on.
+//!
+//! The local planner (MPC and field) still decides every command and the
+//! supervisor still checks it: the map only says which way round.
+
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
+
+use serde::Deserialize;
+
+use crate::msg::{LaserRay, Pose2};
+
+/// The map's settings (config `[map]`).
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MapSettings {
+    /// Side of the square map about where the chair started, m.
+    pub size_m: f64,
+    /// Cell side, m.
+    pub resolution_m: f64,
+    /// A ray with no return marks free space this far, m.
+    pub free_range_m: f64,
+    /// Paths keep this far from every blocked cell (half the chair's
+    /// width and a little), m.
+    pub half_width_m: f64,
+    /// Closer than this to something costs more (the middle of a doorway
+    /// is cheapest), m.
+    pub comfort_m: f64,
+    /// Weight of that cost (0: shortest paths hug walls).
+    pub w_comfort: f64,
+    /// Extra cost of a metre through unseen space (it may be blocked).
+    pub w_unknown: f64,
+    /// The local planner heads for the point this far along the way, m.
+    pub lookahead_m: f64,
+}
+
+impl Default for MapSettings {
+    fn default() -> Self {
+        MapSettings {
+            size_m: 30.0,
+            resolution_m: 0.05,
+            free_range_m: 4.0,
+            half_width_m: 0.37,
+            comfort_m: 0.7,
+            w_comfort: 1.5,
+            w_unknown: 0.5,
+            lookahead_m: 1.2,
+        }
+    }
+}
+
+/// Evidence per update and its bounds (log-odds in small integers).
+const HIT: i8 = 3;
+const MISS: i8 = 1;
+const EVIDENCE_MAX: i8 = 20;
+/// Distances are kept up to this, m (beyond, all the same).
+const DIST_CAP_M: f32 = 3.0;
+
+#[derive(Debug, Clone)]
+pub struct GridMap {
+    pub settings: MapSettings,
+    /// odom of the lower-left corner of cell (0, 0).
+    origin_m: [f64; 2],
+    n: usize,
+    /// > 0 occupied, ≤ 0 free, where `known`.
+    evidence: Vec<i8>,
+    known: Vec<bool>,
+    /// The camera's obstacles and drop-offs (replaced at each update).
+    camera: Vec<bool>,
+    camera_cells: Vec<usize>,
+    /// Distance to the nearest blocked cell, m (valid when not dirty).
+    dist: Vec<f32>,
+    dist_dirty: bool,
+}
+
+/// A path in `odom`, from the chair to the goal.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MapPath {
+    pub points: Vec<[f64; 2]>,
+    pub length_m: f64,
+}
+
+impl MapPath {
+    /// The point `lookahead_m` along the path beyond the path point
+    /// nearest `from` (the end when the rest is shorter).
+    pub fn carrot(&self, from: [f64; 2], lookahead_m: f64) -> Option<[f64; 2]> {
+        let d = |p: &[f64; 2]| (p[0] - from[0]).hypot(p[1] - from[1]);
+        let (i0, _) = self
+            .points
+            .iter()
+            .enumerate()
+            .min_by(|a, b| d(a.1).total_cmp(&d(b.1)))?;
+        let mut left = lookahead_m;
+        for w in self.points[i0..].windows(2) {
+            let seg = (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]);
+            if seg >= left && seg > 0.0 {
+                let t = left / seg;
+                return Some([
+                    w[0][0] + t * (w[1][0] - w[0][0]),
+                    w[0][1] + t * (w[1][1] - w[0][1]),
+                ]);
+            }
+            left -= seg;
+        }
+        self.points.last().copied()
+    }
+}
+
+impl GridMap {
+    /// An empty (all unseen) map centred on `center_odom`.
+    pub fn new(settings: MapSettings, center_odom: [f64; 2]) -> GridMap {
+        let n = ((settings.size_m / settings.resolution_m).ceil() as usize).max(8);
+        let half = n as f64 * settings.resolution_m / 2.0;
+        GridMap {
+            settings,
+            origin_m: [center_odom[0] - half, center_odom[1] - half],
+            n,
+            evidence: vec![0; n * n],
+            known: vec![false; n * n],
+            camera: vec![false; n * n],
+            camera_cells: Vec::new(),
+            dist: vec![DIST_CAP_M; n * n],
+            dist_dirty: true,
+        }
+    }
+
+    /// Cells per side.
+    pub fn side(&self) -> usize {
+        self.n
+    }
+
+    fn cell_xy(&self, p: [f64; 2]) -> Option<(usize, usize)> {
+        let r = self.settings.resolution_m;
+        let (x, y) = (
+            ((p[0] - self.origin_m[0]) / r).floor(),
+            ((p[1] - self.origin_m[1]) / r).floor(),
+        );
+        (x >= 0.0 && y >= 0.0 && (x as usize) < self.n && (y as usize) < self.n)
+            .then_some((x as usize, y as usize))
+    }
+
+    /// The cell index of an odom point (None: off the map).
+    pub fn cell(&self, p: [f64; 2]) -> Option<usize> {
+        self.cell_xy(p).map(|(x, y)| y * self.n + x)
+    }
+
+    /// The odom centre of cell `i`.
+    pub fn center(&self, i: usize) -> [f64; 2] {
+        let r = self.settings.resolution_m;
+        [
+            self.origin_m[0] + ((i % self.n) as f64 + 0.5) * r,
+            self.origin_m[1] + ((i / self.n) as f64 + 0.5) * r,
+        ]
+    }
+
+    /// Seen (by a laser or the camera) at all.
+    pub fn is_known(&self, i: usize) -> bool {
+        self.known[i] || self.camera[i]
+    }
+
+    /// Something is there (a laser's return, the camera's obstacle or
+    /// drop-off).
+    pub fn is_blocked(&self, i: usize) -> bool {
+        self.camera[i] || (self.known[i] && self.evidence[i] > 0)
+    }
+
+    fn nudge(&mut self, i: usize, by: i8) {
+        self.known[i] = true;
+        self.evidence[i] = self.evidence[i]
+            .saturating_add(by)
+            .clamp(-EVIDENCE_MAX, EVIDENCE_MAX);
+    }
+
+    /// One merged laser scan seen from `pose` (odom): free along each ray,
+    /// occupied where it ended; blind rays say nothing.
+    pub fn add_scan(&mut self, pose: Pose2, rays_base: &[LaserRay]) {
+        let (c, s) = (pose.theta_rad.cos(), pose.theta_rad.sin());
+        let to_odom = |p: [f64; 2]| {
+            [
+                pose.x_m + c * p[0] - s * p[1],
+                pose.y_m + s * p[0] + c * p[1],
+            ]
+        };
+        let r = self.settings.resolution_m;
+        let mut cells: Vec<usize> = Vec::new();
+        for ray in rays_base.iter().filter(|r| !r.blind) {
+            let o = to_odom([ray.origin_m[0] as f64, ray.origin_m[1] as f64]);
+            let d = [
+                c * ray.dir[0] as f64 - s * ray.dir[1] as f64,
+                s * ray.dir[0] as f64 + c * ray.dir[1] as f64,
+            ];
+            let (len, hit) = match ray.range_m {
+                Some(m) => (m as f64, true),
+                None => (self.settings.free_range_m, false),
+            };
+            // the cells the ray crosses, sampled at a quarter cell
+            cells.clear();
+            let steps = (len / (r / 4.0)).ceil() as usize;
+            for k in 0..=steps {
+                let t = (k as f64 * r / 4.0).min(len);
+                match self.cell([o[0] + d[0] * t, o[1] + d[1] * t]) {
+                    Some(i) if cells.last() != Some(&i) => cells.push(i),
+                    Some(_) => {}
+                    None => break,
+                }
+            }
+            let end = self.cell([o[0] + d[0] * len, o[1] + d[1] * len]);
+            let hit_cell = if hit { end } else { None };
+            for &i in &cells {
+                if Some(i) == hit_cell {
+                    self.nudge(i, HIT);
+                } else {
+                    self.nudge(i, -MISS);
+                }
+            }
+        }
+        self.dist_dirty = true;
+    }
+
+    /// The depth camera's remembered obstacles and drop-offs (odom),
+    /// replacing the previous set.
+    pub fn set_camera(&mut self, obstacles_odom: &[[f64; 2]], drop_offs_odom: &[[f64; 2]]) {
+        for &i in &self.camera_cells {
+            self.camera[i] = false;
+        }
+        self.camera_cells.clear();
+        for p in obstacles_odom.iter().chain(drop_offs_odom) {
+            if let Some(i) = self.cell(*p) {
+                self.camera[i] = true;
+                self.camera_cells.push(i);
+            }
+        }
+        self.dist_dirty = true;
+    }
+
+    /// Brings the distance field up to date (two-pass chamfer, 1 and √2).
+    fn update_distances(&mut self) {
+        if !self.dist_dirty {
+            return;
+        }
+        let n = self.n;
+        let r = self.settings.resolution_m as f32;
+        let (d1, d2) = (r, r * std::f32::consts::SQRT_2);
+        for i in 0..n * n {
+            self.dist[i] = if self.is_blocked(i) { 0.0 } else { DIST_CAP_M };
+        }
+        let dist = &mut self.dist;
+        for y in 0..n {
+            for x in 0..n {
+                let i = y * n + x;
+                let mut v = dist[i];
+                if x > 0 {
+                    v = v.min(dist[i - 1] + d1);
+                }
+                if y > 0 {
+                    v = v.min(dist[i - n] + d1);
+                    if x > 0 {
+                        v = v.min(dist[i - n - 1] + d2);
+                    }
+                    if x + 1 < n {
+                        v = v.min(dist[i - n + 1] + d2);
+                    }
+                }
+                dist[i] = v;
+            }
+        }
+        for y in (0..n).rev() {
+            for x in (0..n).rev() {
+                let i = y * n + x;
+                let mut v = dist[i];
+                if x + 1 < n {
+                    v = v.min(dist[i + 1] + d1);
+                }
+                if y + 1 < n {
+                    v = v.min(dist[i + n] + d1);
+                    if x + 1 < n {
+                        v = v.min(dist[i + n + 1] + d2);
+                    }
+                    if x > 0 {
+                        v = v.min(dist[i + n - 1] + d2);
+                    }
+                }
+                dist[i] = v;
+            }
+        }
+        self.dist_dirty = false;
+    }
+
+    /// Distance from cell `i` to the nearest blocked cell, m (capped).
+    pub fn distance_m(&mut self, i: usize) -> f64 {
+        self.update_distances();
+        self.dist[i] as f64
+    }
+
+    /// The cost of a metre through cell `i` (None: the chair does not fit).
+    fn cost_per_m(&self, i: usize, escape: &dyn Fn(usize) -> bool) -> Option<f64> {
+        let s = &self.settings;
+        let d = self.dist[i] as f64;
+        if d < s.half_width_m && (self.is_blocked(i) || !escape(i)) {
+            return None;
+        }
+        let tight = ((s.comfort_m - d) / (s.comfort_m - s.half_width_m)).clamp(0.0, 1.0);
+        let unknown = if self.is_known(i) { 0.0 } else { s.w_unknown };
+        Some(1.0 + s.w_comfort * tight * tight + unknown)
+    }
+
+    /// Dijkstra (A* with `heuristic`) from `from` over passable cells; a
+    /// chair too close to something may leave the cells under it.
+    fn search(
+        &self,
+        from: [f64; 2],
+        is_goal: &dyn Fn(usize) -> bool,
+        heuristic: &dyn Fn(usize) -> f64,
+        unknown_ok: bool,
+    ) -> Option<(usize, Vec<u32>)> {
+        let start = self.cell(from)?;
+        let n = self.n;
+        let r = self.settings.resolution_m;
+        let start_xy = (start % n, start / n);
+        // the cells under the chair, to get out of a tight spot
+        let escape_cells = (self.settings.half_width_m / r).ceil() as usize + 1;
+        let escape = move |i: usize| {
+            (i % n).abs_diff(start_xy.0) <= escape_cells
+                && (i / n).abs_diff(start_xy.1) <= escape_cells
+        };
+        let mut g = vec![f32::INFINITY; n * n];
+        let mut parent = vec![u32::MAX; n * n];
+        let mut heap = BinaryHeap::new();
+        g[start] = 0.0;
+        heap.push(Reverse((0u32, start as u32)));
+        let key = |f: f64| (f.max(0.0) * 1000.0).min(u32::MAX as f64 / 2.0) as u32;
+        while let Some(Reverse((f, i))) = heap.pop() {
+            let i = i as usize;
+            if f > key(g[i] as f64 + heuristic(i)) + 1 {
+                continue; // stale
+            }
+            if is_goal(i) {
+                return Some((i, parent));
+            }
+            let (x, y) = ((i % n) as i64, (i / n) as i64);
+            for (dx, dy) in [
+                (1, 0),
+                (-1, 0),
+                (0, 1),
+                (0, -1),
+                (1, 1),
+                (1, -1),
+                (-1, 1),
+                (-1, -1),
+            ] {
+                let (nx, ny) = (x + dx, y + dy);
+                if nx < 0 || ny < 0 || nx >= n as i64 || ny >= n as i64 {
+                    continue;
+                }
+                let j = ny as usize * n + nx as usize;
+                // the cells under the chair are free, seen or not
+                if !unknown_ok && !self.is_known(j) && !escape(j) {
+                    continue;
+                }
+                let Some(c) = self.cost_per_m(j, &escape) else {
+                    continue;
+                };
+                let step = if dx != 0 && dy != 0 {
+                    r * std::f64::consts::SQRT_2
+                } else {
+                    r
+                };
+                let ng = g[i] as f64 + step * c;
+                if (ng as f32) < g[j] {
+                    g[j] = ng as f32;
+                    parent[j] = i as u32;
+                    heap.push(Reverse((key(ng + heuristic(j)), j as u32)));
+                }
+            }
+        }
+        None
+    }
+
+    fn trace(&self, end: usize, parent: &[u32]) -> MapPath {
+        let mut cells = vec![end];
+        let mut i = end;
+        while parent[i] != u32::MAX {
+            i = parent[i] as usize;
+            cells.push(i);
+        }
+        cells.reverse();
+        let points: Vec<[f64; 2]> = cells.iter().map(|&i| self.center(i)).collect();
+        let length_m = points
+            .windows(2)
+            .map(|w| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]))
+            .sum();
+        MapPath { points, length_m }
+    }
+
+    /// The cheapest path from `from` to within `within_m` of `to` (odom),
+    /// through seen or unseen space (None: the chair fits nowhere there).
+    pub fn path(&mut self, from: [f64; 2], to: [f64; 2], within_m: f64) -> Option<MapPath> {
+        self.update_distances();
+        let goal = self.cell(to)?;
+        let n = self.n;
+        let r = self.settings.resolution_m;
+        let (gx, gy) = ((goal % n) as f64, (goal / n) as f64);
+        let within = (within_m / r).max(0.5);
+        let is_goal = |i: usize| ((i % n) as f64 - gx).hypot((i / n) as f64 - gy) <= within;
+        let heuristic =
+            |i: usize| (((i % n) as f64 - gx).hypot((i / n) as f64 - gy) - within).max(0.0) * r;
+        let (end, parent) = self.search(from, &is_goal, &heuristic, true)?;
+        let mut p = self.trace(end, &parent);
+        p.points.push(to);
+        Some(p)
+    }
+
+    /// The nearest frontier by path (a seen free cell the chair fits on,
+    /// next to unseen space) at least `min_m` from `from` and farther
+    /// than `avoid_m` from each of `avoid` (frontiers already visited).
+    pub fn frontier(
+        &mut self,
+        from: [f64; 2],
+        min_m: f64,
+        avoid: &[[f64; 2]],
+        avoid_m: f64,
+    ) -> Option<[f64; 2]> {
+        self.update_distances();
+        let n = self.n;
+        let reach = (0.5 / self.settings.resolution_m).round() as i64;
+        let samples = ((reach + 1) * (reach + 1)) as usize;
+        let is_goal = |i: usize| {
+            let p = self.center(i);
+            if (p[0] - from[0]).hypot(p[1] - from[1]) < min_m
+                || avoid
+                    .iter()
+                    .any(|a| (p[0] - a[0]).hypot(p[1] - a[1]) <= avoid_m)
+            {
+                return false;
+            }
+            let (x, y) = (i % n, i / n);
+            let unseen = |dx: i64, dy: i64| {
+                let (nx, ny) = (x as i64 + dx, y as i64 + dy);
+                nx >= 0
+                    && ny >= 0
+                    && (nx as usize) < n
+                    && (ny as usize) < n
+                    && !self.is_known(ny as usize * n + nx as usize)
+            };
+            if ![(1i64, 0i64), (-1, 0), (0, 1), (0, -1)]
+                .iter()
+                .any(|(dx, dy)| unseen(*dx, *dy))
+            {
+                return false;
+            }
+            // worth going to: a quarter of the square metre about it
+            // unseen (not the shadow of a chair leg)
+            let mut count = 0;
+            for dy in (-reach..=reach).step_by(2) {
+                for dx in (-reach..=reach).step_by(2) {
+                    count += usize::from(unseen(dx, dy));
+                }
+            }
+            count * 4 >= samples
+        };
+        let (end, _) = self.search(from, &is_goal, &|_| 0.0, false)?;
+        Some(self.center(end))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A wall along x = 2 (odom) from y = −12 to 12 with a doorway of
+    /// `door_m` centred on y = 1, as the camera would report it.
+    fn wall_with_door(door_m: f64) -> Vec<[f64; 2]> {
+        let mut pts = Vec::new();
+        let mut y: f64 = -12.0;
+        while y <= 12.0 {
+            if (y - 1.0).abs() > door_m / 2.0 {
+                for dx in [0.0, 0.05] {
+                    pts.push([2.0 + dx, y]);
+                }
+            }
+            y += 0.02;
+        }
+        pts
+    }
+
+    #[test]
+    fn a_path_goes_through_the_middle_of_a_doorway() {
+        let mut map = GridMap::new(MapSettings::default(), [0.0, 0.0]);
+        map.set_camera(&wall_with_door(0.85), &[]);
+        let p = map
+            .path([0.0, -2.0], [4.0, -2.0], 0.1)
+            .expect("a way through");
+        // where it crosses the wall
+        let at_wall = p
+            .points
+            .iter()
+            .find(|q| (q[0] - 2.0).abs() < 0.05)
+            .expect("crosses x = 2");
+        assert!(
+            (at_wall[1] - 1.0).abs() <= 0.06,
+            "crossed at y = {}",
+            at_wall[1]
+        );
+        // round the wall's end is far longer than the doorway
+        assert!(p.length_m < 10.0, "{}", p.length_m);
+        // a gap narrower than the chair: round the wall's end
+        let mut closed = GridMap::new(MapSettings::default(), [0.0, 0.0]);
+        closed.set_camera(&wall_with_door(0.6), &[]);
+        let q = closed
+            .path([0.0, -2.0], [4.0, -2.0], 0.1)
+            .expect("round the wall");
+        assert!(
+            q.points
+                .iter()
+                .all(|p| !((p[0] - 2.0).abs() < 0.05 && (p[1] - 1.0).abs() < 0.5)),
+            "a 0.6 m gap is not a doorway for a 0.7 m chair"
+        );
+        assert!(q.length_m > 20.0, "{}", q.length_m);
+    }
+
+    #[test]
+    fn the_carrot_is_ahead_on_the_path() {
+        let p = MapPath {
+            points: vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [1.0, 2.0]],
+            length_m: 3.0,
+        };
+        assert_eq!(p.carrot([0.0, 0.1], 0.5), Some([0.5, 0.0]));
+        assert_eq!(p.carrot([1.0, 0.0], 1.5), Some([1.0, 1.5]));
+        assert_eq!(p.carrot([1.0, 1.9], 5.0), Some([1.0, 2.0]));
+    }
+
+    fn ring(range_m: Option<f32>, blind: bool) -> Vec<LaserRay> {
+        (0..720)
+            .map(|k| {
+                let a = k as f32 * std::f32::consts::TAU / 720.0;
+                LaserRay {
+                    origin_m: [0.0, 0.0],
+                    dir: [a.cos(), a.sin()],
+                    blind,
+                    range_m,
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn rays_clear_space_and_mark_what_they_hit() {
+        let mut map = GridMap::new(MapSettings::default(), [0.0, 0.0]);
+        let pose = Pose2 {
+            x_m: 1.0,
+            y_m: 1.0,
+            theta_rad: 0.3,
+        };
+        map.add_scan(pose, &ring(Some(2.0), false));
+        let cell = |p| map.cell(p).expect("on the map");
+        assert!(map.is_known(cell([1.5, 1.0])) && !map.is_blocked(cell([1.5, 1.0])));
+        // the hit, 2 m away (a cell beside, where the ray's end rounds)
+        assert!(
+            [-0.05, 0.0, 0.05]
+                .iter()
+                .any(|dy| map.is_blocked(cell([2.99, 1.0 + dy]))),
+            "the hit, 2 m away"
+        );
+        assert!(!map.is_known(cell([4.0, 1.0])), "beyond the hit");
+        // blind rays say nothing
+        let mut blind = GridMap::new(MapSettings::default(), [0.0, 0.0]);
+        blind.add_scan(pose, &ring(None, true));
+        assert!(!blind.is_known(blind.cell([1.5, 1.0]).expect("on the map")));
+        // nothing in range: free as far as free_range_m
+        let mut open = GridMap::new(MapSettings::default(), [0.0, 0.0]);
+        open.add_scan(pose, &ring(None, false));
+        let far = open.cell([4.5, 1.0]).expect("on the map");
+        assert!(open.is_known(far) && !open.is_blocked(far));
+    }
+
+    #[test]
+    fn the_frontier_is_the_nearest_edge_of_what_was_seen() {
+        let mut map = GridMap::new(MapSettings::default(), [0.0, 0.0]);
+        // a room seen out to 3 m all round, open on one side: to +x,
+        // the rays find nothing within 2.5 m and the rest hit at 3 m
+        let rays: Vec<LaserRay> = ring(Some(3.0), false)
+            .into_iter()
+            .map(|mut r| {
+                if r.dir[0] > 0.9 {
+                    r.range_m = None;
+                }
+                r
+            })
+            .collect();
+        map.settings = MapSettings {
+            free_range_m: 2.5,
+            ..Default::default()
+        };
+        map.add_scan(Pose2::default(), &rays);
+        let f = map.frontier([0.0, 0.0], 1.0, &[], 1.0).expect("a frontier");
+        assert!(f[0] > 2.0 && f[1].abs() < 1.2, "{f:?}");
+        // once visited, there is none left that the chair can reach
+        // through seen free space
+        assert!(map.frontier([0.0, 0.0], 1.0, &[f], 1.5).is_none());
+    }
+}
