@@ -15,7 +15,7 @@ fn trial(settings: &Settings, k: u64) -> TrialResult {
         .start_paused(true)
         .build()
         .expect("runtime")
-        .block_on(trial::run(settings, k, &scene, None))
+        .block_on(trial::run(settings, k, &scene, None, false))
         .expect("the trip runs")
 }
 

@@ -34,6 +34,10 @@ pub struct SimArgs {
     /// picture (scene-K.png) here.
     #[arg(long, value_name = "DIR")]
     pub record: Option<PathBuf>,
+    /// With --record: keep every trip's recording and picture, not only
+    /// the failed ones'.
+    #[arg(long, requires = "record")]
+    pub record_all: bool,
 }
 
 #[derive(Subcommand, Debug)]
@@ -127,7 +131,9 @@ fn trips(args: &SimArgs) -> Result<(), Failure> {
                     .start_paused(true)
                     .build()
                     .map_err(|e| e.to_string())
-                    .and_then(|rt| rt.block_on(trial::run(&settings, k, &scene, record)));
+                    .and_then(|rt| {
+                        rt.block_on(trial::run(&settings, k, &scene, record, args.record_all))
+                    });
                 if let Ok(mut all) = results.lock() {
                     all[i] = Some(r);
                 }

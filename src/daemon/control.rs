@@ -122,11 +122,6 @@ pub struct Router {
     /// Ways planned, and goals no way reached.
     pub planned: u64,
     pub no_way: u64,
-    /// Since when the chair has stood stopped by an obstacle on the way,
-    /// and until when it backs off.
-    blocked_since: Option<Stamp>,
-    backing_until: Option<Stamp>,
-    pub backoffs: u64,
 }
 
 /// Replan this often, or when the goal moved this far (s, m).
@@ -143,10 +138,6 @@ const TURN_FIRST_RADPS: f64 = 0.4;
 /// Closer than this to something on the map just ahead: crawl (m, m/s).
 const TIGHT_M: f64 = 0.55;
 const CRAWL_MPS: f64 = 0.09;
-/// Stopped by an obstacle this long: back off this long at this speed.
-const BACK_OFF_AFTER: std::time::Duration = std::time::Duration::from_secs(2);
-const BACK_OFF_FOR: std::time::Duration = std::time::Duration::from_millis(2500);
-const BACK_OFF_MPS: f64 = 0.08;
 
 impl Router {
     pub fn new(settings: MapSettings) -> Router {
@@ -158,9 +149,6 @@ impl Router {
             path: None,
             planned: 0,
             no_way: 0,
-            blocked_since: None,
-            backing_until: None,
-            backoffs: 0,
         }
     }
 
@@ -203,33 +191,6 @@ impl Router {
         self.map
             .as_mut()
             .is_some_and(|m| m.cell(at).is_some_and(|i| m.distance_m(i) < TIGHT_M))
-    }
-
-    /// Stopped by an obstacle on the way for [`BACK_OFF_AFTER`]: back off
-    /// for [`BACK_OFF_FOR`] (the supervisor checks the space behind as for
-    /// any reversing); the command to send instead of the planner's.
-    fn back_off(&mut self, now: Stamp, state: SupervisorState) -> Option<VelocityCmd> {
-        if let Some(until) = self.backing_until {
-            if now < until {
-                return Some(VelocityCmd {
-                    v_mps: -BACK_OFF_MPS,
-                    omega_radps: 0.0,
-                });
-            }
-            self.backing_until = None;
-            self.blocked_since = None;
-        }
-        if state != SupervisorState::Stopped(crate::msg::StopReason::Obstacle) {
-            self.blocked_since = None;
-            return None;
-        }
-        let since = *self.blocked_since.get_or_insert(now);
-        if since.age_at(now) >= BACK_OFF_AFTER {
-            self.backoffs += 1;
-            self.backing_until = Some(Stamp(now.0 + BACK_OFF_FOR));
-            self.path = None;
-        }
-        None
     }
 
     /// Where the local planner should head now on the way from `from`
@@ -704,10 +665,7 @@ impl Control {
                 aim,
                 &o,
             );
-            let state = self.supervisor.state();
-            if let Some(back) = self.route.as_mut().and_then(|r| r.back_off(now, state)) {
-                out.cmd = back;
-            } else if turn_first {
+            if turn_first {
                 // the way goes off to the side: face it first, on the spot
                 out.cmd = VelocityCmd {
                     v_mps: 0.0,

@@ -34,9 +34,8 @@ pub struct SafetyLimits {
     pub command_max_age: Duration,
     pub chair_width_m: f64,
     pub corridor_margin_m: f64,
-    /// The corridor's margin at a crawl (≤ a third of the forward cap):
-    /// it grows linearly with speed to `corridor_margin_m` at the cap, so
-    /// that a 0.8–0.9 m doorway can be passed slowly, m.
+    /// The corridor's margin at a crawl (≤ a third of the forward cap),
+    /// so that a 0.8–0.9 m doorway can be passed slowly, m.
     pub corridor_margin_slow_m: f64,
     pub stop_distance_m: f64,
     /// From `base_link` to the chair's front edge / rear edge, metres.
@@ -206,10 +205,13 @@ impl Supervisor {
     /// The corridor's box in `base_link` for travel at `v_mps` (None at 0).
     fn corridor_box(&self, v_mps: f64) -> Option<([f64; 2], [f64; 2])> {
         let l = &self.limits;
-        let speed = (v_mps.abs() / l.v_forward_max_mps.max(1e-6)).clamp(0.0, 1.0);
-        let crawl = ((speed - 1.0 / 3.0) * 1.5).clamp(0.0, 1.0);
-        let margin = l.corridor_margin_slow_m.min(l.corridor_margin_m)
-            + crawl * (l.corridor_margin_m - l.corridor_margin_slow_m).max(0.0);
+        // at a crawl (a third of the forward cap or less), the narrow
+        // margin: a doorway passed slowly
+        let margin = if v_mps.abs() <= l.v_forward_max_mps / 3.0 {
+            l.corridor_margin_slow_m.min(l.corridor_margin_m)
+        } else {
+            l.corridor_margin_m
+        };
         let half = l.chair_width_m / 2.0 + margin;
         let (lo, hi) = if v_mps > 0.0 {
             (l.front_offset_m, l.front_offset_m + l.stop_distance_m)

@@ -137,13 +137,14 @@ async fn person(
 }
 
 /// Runs scene `index` (generated from `scene.seed`) on the current
-/// (paused, current-thread) runtime; with `record`, a failed trip leaves
-/// `scene-K.mcap` and `scene-K.png` there.
+/// (paused, current-thread) runtime; with `record`, a failed trip (every
+/// trip, with `record_all`) leaves `scene-K.mcap` and `scene-K.png` there.
 pub async fn run(
     settings: &Settings,
     index: u64,
     scene: &Scene,
     record: Option<&Path>,
+    record_all: bool,
 ) -> Result<TrialResult, String> {
     let world = SimWorld::in_room(scene.room.clone(), scene.start, settings.drive_params());
     let clock: Arc<dyn Clock> = Arc::new(TokioClock::new());
@@ -194,7 +195,7 @@ pub async fn run(
     let success = (reached || said_unreachable) && !collision && !fell;
     let mut files = Vec::new();
     if let (Some(dir), Some(mcap)) = (record, mcap) {
-        if success {
+        if success && !record_all {
             std::fs::remove_file(&mcap).map_err(|e| format!("removing {}: {e}", mcap.display()))?;
         } else {
             files.push(mcap.display().to_string());
