@@ -34,6 +34,17 @@ pub struct SimArgs {
     /// picture (scene-K.png) here.
     #[arg(long, value_name = "DIR")]
     pub record: Option<PathBuf>,
+    /// The simulated detector misses each object in view in a frame with
+    /// this probability (the benchmark's default; `[sim]` in config is the
+    /// plain simulator's).
+    #[arg(long, default_value_t = 0.1)]
+    pub misses: f64,
+    /// A false box of the word in a frame with this probability.
+    #[arg(long, default_value_t = 0.05)]
+    pub false_positives: f64,
+    /// Box edges move by up to this many pixels.
+    #[arg(long, default_value_t = 4.0)]
+    pub box_noise_px: f64,
     /// With --record: keep every trip's recording and picture, not only
     /// the failed ones'.
     #[arg(long, requires = "record")]
@@ -109,7 +120,27 @@ fn trips(args: &SimArgs) -> Result<(), Failure> {
         .jobs
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
         .max(1);
-    let settings = opennav::config::Settings::load(None).map_err(failed)?;
+    let mut settings = opennav::config::Settings::load(None).map_err(failed)?;
+    for (name, v) in [
+        ("--misses", args.misses),
+        ("--false-positives", args.false_positives),
+    ] {
+        if !(0.0..=1.0).contains(&v) {
+            return Err(bad_input(anyhow::anyhow!(
+                "{name} {v}: a probability, 0 to 1"
+            )));
+        }
+    }
+    if !(0.0..=100.0).contains(&args.box_noise_px) {
+        return Err(bad_input(anyhow::anyhow!(
+            "--box-noise-px {}: 0 to 100 pixels",
+            args.box_noise_px
+        )));
+    }
+    settings.sim.detector_miss_rate = args.misses;
+    settings.sim.detector_false_positive_rate = args.false_positives;
+    settings.sim.detector_box_noise_px = args.box_noise_px;
+    let settings = settings;
     if let Some(dir) = &args.record {
         std::fs::create_dir_all(dir)
             .map_err(|e| bad_input(anyhow::anyhow!("--record {}: {e}", dir.display())))?;

@@ -55,6 +55,23 @@ pub struct Settings {
     pub input: InputSection,
     pub speech: crate::speech::SpeechSettings,
     pub voice: crate::voice::VoiceSettings,
+    pub sim: SimSection,
+}
+
+/// The simulator's detector (config `[sim]`): the ground truth, with
+/// misses, false positives and box noise as a real detector has them.
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct SimSection {
+    /// Each object in view is missed in a frame with this probability.
+    pub detector_miss_rate: f64,
+    /// A false box of a prompted word appears in a frame with this
+    /// probability.
+    pub detector_false_positive_rate: f64,
+    /// Each box edge moves by up to this, px (uniform).
+    pub detector_box_noise_px: f64,
+    /// Seed of the noise (the benchmark sets each scene's).
+    pub seed: u64,
 }
 
 #[derive(Debug, Clone, Deserialize, PartialEq)]

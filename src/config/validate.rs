@@ -281,6 +281,20 @@ impl Settings {
             0.05,
             self.safety.omega_max_radps,
         )?;
+        let sim = &self.sim;
+        finite_range("sim.detector_miss_rate", sim.detector_miss_rate, 0.0, 1.0)?;
+        finite_range(
+            "sim.detector_false_positive_rate",
+            sim.detector_false_positive_rate,
+            0.0,
+            1.0,
+        )?;
+        finite_range(
+            "sim.detector_box_noise_px",
+            sim.detector_box_noise_px,
+            0.0,
+            100.0,
+        )?;
         let m = &self.map;
         finite_range("map.size_m", m.size_m, 5.0, 100.0)?;
         finite_range("map.resolution_m", m.resolution_m, 0.02, 0.2)?;

@@ -15,6 +15,7 @@ use crate::msg::{
     FaultReason, MapObstacles, Obstacles, Odometry, SafeCmd, Stamp, Stamped, SupervisorState,
     UserInput, VelocityCmd,
 };
+use crate::navigation::doorway::{self, Passage, PassageCmd, PassageSettings};
 use crate::navigation::map::{GridMap, MapPath, MapSettings};
 use crate::navigation::mpc::UnicycleState;
 use crate::navigation::planner::Planner;
@@ -122,7 +123,23 @@ pub struct Router {
     /// Ways planned, and goals no way reached.
     pub planned: u64,
     pub no_way: u64,
+    /// The doorway being passed, since when, and since when the
+    /// supervisor has held the chair in it.
+    passage: Option<(Passage, Stamp, Option<Stamp>)>,
+    /// A doorway given up, not tried again until then.
+    skip: Option<([f64; 2], Stamp)>,
+    pub doorways: u64,
+    pub doorways_given_up: u64,
 }
+
+/// A doorway given up after the chair stood blocked in it this long, or
+/// took this long in all; not tried again for this long.
+const PASSAGE_BLOCKED_FOR: std::time::Duration = std::time::Duration::from_secs(5);
+const PASSAGE_AT_MOST: std::time::Duration = std::time::Duration::from_secs(60);
+const PASSAGE_SKIP_FOR: std::time::Duration = std::time::Duration::from_secs(20);
+/// A gap narrower than this is no doorway for the chair (0.70 m and the
+/// crawl's stop corridor, 3 cm a side), m.
+const MIN_DOORWAY_M: f64 = 0.78;
 
 /// Replan this often, or when the goal moved this far (s, m).
 const REPLAN_EVERY: std::time::Duration = std::time::Duration::from_secs(1);
@@ -131,6 +148,9 @@ const REPLAN_MOVED_M: f64 = 0.3;
 /// searched, m.
 const EXPLORE_MIN_M: f64 = 1.0;
 const EXPLORE_APART_M: f64 = 1.5;
+/// A place to search has this much room about it (to turn on the spot: the
+/// chair's corners reach 0.65 m from base_link), m.
+const EXPLORE_ROOM_M: f64 = 0.7;
 /// The way more than this off the heading: turn on the spot first (rad),
 /// at this rate (rad/s).
 const TURN_FIRST_RAD: f64 = 0.7;
@@ -149,6 +169,10 @@ impl Router {
             path: None,
             planned: 0,
             no_way: 0,
+            passage: None,
+            skip: None,
+            doorways: 0,
+            doorways_given_up: 0,
         }
     }
 
@@ -207,24 +231,85 @@ impl Router {
         if (to[0] - from[0]).hypot(to[1] - from[1]) <= look {
             return to;
         }
+        self.ensure_path(now, from, to, within_m);
+        self.path
+            .as_ref()
+            .and_then(|(p, _, _)| p.carrot(from, look))
+            .unwrap_or(to)
+    }
+
+    /// Plans the way from `from` to `to` when it is old or the goal moved.
+    fn ensure_path(&mut self, now: Stamp, from: [f64; 2], to: [f64; 2], within_m: f64) {
         let stale = self.path.as_ref().is_none_or(|(_, goal, at)| {
             at.age_at(now) >= REPLAN_EVERY
                 || (goal[0] - to[0]).hypot(goal[1] - to[1]) > REPLAN_MOVED_M
         });
         let Some(map) = self.map.as_mut() else {
-            return to;
+            return;
         };
         if stale {
             self.planned += 1;
             self.path = map.path(from, to, within_m).map(|p| (p, to, now));
             if self.path.is_none() {
                 self.no_way += 1;
+                tracing::debug!(?from, ?to, "map: no way");
             }
         }
-        self.path
-            .as_ref()
-            .and_then(|(p, _, _)| p.carrot(from, look))
-            .unwrap_or(to)
+    }
+
+    /// A doorway on the way ahead is passed as its own manoeuvre (see
+    /// `navigation::doorway`): what to do now, or None (follow the way).
+    fn through_doorway(
+        &mut self,
+        now: Stamp,
+        pose: crate::msg::Pose2,
+        to: [f64; 2],
+        within_m: f64,
+        state: SupervisorState,
+    ) -> Option<PassageCmd> {
+        let from = [pose.x_m, pose.y_m];
+        if self.passage.is_none() {
+            self.ensure_path(now, from, to, within_m);
+            let (path, _, _) = self.path.as_ref()?;
+            let map = self.map.as_mut()?;
+            let door = doorway::find(map, path, from)?;
+            let skipped = self.skip.is_some_and(|(c, until)| {
+                now < until && (c[0] - door.center[0]).hypot(c[1] - door.center[1]) < 0.5
+            });
+            // a gap the chair fits through at a crawl, before it, and the
+            // goal beyond it
+            if door.width_m < MIN_DOORWAY_M
+                || skipped
+                || door.local(from).0 > -0.3
+                || door.local(to).0 < 0.3
+            {
+                tracing::debug!(?door, ?from, ?to, skipped, "doorway: not passing");
+                return None;
+            }
+            self.doorways += 1;
+            tracing::info!(center = ?door.center, axis_rad = door.axis_rad, width_m = door.width_m, "doorway: passing");
+            self.passage = Some((Passage::new(door, PassageSettings::default()), now, None));
+        }
+        let (passage, since, blocked) = self.passage.as_mut()?;
+        let held = state == SupervisorState::Stopped(crate::msg::StopReason::Obstacle);
+        *blocked = if held { blocked.or(Some(now)) } else { None };
+        let give_up = blocked.is_some_and(|b| b.age_at(now) >= PASSAGE_BLOCKED_FOR)
+            || since.age_at(now) >= PASSAGE_AT_MOST;
+        if give_up {
+            self.doorways_given_up += 1;
+            tracing::warn!(center = ?passage.door.center, phase = ?passage.phase, ?pose, "doorway: given up (blocked)");
+            self.skip = Some((passage.door.center, Stamp(now.0 + PASSAGE_SKIP_FOR)));
+            self.passage = None;
+            return None;
+        }
+        match passage.step(pose) {
+            PassageCmd::Done => {
+                self.passage = None;
+                self.path = None;
+                None
+            }
+            cmd => Some(cmd),
+        }
     }
 }
 
@@ -613,13 +698,20 @@ impl Control {
                 let from = [pose.x_m, pose.y_m];
                 let place = self.route.as_mut().and_then(|r| {
                     let map = r.map.as_mut()?;
-                    map.frontier(from, EXPLORE_MIN_M, &self.goal.searched, EXPLORE_APART_M)
+                    map.frontier(
+                        from,
+                        EXPLORE_MIN_M,
+                        EXPLORE_ROOM_M,
+                        &self.goal.searched,
+                        EXPLORE_APART_M,
+                    )
                 });
                 self.goal.explore(now, place)
             }
             e => e,
         };
         if let Some(e) = &event {
+            tracing::debug!(event = ?e, approach = ?self.goal.approach(), ?pose, "goal");
             self.say(e.say());
         }
         match self.goal.state() {
@@ -636,10 +728,21 @@ impl Control {
             .approach()
             .map(|a| ([a.x_m, a.y_m], self.goal.settings.reached_within_m))
             .or_else(|| self.goal.explore_target().map(|t| (t, 0.3)));
+        let state = self.supervisor.state();
         self.planner_cmd = if let Some((to, within)) = target {
-            let aim = match self.route.as_mut() {
-                Some(r) => r.carrot(now, from, to, within),
-                None => to,
+            let door = self
+                .route
+                .as_mut()
+                .and_then(|r| r.through_doorway(now, pose, to, within, state));
+            let aim = match (door, self.route.as_mut()) {
+                (Some(PassageCmd::Drive(cmd)), _) => {
+                    // through a doorway: its own steering
+                    self.planner_cmd = Some(Stamped::new(now, cmd));
+                    return self.finish_step(event);
+                }
+                (Some(PassageCmd::Aim(p)), _) => p,
+                (_, Some(r)) => r.carrot(now, from, to, within),
+                (_, None) => to,
             };
             let bearing = crate::msg::wrap_angle(
                 (aim[1] - pose.y_m).atan2(aim[0] - pose.x_m) - pose.theta_rad,
@@ -680,6 +783,11 @@ impl Control {
         } else {
             self.goal.search_command().map(|c| Stamped::new(now, c))
         };
+        self.finish_step(event);
+    }
+
+    /// The trip's end on the goal's event (with `exit_on_arrival`).
+    fn finish_step(&mut self, event: Option<GoalEvent>) {
         if self.exit_on_arrival {
             let outcome = match event {
                 Some(GoalEvent::Reached { .. }) => Some(Outcome::Arrived),

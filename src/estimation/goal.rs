@@ -181,6 +181,8 @@ pub struct GoalKeeper {
     pub explores: bool,
     /// Where the search has been (odom): the start and each place reached.
     pub searched: Vec<[f64; 2]>,
+    /// When the word was given (the search's time limit runs from it).
+    search_since: Option<Stamp>,
 }
 
 /// At most this many places searched after the first turn.
@@ -190,6 +192,8 @@ const EXPLORED_WITHIN_M: f64 = 0.5;
 /// Driving to a place to search gives up after this long (and searches
 /// where it is).
 const EXPLORE_FOR: Duration = Duration::from_secs(40);
+/// A search (turns and the places between) ends "not found" after this.
+pub const SEARCH_AT_MOST: Duration = Duration::from_secs(90);
 
 /// A track of the same word this close to where the goal was last seen is
 /// the goal (the tracker split or renumbered it), m.
@@ -205,6 +209,7 @@ impl GoalKeeper {
             search_turned_rad: 0.0,
             explores: false,
             searched: Vec::new(),
+            search_since: None,
         }
     }
 
@@ -217,6 +222,7 @@ impl GoalKeeper {
         self.search_heading = None;
         self.search_turned_rad = 0.0;
         self.searched.clear();
+        self.search_since = None;
         self.state = GoalState::Searching {
             label: label.trim().to_lowercase(),
         };
@@ -368,6 +374,15 @@ impl GoalKeeper {
                     }
                 }
                 Some(GoalEvent::LookedAround { seen: labels })
+            }
+            GoalState::Searching { label } | GoalState::Exploring { label, .. }
+                if self.search_since.get_or_insert(now).age_at(now) > SEARCH_AT_MOST
+                    && tracker
+                        .goal(&label, from)
+                        .is_none_or(|t| t.last_seen.age_at(now) > s.unseen_after) =>
+            {
+                self.state = GoalState::None;
+                Some(GoalEvent::NotFound { label })
             }
             GoalState::Searching { label } => {
                 if let Some(prev) = self.search_heading {

@@ -228,6 +228,26 @@ pub struct ApproachPose {
 /// the side towards `from` when that spot is at least `clearance_m` from
 /// every obstacle point, else the nearest free direction around the
 /// object (15° steps). None when no side is free.
+/// The line from a stopping place to its object keeps this far from every
+/// obstacle point but the object's own: the chair's body (half its width)
+/// fits there, facing the object, and nothing stands between (a wall
+/// beside a doorway the object is seen through), m.
+const LINE_OF_SIGHT_M: f64 = 0.36;
+/// An obstacle point this close to the object's box is the object's own, m.
+const OWN_POINT_M: f64 = 0.1;
+
+/// Distance from `p` to the segment `a`–`b`.
+fn segment_distance(a: [f64; 2], b: [f64; 2], p: [f64; 2]) -> f64 {
+    let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+    let len2 = dx * dx + dy * dy;
+    let t = if len2 > 0.0 {
+        (((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / len2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (a[0] + t * dx - p[0]).hypot(a[1] + t * dy - p[1])
+}
+
 pub fn approach_pose(
     track: &Track,
     from: [f64; 2],
@@ -256,7 +276,16 @@ pub fn approach_pose(
             let free = obstacles
                 .iter()
                 .all(|o| (o[0] - x).hypot(o[1] - y) >= clearance_m);
-            if free {
+            // and the chair's body and its view of the object clear of
+            // everything else
+            let edge = [cx + reach(a) * a.cos(), cy + reach(a) * a.sin()];
+            let (hx, hy) = (track.size_m[0] / 2.0, track.size_m[1] / 2.0);
+            let in_sight = obstacles.iter().all(|o| {
+                let off_box =
+                    (o[0] - cx).abs() - hx > OWN_POINT_M || (o[1] - cy).abs() - hy > OWN_POINT_M;
+                !off_box || segment_distance([x, y], edge, *o) >= LINE_OF_SIGHT_M
+            });
+            if free && in_sight {
                 return Some(ApproachPose {
                     x_m: x,
                     y_m: y,

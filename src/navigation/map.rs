@@ -46,7 +46,7 @@ impl Default for MapSettings {
             size_m: 30.0,
             resolution_m: 0.05,
             free_range_m: 4.0,
-            half_width_m: 0.37,
+            half_width_m: 0.39,
             comfort_m: 0.7,
             w_comfort: 1.5,
             w_unknown: 0.5,
@@ -424,13 +424,15 @@ impl GridMap {
         Some(p)
     }
 
-    /// The nearest frontier by path (a seen free cell the chair fits on,
-    /// next to unseen space) at least `min_m` from `from` and farther
-    /// than `avoid_m` from each of `avoid` (frontiers already visited).
+    /// The nearest frontier by path (a seen free cell next to unseen
+    /// space, with `room_m` to everything — room to turn there) at least
+    /// `min_m` from `from` and farther than `avoid_m` from each of `avoid`
+    /// (frontiers already visited).
     pub fn frontier(
         &mut self,
         from: [f64; 2],
         min_m: f64,
+        room_m: f64,
         avoid: &[[f64; 2]],
         avoid_m: f64,
     ) -> Option<[f64; 2]> {
@@ -440,7 +442,8 @@ impl GridMap {
         let samples = ((reach + 1) * (reach + 1)) as usize;
         let is_goal = |i: usize| {
             let p = self.center(i);
-            if (p[0] - from[0]).hypot(p[1] - from[1]) < min_m
+            if (self.dist[i] as f64) < room_m
+                || (p[0] - from[0]).hypot(p[1] - from[1]) < min_m
                 || avoid
                     .iter()
                     .any(|a| (p[0] - a[0]).hypot(p[1] - a[1]) <= avoid_m)
@@ -611,10 +614,12 @@ mod tests {
             ..Default::default()
         };
         map.add_scan(Pose2::default(), &rays);
-        let f = map.frontier([0.0, 0.0], 1.0, &[], 1.0).expect("a frontier");
+        let f = map
+            .frontier([0.0, 0.0], 1.0, 0.5, &[], 1.0)
+            .expect("a frontier");
         assert!(f[0] > 2.0 && f[1].abs() < 1.2, "{f:?}");
         // once visited, there is none left that the chair can reach
         // through seen free space
-        assert!(map.frontier([0.0, 0.0], 1.0, &[f], 1.5).is_none());
+        assert!(map.frontier([0.0, 0.0], 1.0, 0.5, &[f], 1.5).is_none());
     }
 }

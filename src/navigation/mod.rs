@@ -4,6 +4,7 @@
 //! fallback and stop rules (`planner`).
 
 pub mod apf;
+pub mod doorway;
 pub mod grid;
 pub mod map;
 pub mod mpc;

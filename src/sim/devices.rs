@@ -206,7 +206,10 @@ pub fn devices(
         gt: SimGtDetector::new(room, cam),
         last: last.clone(),
         width: k.width,
+        height: k.height,
         prompts: Vec::new(),
+        noise: settings.sim,
+        rng: super::scene::SplitMix64::new(settings.sim.seed),
     };
     let camera_world = world.clone();
     let camera = CameraDevice {
@@ -296,7 +299,52 @@ struct SimDetector {
     gt: SimGtDetector,
     last: LastView,
     width: usize,
+    height: usize,
     prompts: Vec<String>,
+    noise: crate::config::SimSection,
+    rng: super::scene::SplitMix64,
+}
+
+impl SimDetector {
+    /// A real detector's faults on the ground truth's boxes: misses, box
+    /// noise, a false box now and then.
+    fn degrade(&mut self, dets: &mut Vec<Detection>) {
+        let n = self.noise;
+        let rng = &mut self.rng;
+        if n.detector_miss_rate > 0.0 {
+            dets.retain(|_| !rng.chance(n.detector_miss_rate));
+        }
+        let (w, h) = (self.width as f32, self.height as f32);
+        if n.detector_box_noise_px > 0.0 {
+            for d in dets.iter_mut() {
+                for (i, e) in d.box_xyxy.iter_mut().enumerate() {
+                    let jitter =
+                        rng.range(-n.detector_box_noise_px, n.detector_box_noise_px) as f32;
+                    let max = if i % 2 == 0 { w } else { h };
+                    *e = (*e + jitter).clamp(0.0, max);
+                }
+                let b = &mut d.box_xyxy;
+                if b[2] < b[0] + 1.0 {
+                    b[2] = (b[0] + 1.0).min(w);
+                }
+                if b[3] < b[1] + 1.0 {
+                    b[3] = (b[1] + 1.0).min(h);
+                }
+            }
+        }
+        if !self.prompts.is_empty() && rng.chance(n.detector_false_positive_rate) {
+            let label = self.prompts[rng.below(self.prompts.len())].clone();
+            let (bw, bh) = (rng.range(20.0, 100.0), rng.range(20.0, 100.0));
+            let x = rng.range(0.0, (w as f64 - bw).max(1.0));
+            let y = rng.range(0.0, (h as f64 - bh).max(1.0));
+            dets.push(Detection {
+                class: label.clone(),
+                label,
+                score: 0.5,
+                box_xyxy: [x as f32, y as f32, (x + bw) as f32, (y + bh) as f32],
+            });
+        }
+    }
 }
 
 impl Detector for SimDetector {
@@ -351,6 +399,89 @@ impl Detector for SimDetector {
                 d.label = p.clone();
             }
         }
+        self.degrade(&mut dets);
         Ok(dets)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn detector(noise: crate::config::SimSection) -> SimDetector {
+        SimDetector {
+            gt: SimGtDetector::new(
+                super::super::room::Room::living_room(),
+                super::super::replica::camera(2),
+            ),
+            last: Arc::new(Mutex::new(None)),
+            width: 320,
+            height: 180,
+            prompts: vec!["chair".into()],
+            noise,
+            rng: super::super::scene::SplitMix64::new(noise.seed),
+        }
+    }
+
+    fn boxes(n: usize) -> Vec<Detection> {
+        (0..n)
+            .map(|i| Detection {
+                label: "chair".into(),
+                class: "chair".into(),
+                score: 0.9,
+                box_xyxy: [10.0 + i as f32, 20.0, 60.0 + i as f32, 90.0],
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_detector_misses_jitters_and_invents_as_configured() {
+        let none = crate::config::SimSection {
+            detector_miss_rate: 0.0,
+            detector_false_positive_rate: 0.0,
+            detector_box_noise_px: 0.0,
+            seed: 3,
+        };
+        // no noise: the ground truth as it is
+        let mut d = detector(none);
+        let mut b = boxes(5);
+        d.degrade(&mut b);
+        assert_eq!(b, boxes(5));
+        // misses at about the rate
+        let mut d = detector(crate::config::SimSection {
+            detector_miss_rate: 0.3,
+            ..none
+        });
+        let mut kept = 0;
+        for _ in 0..200 {
+            let mut b = boxes(10);
+            d.degrade(&mut b);
+            kept += b.len();
+        }
+        let rate = 1.0 - kept as f64 / 2000.0;
+        assert!((rate - 0.3).abs() < 0.05, "{rate}");
+        // box noise within its bound, boxes inside the image
+        let mut d = detector(crate::config::SimSection {
+            detector_box_noise_px: 4.0,
+            ..none
+        });
+        let mut b = boxes(5);
+        d.degrade(&mut b);
+        for (x, y) in b.iter().zip(boxes(5)) {
+            assert_ne!(x.box_xyxy, y.box_xyxy);
+            for (e, f) in x.box_xyxy.iter().zip(y.box_xyxy) {
+                assert!((e - f).abs() <= 4.0, "{e} vs {f}");
+            }
+        }
+        // a false box of the prompted word in every frame at rate 1
+        let mut d = detector(crate::config::SimSection {
+            detector_false_positive_rate: 1.0,
+            ..none
+        });
+        let mut b = Vec::new();
+        d.degrade(&mut b);
+        assert_eq!(b.len(), 1);
+        assert_eq!(b[0].label, "chair");
+        assert!(b[0].box_xyxy[2] <= 320.0 && b[0].box_xyxy[3] <= 180.0);
     }
 }

@@ -62,7 +62,7 @@ const ANSWER_AFTER: Duration = Duration::from_millis(1500);
 /// The chair's corners reach this far from base_link when it turns on the
 /// spot (0.55 m ahead, 0.45 m behind, 0.35 m to each side), plus a margin:
 /// nothing behind within this, the person says it is clear, m.
-const CLEAR_BEHIND_M: f64 = 0.80;
+const CLEAR_BEHIND_M: f64 = 0.70;
 
 /// What a truthful person sees behind the chair: nothing within
 /// [`CLEAR_BEHIND_M`] of base_link on the rear half (walls, boxes taller
@@ -146,6 +146,10 @@ pub async fn run(
     record: Option<&Path>,
     record_all: bool,
 ) -> Result<TrialResult, String> {
+    // the detector's noise drawn from the scene's own seed
+    let mut settings = settings.clone();
+    settings.sim.seed = scene.seed;
+    let settings = &settings;
     let world = SimWorld::in_room(scene.room.clone(), scene.start, settings.drive_params());
     let clock: Arc<dyn Clock> = Arc::new(TokioClock::new());
     let (devs, sim) = devices(settings, world, clock.clone()).map_err(|e| e.to_string())?;
