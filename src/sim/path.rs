@@ -11,6 +11,41 @@ use super::scene::{clearance_at, distance_to_box};
 /// from every box and wall): Dijkstra on a 5 cm grid, 8-connected. None
 /// when no such place can be reached (a doorway narrower than the chair,
 /// an object boxed in).
+/// Whether no wall stands between `p` and the nearest point of `o`'s box
+/// (a place beside an object is on its side of the wall).
+pub fn in_sight(room: &Room, p: [f64; 2], o: &SimObject) -> bool {
+    let q = [
+        p[0].clamp(o.min_m[0], o.max_m[0]),
+        p[1].clamp(o.min_m[1], o.max_m[1]),
+    ];
+    room.objects
+        .iter()
+        .filter(|w| w.label == super::scene::WALL_LABEL)
+        .all(|w| !segment_crosses_box(p, q, [w.min_m[0], w.min_m[1]], [w.max_m[0], w.max_m[1]]))
+}
+
+/// Whether the segment `a`–`b` passes through the box `[lo, hi]` (slabs).
+fn segment_crosses_box(a: [f64; 2], b: [f64; 2], lo: [f64; 2], hi: [f64; 2]) -> bool {
+    let (mut t0, mut t1) = (0.0f64, 1.0f64);
+    for k in 0..2 {
+        let d = b[k] - a[k];
+        if d.abs() < 1e-12 {
+            if a[k] < lo[k] || a[k] > hi[k] {
+                return false;
+            }
+            continue;
+        }
+        let (ta, tb) = ((lo[k] - a[k]) / d, (hi[k] - a[k]) / d);
+        let (near, far) = if ta < tb { (ta, tb) } else { (tb, ta) };
+        t0 = t0.max(near);
+        t1 = t1.min(far);
+        if t0 > t1 {
+            return false;
+        }
+    }
+    true
+}
+
 pub fn shortest_path_m(
     room: &Room,
     from: [f64; 2],
@@ -35,9 +70,9 @@ pub fn shortest_path_m(
         for i in 0..nx {
             let (x, y) = centre(i, j);
             free[j * nx + i] = clearance_at(room, x, y) >= radius_m;
-            goal[j * nx + i] = targets
-                .iter()
-                .any(|o| (distance_to_box(x, y, o) - standoff_m).abs() <= tol_m);
+            goal[j * nx + i] = targets.iter().any(|o| {
+                (distance_to_box(x, y, o) - standoff_m).abs() <= tol_m && in_sight(room, [x, y], o)
+            });
         }
     }
     let cell = |x: f64, y: f64| -> Option<usize> {
@@ -139,6 +174,24 @@ mod tests {
             shortest_path_m(&room, [1.0, 2.05], "piano", 0.6, 0.05, 0.4),
             None
         );
+    }
+
+    #[test]
+    fn a_place_behind_a_wall_is_not_beside_the_object() {
+        // a wall at x = 3.5 with a doorway at y 0..0.9; the chair just
+        // beyond it, the start 0.8 m from the chair's face through the wall
+        let room = Room {
+            size_m: [8.0, 4.0, 2.8],
+            objects: vec![
+                thing("chair", [3.7, 2.8], [4.2, 3.3]),
+                thing(WALL_LABEL, [3.5, 0.9], [3.6, 4.0]),
+            ],
+            pits: Vec::new(),
+        };
+        assert!(!in_sight(&room, [2.9, 3.0], &room.objects[0]));
+        assert!(in_sight(&room, [4.0, 2.0], &room.objects[0]));
+        let d = shortest_path_m(&room, [2.9, 3.0], "chair", 0.6, 0.25, 0.4).expect("path");
+        assert!(d > 2.5, "through the doorway, not through the wall: {d}");
     }
 
     #[test]

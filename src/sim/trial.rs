@@ -177,12 +177,18 @@ pub async fn run(
         .ok_or_else(|| "the simulated world was poisoned".to_string())?;
     let g = settings.goal_settings();
     let w = &s.world;
-    // base_link to the box is the standoff plus the front offset
-    let reached = r.outcome == Outcome::Arrived
-        && w.v_mps.abs() < 0.05
-        && s.distance_to_goal_object_m.is_some_and(|d| {
-            (d - (g.standoff_m + g.front_offset_m)).abs() <= g.reached_within_m + 0.25
-        });
+    // base_link to the box is the standoff plus the front offset, on the
+    // object's side of any wall
+    let here = [w.truth.x_m, w.truth.y_m];
+    let beside = scene.room.objects.iter().any(|o| {
+        o.label.eq_ignore_ascii_case(&scene.prompt)
+            && (super::scene::distance_to_box(here[0], here[1], o)
+                - (g.standoff_m + g.front_offset_m))
+                .abs()
+                <= g.reached_within_m + 0.25
+            && super::path::in_sight(&scene.room, here, o)
+    });
+    let reached = r.outcome == Outcome::Arrived && w.v_mps.abs() < 0.05 && beside;
     let shortest = shortest_path_m(
         &scene.room,
         [scene.start.x_m, scene.start.y_m],
