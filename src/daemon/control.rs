@@ -302,7 +302,7 @@ impl Router {
             self.passage = None;
             return None;
         }
-        match passage.step(pose) {
+        match passage.step(pose, to) {
             PassageCmd::Done => {
                 self.passage = None;
                 self.path = None;

@@ -104,19 +104,91 @@ pub fn find(map: &mut GridMap, path: &MapPath, from: [f64; 2]) -> Option<Doorway
     if gap < 1e-6 {
         return None;
     }
-    // across the jambs, pointing the way the path goes
+    // the wall's direction from the cells of each side (their principal
+    // direction): a few degrees off from two cells 0.85 m apart would put
+    // a jamb in the stop corridor
+    let across = [jx / gap, jy / gap];
+    let side = |p: &[f64; 2]| (p[0] - c0[0]) * across[0] + (p[1] - c0[1]) * across[1];
+    let mut wall = [0.0, 0.0];
+    for cells in [
+        blocked.iter().filter(|p| side(p) < 0.0).collect::<Vec<_>>(),
+        blocked.iter().filter(|p| side(p) > 0.0).collect::<Vec<_>>(),
+    ] {
+        if let Some(d) = principal_direction(&cells) {
+            // both pointing from j1's side to j2's
+            let sign = if d[0] * across[0] + d[1] * across[1] < 0.0 {
+                -1.0
+            } else {
+                1.0
+            };
+            wall = [wall[0] + sign * d[0], wall[1] + sign * d[1]];
+        }
+    }
+    let norm = wall[0].hypot(wall[1]);
+    let w = if norm > 1e-6 {
+        [wall[0] / norm, wall[1] / norm]
+    } else {
+        across
+    };
+    // the jamb faces along the wall, and the wall's middle across it
+    let along_wall = |p: &[f64; 2]| (p[0] - c0[0]) * w[0] + (p[1] - c0[1]) * w[1];
+    let face_a = blocked
+        .iter()
+        .filter(|p| side(p) < 0.0)
+        .map(along_wall)
+        .fold(f64::NEG_INFINITY, f64::max);
+    let face_b = blocked
+        .iter()
+        .filter(|p| side(p) > 0.0)
+        .map(along_wall)
+        .fold(f64::INFINITY, f64::min);
+    if !face_a.is_finite() || !face_b.is_finite() || face_b <= face_a {
+        return None;
+    }
+    let mut axis = [-w[1], w[0]];
+    let depth = blocked
+        .iter()
+        .map(|p| (p[0] - c0[0]) * axis[0] + (p[1] - c0[1]) * axis[1])
+        .sum::<f64>()
+        / blocked.len() as f64;
+    let mid = (face_a + face_b) / 2.0;
+    let center = [
+        c0[0] + mid * w[0] + depth * axis[0],
+        c0[1] + mid * w[1] + depth * axis[1],
+    ];
+    // pointing the way the path goes
     let before = pts[k.saturating_sub(6)];
     let after = pts[(k + 6).min(pts.len() - 1)];
     let (px, py) = (after[0] - before[0], after[1] - before[1]);
-    let mut axis = [-jy / gap, jx / gap];
     if axis[0] * px + axis[1] * py < 0.0 {
         axis = [-axis[0], -axis[1]];
     }
     Some(Doorway {
-        center: [(j1[0] + j2[0]) / 2.0, (j1[1] + j2[1]) / 2.0],
+        center,
         axis_rad: axis[1].atan2(axis[0]),
-        width_m: gap - res,
+        width_m: face_b - face_a - res,
     })
+}
+
+/// The principal direction of points (unit), None for fewer than 3.
+fn principal_direction(points: &[&[f64; 2]]) -> Option<[f64; 2]> {
+    if points.len() < 3 {
+        return None;
+    }
+    let n = points.len() as f64;
+    let (mx, my) = (
+        points.iter().map(|p| p[0]).sum::<f64>() / n,
+        points.iter().map(|p| p[1]).sum::<f64>() / n,
+    );
+    let (mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0);
+    for p in points {
+        let (dx, dy) = (p[0] - mx, p[1] - my);
+        sxx += dx * dx;
+        sxy += dx * dy;
+        syy += dy * dy;
+    }
+    let angle = 0.5 * (2.0 * sxy).atan2(sxx - syy);
+    Some([angle.cos(), angle.sin()])
 }
 
 /// The passage's phase.
@@ -201,13 +273,16 @@ impl Passage {
         }
     }
 
-    /// The command at `pose` (odom).
-    pub fn step(&mut self, pose: Pose2) -> PassageCmd {
+    /// The command at `pose` (odom) on the way to `goal` (odom): through
+    /// once past the doorway, or level with a goal just beyond it (the
+    /// planner makes the last metres).
+    pub fn step(&mut self, pose: Pose2, goal: [f64; 2]) -> PassageCmd {
         let s = self.settings;
         let p = [pose.x_m, pose.y_m];
         let (along, left) = self.door.local(p);
         let heading_err = wrap_angle(pose.theta_rad - self.door.axis_rad);
-        if along > s.past_m {
+        let goal_along = self.door.local(goal).0;
+        if along > s.past_m || (along > 0.0 && along >= goal_along - 0.1) {
             return PassageCmd::Done;
         }
         loop {
@@ -296,12 +371,42 @@ mod tests {
         assert!(find(&mut map, &far, [-4.0, -1.0]).is_none());
     }
 
+    #[test]
+    fn a_slanted_wall_gives_the_doorway_axis_to_a_degree() {
+        // a wall through (2, 1) at 20° off the y axis, a 0.85 m doorway in
+        // its middle, as the camera's cells would report it
+        let tilt: f64 = 20f64.to_radians();
+        let (wx, wy) = (-tilt.sin(), tilt.cos());
+        let mut pts = Vec::new();
+        let mut t: f64 = -4.0;
+        while t <= 4.0 {
+            if t.abs() > 0.425 {
+                for d in [0.0, 0.05] {
+                    pts.push([2.0 + t * wx + d * wy, 1.0 + t * wy - d * wx]);
+                }
+            }
+            t += 0.02;
+        }
+        let mut map = GridMap::new(MapSettings::default(), [0.0, 0.0]);
+        map.set_camera(&pts, &[]);
+        let path = map.path([0.0, 0.5], [4.0, 1.5], 0.1).expect("a way");
+        let door = find(&mut map, &path, [0.8, 0.7]).expect("the doorway");
+        // the axis is the wall's normal: 20° from +x
+        let err = wrap_angle(door.axis_rad - tilt).abs();
+        assert!(err < 1f64.to_radians(), "{door:?}, {}°", err.to_degrees());
+        assert!(
+            (door.center[0] - 2.0).hypot(door.center[1] - 1.0) < 0.06,
+            "{door:?}"
+        );
+        assert!((door.width_m - 0.85).abs() < 0.08, "{door:?}");
+    }
+
     /// The chair as a unicycle following the passage's commands.
-    fn drive(passage: &mut Passage, mut pose: Pose2) -> (Pose2, f64, bool) {
+    fn drive(passage: &mut Passage, mut pose: Pose2, goal: [f64; 2]) -> (Pose2, f64, bool) {
         let dt = 0.05;
         let mut worst_left: f64 = 0.0;
         for _ in 0..2000 {
-            let cmd = match passage.step(pose) {
+            let cmd = match passage.step(pose, goal) {
                 PassageCmd::Done => return (pose, worst_left, true),
                 PassageCmd::Drive(c) => c,
                 PassageCmd::Aim(p) => {
@@ -342,11 +447,15 @@ mod tests {
             theta_rad: 1.0,
         };
         let mut p = Passage::new(door, PassageSettings::default());
-        let (end, worst_left, done) = drive(&mut p, start);
+        let (end, worst_left, done) = drive(&mut p, start, [4.0, 1.0]);
         assert!(done, "did not get through: {end:?}");
         assert!(end.x_m > 2.7, "{end:?}");
         // within 5 cm of the middle line in it (a 0.85 m doorway leaves a
         // 0.70 m chair 7.5 cm a side)
         assert!(worst_left < 0.05, "{worst_left}");
+        // a goal just beyond the doorway: handed back level with it
+        let mut p = Passage::new(door, PassageSettings::default());
+        let (end, _, done) = drive(&mut p, start, [2.4, 1.0]);
+        assert!(done && (end.x_m - 2.3).abs() < 0.05, "{end:?}");
     }
 }
