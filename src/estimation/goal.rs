@@ -183,6 +183,8 @@ pub struct GoalKeeper {
     pub searched: Vec<[f64; 2]>,
     /// When the word was given (the search's time limit runs from it).
     search_since: Option<Stamp>,
+    /// The track "no free place beside it" was said of.
+    said_no_approach: Option<u64>,
 }
 
 /// At most this many places searched after the first turn.
@@ -210,6 +212,7 @@ impl GoalKeeper {
             explores: false,
             searched: Vec::new(),
             search_since: None,
+            said_no_approach: None,
         }
     }
 
@@ -223,6 +226,7 @@ impl GoalKeeper {
         self.search_turned_rad = 0.0;
         self.searched.clear();
         self.search_since = None;
+        self.said_no_approach = None;
         self.state = GoalState::Searching {
             label: label.trim().to_lowercase(),
         };
@@ -419,7 +423,12 @@ impl GoalKeeper {
                         };
                         Some(GoalEvent::Acquired { label, track: id })
                     }
-                    None => Some(GoalEvent::NoApproach { label, track: id }),
+                    // said once per track, not at every step
+                    None if self.said_no_approach == Some(id) => None,
+                    None => {
+                        self.said_no_approach = Some(id);
+                        Some(GoalEvent::NoApproach { label, track: id })
+                    }
                 }
             }
             GoalState::Exploring {

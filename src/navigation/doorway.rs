@@ -235,6 +235,9 @@ pub struct PassageSettings {
     pub omega_max_radps: f64,
     /// From this far before the middle on, only the heading is held, m.
     pub square_within_m: f64,
+    /// base_link this far past the middle: the chair's rear (0.45 m behind
+    /// it) is out of the doorway, m.
+    pub clear_of_door_m: f64,
 }
 
 impl Default for PassageSettings {
@@ -250,6 +253,7 @@ impl Default for PassageSettings {
             k_heading: 1.5,
             omega_max_radps: 0.25,
             square_within_m: 0.95,
+            clear_of_door_m: 0.6,
         }
     }
 }
@@ -282,7 +286,9 @@ impl Passage {
         let (along, left) = self.door.local(p);
         let heading_err = wrap_angle(pose.theta_rad - self.door.axis_rad);
         let goal_along = self.door.local(goal).0;
-        if along > s.past_m || (along > 0.0 && along >= goal_along - 0.1) {
+        // handed back only with the chair's rear out of the doorway: a
+        // turn there would sweep a corner into a jamb
+        if along > s.past_m || (along > s.clear_of_door_m && along >= goal_along - 0.1) {
             return PassageCmd::Done;
         }
         loop {
@@ -453,9 +459,13 @@ mod tests {
         // within 5 cm of the middle line in it (a 0.85 m doorway leaves a
         // 0.70 m chair 7.5 cm a side)
         assert!(worst_left < 0.05, "{worst_left}");
-        // a goal just beyond the doorway: handed back level with it
+        // a goal beyond the doorway: handed back level with it, once the
+        // chair's rear is out of the doorway
         let mut p = Passage::new(door, PassageSettings::default());
-        let (end, _, done) = drive(&mut p, start, [2.4, 1.0]);
-        assert!(done && (end.x_m - 2.3).abs() < 0.05, "{end:?}");
+        let (end, _, done) = drive(&mut p, start, [2.75, 1.0]);
+        assert!(done && (end.x_m - 2.65).abs() < 0.05, "{end:?}");
+        let mut p = Passage::new(door, PassageSettings::default());
+        let (end, _, done) = drive(&mut p, start, [2.3, 1.0]);
+        assert!(done && (end.x_m - 2.6).abs() < 0.05, "{end:?}");
     }
 }
