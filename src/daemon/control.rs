@@ -15,10 +15,15 @@ use crate::msg::{
     FaultReason, MapObstacles, Obstacles, Odometry, SafeCmd, Stamp, Stamped, SupervisorState,
     UserInput, VelocityCmd,
 };
-use crate::navigation::doorway::{self, Passage, PassageCmd, PassageSettings};
-use crate::navigation::map::{GridMap, MapPath, MapSettings};
+use crate::navigation::doorway::PassageCmd;
+use crate::navigation::map::MapSettings;
 use crate::navigation::mpc::UnicycleState;
 use crate::navigation::planner::Planner;
+
+use super::route::{
+    Router, CRAWL_MPS, EXPLORE_APART_M, EXPLORE_MIN_M, EXPLORE_ROOM_M, TURN_FIRST_RAD,
+    TURN_FIRST_RADPS,
+};
 use crate::safety::rear::{RearSettings, RearWatch};
 use crate::safety::{Supervisor, SupervisorInputs};
 
@@ -108,209 +113,6 @@ pub struct Control {
     /// The map of what the chair has seen, and the way through it to the
     /// goal (None: drive straight at the goal, the local planner alone).
     pub route: Option<Router>,
-}
-
-/// The map and the way to the goal through it.
-pub struct Router {
-    pub settings: MapSettings,
-    /// Made at the first odometry, centred where the chair is.
-    pub map: Option<GridMap>,
-    /// The newest laser set and camera set in the map.
-    scan: Option<Stamp>,
-    camera: Option<Stamp>,
-    /// The way, where it goes and when it was planned.
-    pub path: Option<(MapPath, [f64; 2], Stamp)>,
-    /// Ways planned, and goals no way reached.
-    pub planned: u64,
-    pub no_way: u64,
-    /// The doorway being passed, since when, and since when the
-    /// supervisor has held the chair in it.
-    passage: Option<(Passage, Stamp, Option<Stamp>)>,
-    /// A doorway given up, not tried again until then.
-    skip: Option<([f64; 2], Stamp)>,
-    pub doorways: u64,
-    pub doorways_given_up: u64,
-}
-
-/// A doorway given up after the chair stood blocked in it this long, or
-/// took this long in all; not tried again for this long.
-const PASSAGE_BLOCKED_FOR: std::time::Duration = std::time::Duration::from_secs(5);
-const PASSAGE_AT_MOST: std::time::Duration = std::time::Duration::from_secs(60);
-const PASSAGE_SKIP_FOR: std::time::Duration = std::time::Duration::from_secs(20);
-/// A gap narrower than this is no doorway for the chair (0.70 m and the
-/// crawl's stop corridor, 3 cm a side), m.
-const MIN_DOORWAY_M: f64 = 0.78;
-
-/// Replan this often, or when the goal moved this far (s, m).
-const REPLAN_EVERY: std::time::Duration = std::time::Duration::from_secs(1);
-const REPLAN_MOVED_M: f64 = 0.3;
-/// A new place to search is this far from the chair and from the places
-/// searched, m.
-const EXPLORE_MIN_M: f64 = 1.0;
-const EXPLORE_APART_M: f64 = 1.5;
-/// A place to search has this much room about it (to turn on the spot: the
-/// chair's corners reach 0.65 m from base_link), m.
-const EXPLORE_ROOM_M: f64 = 0.7;
-/// The way more than this off the heading: turn on the spot first (rad),
-/// at this rate (rad/s).
-const TURN_FIRST_RAD: f64 = 0.7;
-const TURN_FIRST_RADPS: f64 = 0.4;
-/// Closer than this to something on the map just ahead: crawl (m, m/s).
-const TIGHT_M: f64 = 0.55;
-const CRAWL_MPS: f64 = 0.09;
-
-impl Router {
-    pub fn new(settings: MapSettings) -> Router {
-        Router {
-            settings,
-            map: None,
-            scan: None,
-            camera: None,
-            path: None,
-            planned: 0,
-            no_way: 0,
-            passage: None,
-            skip: None,
-            doorways: 0,
-            doorways_given_up: 0,
-        }
-    }
-
-    /// Puts the newest laser set (seen from `pose`) and camera set in.
-    fn update(
-        &mut self,
-        pose: crate::msg::Pose2,
-        lasers: Option<&Stamped<Obstacles>>,
-        camera: Option<&Stamped<MapObstacles>>,
-    ) {
-        let settings = self.settings;
-        let map = self
-            .map
-            .get_or_insert_with(|| GridMap::new(settings, [pose.x_m, pose.y_m]));
-        if let Some(l) = lasers.filter(|l| Some(l.stamp) != self.scan) {
-            self.scan = Some(l.stamp);
-            map.add_scan(pose, &l.value.rays_base);
-        }
-        if let Some(c) = camera.filter(|c| Some(c.stamp) != self.camera) {
-            self.camera = Some(c.stamp);
-            map.set_camera(&c.value.obstacles_odom, &c.value.drop_offs_odom);
-        }
-    }
-
-    /// Whether the map has something within [`TIGHT_M`] of the chair's
-    /// centre line up to 0.6 m ahead.
-    fn tight_ahead(&mut self, pose: crate::msg::Pose2) -> bool {
-        let Some(map) = self.map.as_mut() else {
-            return false;
-        };
-        let (c, s) = (pose.theta_rad.cos(), pose.theta_rad.sin());
-        [0.0, 0.3, 0.6].iter().any(|d| {
-            map.cell([pose.x_m + c * d, pose.y_m + s * d])
-                .is_some_and(|i| map.distance_m(i) < TIGHT_M)
-        })
-    }
-
-    /// Whether the map has something within [`TIGHT_M`] of `at`.
-    fn tight_ahead_at(&mut self, at: [f64; 2]) -> bool {
-        self.map
-            .as_mut()
-            .is_some_and(|m| m.cell(at).is_some_and(|i| m.distance_m(i) < TIGHT_M))
-    }
-
-    /// Where the local planner should head now on the way from `from`
-    /// to `to` (odom): a point `lookahead_m` along the map's way, or the
-    /// goal itself when it is near or no way is known.
-    fn carrot(&mut self, now: Stamp, from: [f64; 2], to: [f64; 2], within_m: f64) -> [f64; 2] {
-        // somewhere tight, a nearer point: the chair lines up with a
-        // doorway before it, rather than cutting the corner
-        let look = if self.tight_ahead_at(from) {
-            (self.settings.lookahead_m / 2.0).max(0.4)
-        } else {
-            self.settings.lookahead_m
-        };
-        if (to[0] - from[0]).hypot(to[1] - from[1]) <= look {
-            return to;
-        }
-        self.ensure_path(now, from, to, within_m);
-        self.path
-            .as_ref()
-            .and_then(|(p, _, _)| p.carrot(from, look))
-            .unwrap_or(to)
-    }
-
-    /// Plans the way from `from` to `to` when it is old or the goal moved.
-    fn ensure_path(&mut self, now: Stamp, from: [f64; 2], to: [f64; 2], within_m: f64) {
-        let stale = self.path.as_ref().is_none_or(|(_, goal, at)| {
-            at.age_at(now) >= REPLAN_EVERY
-                || (goal[0] - to[0]).hypot(goal[1] - to[1]) > REPLAN_MOVED_M
-        });
-        let Some(map) = self.map.as_mut() else {
-            return;
-        };
-        if stale {
-            self.planned += 1;
-            self.path = map.path(from, to, within_m).map(|p| (p, to, now));
-            if self.path.is_none() {
-                self.no_way += 1;
-                tracing::debug!(?from, ?to, "map: no way");
-            }
-        }
-    }
-
-    /// A doorway on the way ahead is passed as its own manoeuvre (see
-    /// `navigation::doorway`): what to do now, or None (follow the way).
-    fn through_doorway(
-        &mut self,
-        now: Stamp,
-        pose: crate::msg::Pose2,
-        to: [f64; 2],
-        within_m: f64,
-        state: SupervisorState,
-    ) -> Option<PassageCmd> {
-        let from = [pose.x_m, pose.y_m];
-        if self.passage.is_none() {
-            self.ensure_path(now, from, to, within_m);
-            let (path, _, _) = self.path.as_ref()?;
-            let map = self.map.as_mut()?;
-            let door = doorway::find(map, path, from)?;
-            let skipped = self.skip.is_some_and(|(c, until)| {
-                now < until && (c[0] - door.center[0]).hypot(c[1] - door.center[1]) < 0.5
-            });
-            // a gap the chair fits through at a crawl, before it, and the
-            // goal beyond it
-            if door.width_m < MIN_DOORWAY_M
-                || skipped
-                || door.local(from).0 > -0.3
-                || door.local(to).0 < 0.3
-            {
-                tracing::debug!(?door, ?from, ?to, skipped, "doorway: not passing");
-                return None;
-            }
-            self.doorways += 1;
-            tracing::info!(center = ?door.center, axis_rad = door.axis_rad, width_m = door.width_m, "doorway: passing");
-            self.passage = Some((Passage::new(door, PassageSettings::default()), now, None));
-        }
-        let (passage, since, blocked) = self.passage.as_mut()?;
-        let held = state == SupervisorState::Stopped(crate::msg::StopReason::Obstacle);
-        *blocked = if held { blocked.or(Some(now)) } else { None };
-        let give_up = blocked.is_some_and(|b| b.age_at(now) >= PASSAGE_BLOCKED_FOR)
-            || since.age_at(now) >= PASSAGE_AT_MOST;
-        if give_up {
-            self.doorways_given_up += 1;
-            tracing::warn!(center = ?passage.door.center, phase = ?passage.phase, ?pose, "doorway: given up (blocked)");
-            self.skip = Some((passage.door.center, Stamp(now.0 + PASSAGE_SKIP_FOR)));
-            self.passage = None;
-            return None;
-        }
-        match passage.step(pose, to) {
-            PassageCmd::Done => {
-                self.passage = None;
-                self.path = None;
-                None
-            }
-            cmd => Some(cmd),
-        }
-    }
 }
 
 /// A turn on the spot refused this long for an unseen rear: the chair asks.

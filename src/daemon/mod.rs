@@ -35,6 +35,7 @@ pub mod lock;
 pub mod notify;
 pub mod perception;
 pub mod recorder;
+pub mod route;
 
 use std::collections::{BTreeSet, HashMap};
 use std::sync::Arc;
