@@ -71,25 +71,32 @@ impl LaserRay {
     /// Whether the ray (t ≥ 0) passes through the axis-aligned box
     /// `[lo, hi]` (metres, base_link).
     pub fn crosses(&self, lo: [f64; 2], hi: [f64; 2]) -> bool {
-        let (mut t0, mut t1) = (0.0f64, f64::INFINITY);
-        for a in 0..2 {
-            let (o, d) = (self.origin_m[a] as f64, self.dir[a] as f64);
-            if d.abs() < 1e-12 {
-                if o < lo[a] || o > hi[a] {
-                    return false;
-                }
-                continue;
-            }
-            let (ta, tb) = ((lo[a] - o) / d, (hi[a] - o) / d);
-            let (near, far) = if ta < tb { (ta, tb) } else { (tb, ta) };
-            t0 = t0.max(near);
-            t1 = t1.min(far);
-            if t0 > t1 {
+        let o = [self.origin_m[0] as f64, self.origin_m[1] as f64];
+        let d = [self.dir[0] as f64, self.dir[1] as f64];
+        line_crosses_box(o, d, f64::INFINITY, lo, hi)
+    }
+}
+
+/// Whether `o + t·d` for t in [0, `t_max`] passes through the axis-aligned
+/// box `[lo, hi]` (the slab test).
+pub fn line_crosses_box(o: [f64; 2], d: [f64; 2], t_max: f64, lo: [f64; 2], hi: [f64; 2]) -> bool {
+    let (mut t0, mut t1) = (0.0f64, t_max);
+    for a in 0..2 {
+        if d[a].abs() < 1e-12 {
+            if o[a] < lo[a] || o[a] > hi[a] {
                 return false;
             }
+            continue;
         }
-        true
+        let (ta, tb) = ((lo[a] - o[a]) / d[a], (hi[a] - o[a]) / d[a]);
+        let (near, far) = if ta < tb { (ta, tb) } else { (tb, ta) };
+        t0 = t0.max(near);
+        t1 = t1.min(far);
+        if t0 > t1 {
+            return false;
+        }
     }
+    true
 }
 
 /// The depth camera's remembered obstacles and drop-offs, cell centres in

@@ -24,26 +24,9 @@ pub fn in_sight(room: &Room, p: [f64; 2], o: &SimObject) -> bool {
         .all(|w| !segment_crosses_box(p, q, [w.min_m[0], w.min_m[1]], [w.max_m[0], w.max_m[1]]))
 }
 
-/// Whether the segment `a`–`b` passes through the box `[lo, hi]` (slabs).
+/// Whether the segment `a`–`b` passes through the box `[lo, hi]`.
 fn segment_crosses_box(a: [f64; 2], b: [f64; 2], lo: [f64; 2], hi: [f64; 2]) -> bool {
-    let (mut t0, mut t1) = (0.0f64, 1.0f64);
-    for k in 0..2 {
-        let d = b[k] - a[k];
-        if d.abs() < 1e-12 {
-            if a[k] < lo[k] || a[k] > hi[k] {
-                return false;
-            }
-            continue;
-        }
-        let (ta, tb) = ((lo[k] - a[k]) / d, (hi[k] - a[k]) / d);
-        let (near, far) = if ta < tb { (ta, tb) } else { (tb, ta) };
-        t0 = t0.max(near);
-        t1 = t1.min(far);
-        if t0 > t1 {
-            return false;
-        }
-    }
-    true
+    crate::msg::sensors::line_crosses_box(a, [b[0] - a[0], b[1] - a[1]], 1.0, lo, hi)
 }
 
 pub fn shortest_path_m(
