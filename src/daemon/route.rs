@@ -103,15 +103,16 @@ impl Router {
         let (c, s) = (pose.theta_rad.cos(), pose.theta_rad.sin());
         [0.0, 0.3, 0.6].iter().any(|d| {
             map.cell([pose.x_m + c * d, pose.y_m + s * d])
-                .is_some_and(|i| map.distance_m(i) < TIGHT_M)
+                .is_some_and(|i| map.distance_near_m(i, TIGHT_M) < TIGHT_M)
         })
     }
 
     /// Whether the map has something within [`TIGHT_M`] of `at`.
     fn tight_ahead_at(&mut self, at: [f64; 2]) -> bool {
-        self.map
-            .as_mut()
-            .is_some_and(|m| m.cell(at).is_some_and(|i| m.distance_m(i) < TIGHT_M))
+        self.map.as_mut().is_some_and(|m| {
+            m.cell(at)
+                .is_some_and(|i| m.distance_near_m(i, TIGHT_M) < TIGHT_M)
+        })
     }
 
     /// Where the local planner should head now on the way from `from`

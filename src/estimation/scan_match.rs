@@ -383,6 +383,10 @@ fn check_points(
     }
 }
 
+/// The next iteration's gate is at most this many times the farthest pair
+/// kept in this one.
+const GATE_OVER_KEPT: f64 = 3.0;
+
 /// Aligns `current` to a prepared reference from `initial`.
 pub fn icp_against(
     reference: &IcpReference,
@@ -404,7 +408,6 @@ pub fn icp_against(
     for it in 0..p.max_iterations {
         iterations = it + 1;
         let gate_now = gate;
-        gate = (gate * p.gate_decay).max(p.min_pair_distance_m);
         pairs.clear();
         for q in current {
             let qt = apply(&t, q);
@@ -418,6 +421,13 @@ pub fn icp_against(
             pairs.select_nth_unstable_by(keep - 1, |a, b| a.2.total_cmp(&b.2));
         }
         pairs.truncate(keep);
+        // coarse to fine: the gate shrinks by its decay, and at once to a
+        // few times the farthest pair kept once the scans lie close
+        // (a good odometry guess needs no 15 iterations of shrinking)
+        let kept_m = pairs.iter().map(|x| x.2).fold(0.0, f64::max).sqrt();
+        gate = (gate * p.gate_decay)
+            .min(GATE_OVER_KEPT * kept_m)
+            .max(p.min_pair_distance_m);
         if pairs.len() < p.min_pairs {
             return Err(ScanMatchError::TooFewPairs {
                 pairs: pairs.len(),

@@ -80,6 +80,11 @@ pub struct GridMap {
     /// Distance to the nearest blocked cell, m (valid when not dirty).
     dist: Vec<f32>,
     dist_dirty: bool,
+    /// Every cell ever seen lies in [lo, hi] (x, y cell indices; lo > hi:
+    /// none yet): the distance field is computed within it and
+    /// [`DIST_CAP_M`] about it, the rest stays at the cap.
+    seen_lo: [usize; 2],
+    seen_hi: [usize; 2],
 }
 
 /// A path in `odom`, from the chair to the goal.
@@ -130,6 +135,8 @@ impl GridMap {
             camera_cells: Vec::new(),
             dist: vec![DIST_CAP_M; n * n],
             dist_dirty: true,
+            seen_lo: [n, n],
+            seen_hi: [0, 0],
         }
     }
 
@@ -175,9 +182,52 @@ impl GridMap {
 
     fn nudge(&mut self, i: usize, by: i8) {
         self.known[i] = true;
+        self.seen(i);
         self.evidence[i] = self.evidence[i]
             .saturating_add(by)
             .clamp(-EVIDENCE_MAX, EVIDENCE_MAX);
+    }
+
+    /// The cells a ray from `o` along the unit `d` crosses up to `len`,
+    /// in order (a grid walk, Amanatides and Woo), into `out`; it stops
+    /// where the ray leaves the map.
+    fn ray_cells(&self, o: [f64; 2], d: [f64; 2], len: f64, out: &mut Vec<usize>) {
+        out.clear();
+        let r = self.settings.resolution_m;
+        let g = [(o[0] - self.origin_m[0]) / r, (o[1] - self.origin_m[1]) / r];
+        let n = self.n as i64;
+        if !(g[0].is_finite() && g[1].is_finite() && len.is_finite()) {
+            return;
+        }
+        let mut c = [g[0].floor() as i64, g[1].floor() as i64];
+        // per axis: the step, the ray length to the next boundary, and
+        // between boundaries
+        let mut step = [0i64; 2];
+        let mut t_next = [f64::INFINITY; 2];
+        let mut t_delta = [f64::INFINITY; 2];
+        for a in 0..2 {
+            if d[a] > 0.0 {
+                step[a] = 1;
+                t_next[a] = ((c[a] as f64 + 1.0) - g[a]) * r / d[a];
+                t_delta[a] = r / d[a];
+            } else if d[a] < 0.0 {
+                step[a] = -1;
+                t_next[a] = (g[a] - c[a] as f64) * r / -d[a];
+                t_delta[a] = r / -d[a];
+            }
+        }
+        loop {
+            if c[0] < 0 || c[1] < 0 || c[0] >= n || c[1] >= n {
+                return;
+            }
+            out.push(c[1] as usize * self.n + c[0] as usize);
+            let a = if t_next[0] < t_next[1] { 0 } else { 1 };
+            if t_next[a] > len {
+                return;
+            }
+            c[a] += step[a];
+            t_next[a] += t_delta[a];
+        }
     }
 
     /// One merged laser scan seen from `pose` (odom): free along each ray,
@@ -190,7 +240,6 @@ impl GridMap {
                 pose.y_m + s * p[0] + c * p[1],
             ]
         };
-        let r = self.settings.resolution_m;
         let mut cells: Vec<usize> = Vec::new();
         for ray in rays_base.iter().filter(|r| !r.blind) {
             let o = to_odom([ray.origin_m[0] as f64, ray.origin_m[1] as f64]);
@@ -202,17 +251,8 @@ impl GridMap {
                 Some(m) => (m as f64, true),
                 None => (self.settings.free_range_m, false),
             };
-            // the cells the ray crosses, sampled at a quarter cell
-            cells.clear();
-            let steps = (len / (r / 4.0)).ceil() as usize;
-            for k in 0..=steps {
-                let t = (k as f64 * r / 4.0).min(len);
-                match self.cell([o[0] + d[0] * t, o[1] + d[1] * t]) {
-                    Some(i) if cells.last() != Some(&i) => cells.push(i),
-                    Some(_) => {}
-                    None => break,
-                }
-            }
+            // the cells the ray crosses
+            self.ray_cells(o, d, len, &mut cells);
             let end = self.cell([o[0] + d[0] * len, o[1] + d[1] * len]);
             let hit_cell = if hit { end } else { None };
             for &i in &cells {
@@ -237,65 +277,110 @@ impl GridMap {
             if let Some(i) = self.cell(*p) {
                 self.camera[i] = true;
                 self.camera_cells.push(i);
+                self.seen(i);
             }
         }
         self.dist_dirty = true;
     }
 
-    /// Brings the distance field up to date (two-pass chamfer, 1 and √2).
+    /// Widens the seen box to cell `i`.
+    fn seen(&mut self, i: usize) {
+        let (x, y) = (i % self.n, i / self.n);
+        self.seen_lo = [self.seen_lo[0].min(x), self.seen_lo[1].min(y)];
+        self.seen_hi = [self.seen_hi[0].max(x), self.seen_hi[1].max(y)];
+    }
+
+    /// Brings the distance field up to date (two-pass chamfer, 1 and √2)
+    /// within the seen box and the cap's reach about it: beyond, no
+    /// blocked cell is within the cap (the field stays at the cap there).
     fn update_distances(&mut self) {
         if !self.dist_dirty {
             return;
         }
+        self.dist_dirty = false;
         let n = self.n;
+        if self.seen_lo[0] > self.seen_hi[0] {
+            return;
+        }
         let r = self.settings.resolution_m as f32;
+        let reach = (DIST_CAP_M / r).ceil() as usize + 1;
+        let (x0, y0) = (
+            self.seen_lo[0].saturating_sub(reach),
+            self.seen_lo[1].saturating_sub(reach),
+        );
+        let (x1, y1) = (
+            (self.seen_hi[0] + reach).min(n - 1),
+            (self.seen_hi[1] + reach).min(n - 1),
+        );
         let (d1, d2) = (r, r * std::f32::consts::SQRT_2);
-        for i in 0..n * n {
-            self.dist[i] = if self.is_blocked(i) { 0.0 } else { DIST_CAP_M };
+        for y in y0..=y1 {
+            for i in y * n + x0..=y * n + x1 {
+                self.dist[i] = if self.is_blocked(i) { 0.0 } else { DIST_CAP_M };
+            }
         }
         let dist = &mut self.dist;
-        for y in 0..n {
-            for x in 0..n {
+        for y in y0..=y1 {
+            for x in x0..=x1 {
                 let i = y * n + x;
                 let mut v = dist[i];
-                if x > 0 {
+                if x > x0 {
                     v = v.min(dist[i - 1] + d1);
                 }
-                if y > 0 {
+                if y > y0 {
                     v = v.min(dist[i - n] + d1);
-                    if x > 0 {
+                    if x > x0 {
                         v = v.min(dist[i - n - 1] + d2);
                     }
-                    if x + 1 < n {
+                    if x < x1 {
                         v = v.min(dist[i - n + 1] + d2);
                     }
                 }
                 dist[i] = v;
             }
         }
-        for y in (0..n).rev() {
-            for x in (0..n).rev() {
+        for y in (y0..=y1).rev() {
+            for x in (x0..=x1).rev() {
                 let i = y * n + x;
                 let mut v = dist[i];
-                if x + 1 < n {
+                if x < x1 {
                     v = v.min(dist[i + 1] + d1);
                 }
-                if y + 1 < n {
+                if y < y1 {
                     v = v.min(dist[i + n] + d1);
-                    if x + 1 < n {
+                    if x < x1 {
                         v = v.min(dist[i + n + 1] + d2);
                     }
-                    if x > 0 {
+                    if x > x0 {
                         v = v.min(dist[i + n - 1] + d2);
                     }
                 }
                 dist[i] = v;
             }
         }
-        self.dist_dirty = false;
     }
 
-    /// Distance from cell `i` to the nearest blocked cell, m (capped).
+    /// Distance from cell `i`'s centre to the nearest blocked cell's
+    /// centre, m, looked up to `max_m` only (beyond: `max_m`); does not
+    /// need the distance field (a quick look about the chair between
+    /// plans).
+    pub fn distance_near_m(&self, i: usize, max_m: f64) -> f64 {
+        let r = self.settings.resolution_m;
+        let k = (max_m / r).ceil() as i64;
+        let (cx, cy) = ((i % self.n) as i64, (i / self.n) as i64);
+        let n = self.n as i64;
+        let mut best2 = max_m * max_m;
+        for y in (cy - k).max(0)..=(cy + k).min(n - 1) {
+            for x in (cx - k).max(0)..=(cx + k).min(n - 1) {
+                let (dx, dy) = ((x - cx) as f64 * r, (y - cy) as f64 * r);
+                let d2 = dx * dx + dy * dy;
+                if d2 < best2 && self.is_blocked(y as usize * self.n + x as usize) {
+                    best2 = d2;
+                }
+            }
+        }
+        best2.sqrt()
+    }
+
     pub fn distance_m(&mut self, i: usize) -> f64 {
         self.update_distances();
         self.dist[i] as f64

@@ -153,11 +153,39 @@ impl Room {
         let mut instance = vec![-1i32; w * h];
         let r = world_from_camera.rotation.to_rotation_matrix();
         let o = world_from_camera.translation.vector;
+        // the objects in front of the camera, nearest first, with their
+        // distance: a ray (|d| ≤ its longest over the image) cannot hit
+        // one farther than `distance / |d|` before that
+        let forward = r * Vector3::z();
+        let mut order: Vec<(f64, usize)> = self
+            .objects
+            .iter()
+            .enumerate()
+            .filter(|(_, b)| {
+                (0..8).any(|c| {
+                    let corner = Vector3::new(
+                        if c & 1 == 0 { b.min_m[0] } else { b.max_m[0] },
+                        if c & 2 == 0 { b.min_m[1] } else { b.max_m[1] },
+                        if c & 4 == 0 { b.min_m[2] } else { b.max_m[2] },
+                    );
+                    (corner - o).dot(&forward) > 0.0
+                })
+            })
+            .map(|(i, b)| {
+                let mut d2 = 0.0;
+                for a in 0..3 {
+                    let e = (b.min_m[a] - o[a]).max(o[a] - b.max_m[a]).max(0.0);
+                    d2 += e * e;
+                }
+                (d2.sqrt(), i)
+            })
+            .collect();
+        order.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
         for v in 0..h {
             for u in 0..w {
                 let d_cam = Vector3::new((u as f64 - k.cx) / k.fx, (v as f64 - k.cy) / k.fy, 1.0);
                 let d = r * d_cam;
-                let (t, face, id) = self.cast(&o, &d);
+                let (t, face, id) = self.cast(&o, &d, &order);
                 let i = v * w + u;
                 if !t.is_finite() {
                     continue;
@@ -186,8 +214,16 @@ impl Room {
         })
     }
 
-    /// Nearest hit along `o + t·d`: (t, axis of the face hit, object index or −1).
-    fn cast(&self, o: &Vector3<f64>, d: &Vector3<f64>) -> (f64, usize, i32) {
+    /// Nearest hit along `o + t·d`: (t, axis of the face hit, object index
+    /// or −1), among the objects of `order` ((distance from `o`, index),
+    /// nearest first).
+    fn cast(
+        &self,
+        o: &Vector3<f64>,
+        d: &Vector3<f64>,
+        order: &[(f64, usize)],
+    ) -> (f64, usize, i32) {
+        let d_norm = d.norm();
         // leaving the room from inside
         let mut best = (f64::INFINITY, 2usize, -1i32);
         for a in 0..3 {
@@ -223,7 +259,11 @@ impl Room {
                 }
             }
         }
-        for (idx, ob) in self.objects.iter().enumerate() {
+        for &(dist_m, idx) in order {
+            if dist_m >= best.0 * d_norm {
+                break;
+            }
+            let ob = &self.objects[idx];
             let (mut t0, mut t1, mut axis) = (0.0f64, f64::INFINITY, 0usize);
             let mut hit = true;
             for a in 0..3 {

@@ -100,7 +100,8 @@ fn box_distance(lo: [f64; 2], hi: [f64; 2], p: [f64; 2]) -> f64 {
     if dx <= 0.0 && dy <= 0.0 {
         dx.max(dy)
     } else {
-        dx.max(0.0).hypot(dy.max(0.0))
+        let (dx, dy) = (dx.max(0.0), dy.max(0.0));
+        (dx * dx + dy * dy).sqrt()
     }
 }
 
