@@ -62,8 +62,11 @@ const EVIDENCE_MAX: i8 = 20;
 /// A search gives up after this many cells (a goal walled off would
 /// otherwise cost a search of the whole map at every replan).
 const MAX_EXPANDED: usize = 60_000;
-/// Distances are kept up to this, m (beyond, all the same).
-const DIST_CAP_M: f32 = 3.0;
+/// Distances are kept up to the comfort distance and this beyond it, and
+/// at least [`DIST_CAP_MIN_M`], m (beyond, all the same: no cost, doorway
+/// or room to turn looks farther).
+const DIST_CAP_OVER_M: f32 = 0.5;
+const DIST_CAP_MIN_M: f32 = 1.5;
 
 #[derive(Debug, Clone)]
 pub struct GridMap {
@@ -82,9 +85,10 @@ pub struct GridMap {
     dist_dirty: bool,
     /// Every cell ever seen lies in [lo, hi] (x, y cell indices; lo > hi:
     /// none yet): the distance field is computed within it and
-    /// [`DIST_CAP_M`] about it, the rest stays at the cap.
+    /// the cap's reach about it, the rest stays at the cap.
     seen_lo: [usize; 2],
     seen_hi: [usize; 2],
+    dist_cap_m: f32,
 }
 
 /// A path in `odom`, from the chair to the goal.
@@ -125,6 +129,7 @@ impl GridMap {
     pub fn new(settings: MapSettings, center_odom: [f64; 2]) -> GridMap {
         let n = ((settings.size_m / settings.resolution_m).ceil() as usize).max(8);
         let half = n as f64 * settings.resolution_m / 2.0;
+        let dist_cap_m = (settings.comfort_m as f32 + DIST_CAP_OVER_M).max(DIST_CAP_MIN_M);
         GridMap {
             settings,
             origin_m: [center_odom[0] - half, center_odom[1] - half],
@@ -133,10 +138,11 @@ impl GridMap {
             known: vec![false; n * n],
             camera: vec![false; n * n],
             camera_cells: Vec::new(),
-            dist: vec![DIST_CAP_M; n * n],
+            dist: vec![dist_cap_m; n * n],
             dist_dirty: true,
             seen_lo: [n, n],
             seen_hi: [0, 0],
+            dist_cap_m,
         }
     }
 
@@ -182,7 +188,6 @@ impl GridMap {
 
     fn nudge(&mut self, i: usize, by: i8) {
         self.known[i] = true;
-        self.seen(i);
         self.evidence[i] = self.evidence[i]
             .saturating_add(by)
             .clamp(-EVIDENCE_MAX, EVIDENCE_MAX);
@@ -253,6 +258,11 @@ impl GridMap {
             };
             // the cells the ray crosses
             self.ray_cells(o, d, len, &mut cells);
+            // a straight ray: its cells lie in the box of its first and last
+            if let (Some(&a), Some(&b)) = (cells.first(), cells.last()) {
+                self.seen(a);
+                self.seen(b);
+            }
             let end = self.cell([o[0] + d[0] * len, o[1] + d[1] * len]);
             let hit_cell = if hit { end } else { None };
             for &i in &cells {
@@ -303,7 +313,8 @@ impl GridMap {
             return;
         }
         let r = self.settings.resolution_m as f32;
-        let reach = (DIST_CAP_M / r).ceil() as usize + 1;
+        let cap = self.dist_cap_m;
+        let reach = (cap / r).ceil() as usize + 1;
         let (x0, y0) = (
             self.seen_lo[0].saturating_sub(reach),
             self.seen_lo[1].saturating_sub(reach),
@@ -315,7 +326,7 @@ impl GridMap {
         let (d1, d2) = (r, r * std::f32::consts::SQRT_2);
         for y in y0..=y1 {
             for i in y * n + x0..=y * n + x1 {
-                self.dist[i] = if self.is_blocked(i) { 0.0 } else { DIST_CAP_M };
+                self.dist[i] = if self.is_blocked(i) { 0.0 } else { cap };
             }
         }
         let dist = &mut self.dist;
@@ -500,9 +511,12 @@ impl GridMap {
         let r = self.settings.resolution_m;
         let (gx, gy) = ((goal % n) as f64, (goal / n) as f64);
         let within = (within_m / r).max(0.5);
-        let is_goal = |i: usize| ((i % n) as f64 - gx).hypot((i / n) as f64 - gy) <= within;
-        let heuristic =
-            |i: usize| (((i % n) as f64 - gx).hypot((i / n) as f64 - gy) - within).max(0.0) * r;
+        let cells_from_goal = |i: usize| {
+            let (dx, dy) = ((i % n) as f64 - gx, (i / n) as f64 - gy);
+            (dx * dx + dy * dy).sqrt()
+        };
+        let is_goal = |i: usize| cells_from_goal(i) <= within;
+        let heuristic = |i: usize| (cells_from_goal(i) - within).max(0.0) * r;
         let (end, parent) = self.search(from, &is_goal, &heuristic, true)?;
         let mut p = self.trace(end, &parent);
         p.points.push(to);

@@ -116,7 +116,7 @@ pub fn scan(
                 d,
             );
             let p = base_from_depth * p_cam;
-            if p.x.hypot(p.y) > s.max_range_m {
+            if p.x * p.x + p.y * p.y > s.max_range_m * s.max_range_m {
                 continue;
             }
             let (map, at) = if p.z > s.floor_band_m && p.z <= s.max_height_m {

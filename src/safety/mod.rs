@@ -179,7 +179,7 @@ impl Supervisor {
         let l = &self.limits;
         let reach = l.front_offset_m.max(l.rear_offset_m);
         let r = reach.hypot(l.chair_width_m / 2.0) + l.corridor_margin_m;
-        points.any(|p| (p[0] as f64).hypot(p[1] as f64) < r)
+        points.any(|p| (p[0] as f64).powi(2) + (p[1] as f64).powi(2) < r * r)
     }
 
     /// True when an obstacle point lies in the corridor ahead (v > 0) or
