@@ -21,8 +21,8 @@ use crate::navigation::mpc::UnicycleState;
 use crate::navigation::planner::Planner;
 
 use super::route::{
-    Router, CRAWL_MPS, EXPLORE_APART_M, EXPLORE_MIN_M, EXPLORE_ROOM_M, TURN_FIRST_RAD,
-    TURN_FIRST_RADPS,
+    Router, CRAWL_MPS, EXPLORE_APART_M, EXPLORE_MIN_M, EXPLORE_ROOM_M, ROOM_TO_TURN_MIN_M,
+    TURN_FIRST_RAD, TURN_FIRST_RADPS,
 };
 use crate::safety::rear::{RearSettings, RearWatch};
 use crate::safety::{Supervisor, SupervisorInputs};
@@ -106,6 +106,8 @@ pub struct Control {
     asked_rear: Option<crate::msg::Pose2>,
     /// "yes" arrived: vouch for the rear at the next step.
     rear_yes: bool,
+    /// Since when a search turn is held by an obstacle.
+    turn_held_since: Option<Stamp>,
     /// The chair asked "Did you say the X?" (an unsure utterance).
     asked_goal: Option<String>,
     /// A person acknowledged the fault (the latch file goes too).
@@ -116,6 +118,8 @@ pub struct Control {
 }
 
 /// A turn on the spot refused this long for an unseen rear: the chair asks.
+/// A search turn held this long by an obstacle ends there.
+const TURN_HELD_FOR: std::time::Duration = std::time::Duration::from_secs(3);
 const ASK_REAR_AFTER: std::time::Duration = std::time::Duration::from_secs(1);
 
 /// The motor interface up but not driving this long: the takeover failed.
@@ -161,6 +165,7 @@ impl Control {
             rear_blocked_since: None,
             asked_rear: None,
             rear_yes: false,
+            turn_held_since: None,
             asked_goal: None,
             acknowledged: false,
             route: None,
@@ -377,7 +382,12 @@ impl Control {
             .zip(inputs.odometry)
             .map(|(c, odo)| Stamped::new(c.stamp, c.value.to_base(&odo.value.pose)));
         if let (Some(r), Some(odo)) = (self.route.as_mut(), inputs.odometry) {
-            r.update(odo.value.pose, inputs.obstacles, inputs.camera);
+            r.update(
+                odo.value.pose,
+                inputs.obstacles,
+                inputs.camera,
+                self.view.as_ref(),
+            );
         }
         if let (Some(o), Some(odo)) = (inputs.obstacles, inputs.odometry) {
             self.plan(now, o, camera.as_ref(), odo, inputs.tracker);
@@ -495,7 +505,36 @@ impl Control {
         let event = self.goal.update(now, tracker, pose, &obstacles_odom, &|p| {
             view.is_some_and(|v| v.sees(&pose, p))
         });
+        // a search turn held by something in the turn's circle: as good as
+        // done from here; the keeper looks further, somewhere with room
+        let turn_held = matches!(self.goal.state(), GoalState::Searching { .. })
+            && self.supervisor.state()
+                == SupervisorState::Stopped(crate::msg::StopReason::Obstacle);
+        if !turn_held {
+            self.turn_held_since = None;
+        }
+        let held_long = turn_held
+            && event.is_none()
+            && self.turn_held_since.get_or_insert(now).age_at(now) >= TURN_HELD_FOR;
         let event = match event {
+            None if held_long => {
+                self.turn_held_since = None;
+                let from = [pose.x_m, pose.y_m];
+                let place = self.route.as_mut().and_then(|r| {
+                    // room to spare where it can (it stops within 0.3 m
+                    // of the place)
+                    let map = r.map.as_mut()?;
+                    map.room_to_turn(from, ROOM_TO_TURN_MIN_M, EXPLORE_ROOM_M + 0.15)
+                        .or_else(|| map.room_to_turn(from, ROOM_TO_TURN_MIN_M, EXPLORE_ROOM_M))
+                });
+                tracing::info!(
+                    ?pose,
+                    ?place,
+                    "search turn held by an obstacle: turning elsewhere"
+                );
+                self.goal.turn_done();
+                self.goal.explore(now, place)
+            }
             None if self.goal.wants_place() => {
                 let from = [pose.x_m, pose.y_m];
                 let place = self.route.as_mut().and_then(|r| {
@@ -539,7 +578,7 @@ impl Control {
             let aim = match (door, self.route.as_mut()) {
                 (Some(PassageCmd::Drive(cmd)), _) => {
                     // through a doorway: its own steering
-                    self.planner_cmd = Some(Stamped::new(now, cmd));
+                    self.planner_cmd = Some(Stamped::new(now, self.turn_within_room(cmd, &o)));
                     return self.finish_step(event);
                 }
                 (Some(PassageCmd::Aim(p)), _) => p,
@@ -558,7 +597,11 @@ impl Control {
             } else {
                 TURN_FIRST_RAD
             };
-            let turn_first = self.route.is_some() && far && bearing.abs() > limit;
+            // no room to turn on the spot (something in the corners'
+            // circle): the planner's arc instead, which keeps its clearance
+            let crawl_turn = self.supervisor.crawl_turn_radps();
+            let room_to_turn = !self.supervisor.turn_blocked(&o, 0.0, crawl_turn);
+            let turn_first = self.route.is_some() && far && bearing.abs() > limit && room_to_turn;
             let mut out = self.planner.step(
                 UnicycleState {
                     x_m: pose.x_m,
@@ -581,11 +624,33 @@ impl Control {
                 // corridor is the narrow one
                 out.cmd.v_mps = out.cmd.v_mps.min(CRAWL_MPS);
             }
-            Some(Stamped::new(now, out.cmd))
+            Some(Stamped::new(now, self.turn_within_room(out.cmd, &o)))
         } else {
-            self.goal.search_command().map(|c| Stamped::new(now, c))
+            self.goal
+                .search_command()
+                .map(|c| Stamped::new(now, self.turn_within_room(c, &o)))
         };
         self.finish_step(event);
+    }
+
+    /// A turn on the spot with something inside the corners' circle and
+    /// its margin, but not within the crawl's margin: slowed to a crawl
+    /// (the supervisor would hold the faster one).
+    fn turn_within_room(&self, cmd: VelocityCmd, o: &Obstacles) -> VelocityCmd {
+        let crawl = self.supervisor.crawl_turn_radps();
+        if cmd.omega_radps.abs() > crawl
+            && self.supervisor.turn_blocked(o, cmd.v_mps, cmd.omega_radps)
+            && !self
+                .supervisor
+                .turn_blocked(o, cmd.v_mps, crawl.copysign(cmd.omega_radps))
+        {
+            VelocityCmd {
+                v_mps: cmd.v_mps,
+                omega_radps: crawl.copysign(cmd.omega_radps),
+            }
+        } else {
+            cmd
+        }
     }
 
     /// The trip's end on the goal's event (with `exit_on_arrival`).

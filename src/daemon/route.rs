@@ -34,8 +34,10 @@ pub struct Router {
 pub(super) const PASSAGE_BLOCKED_FOR: std::time::Duration = std::time::Duration::from_secs(5);
 pub(super) const PASSAGE_AT_MOST: std::time::Duration = std::time::Duration::from_secs(60);
 pub(super) const PASSAGE_SKIP_FOR: std::time::Duration = std::time::Duration::from_secs(20);
-/// A gap narrower than this is no doorway for the chair (0.70 m and the
-/// crawl's stop corridor, 3 cm a side), m.
+/// A gap measured narrower than this is no doorway for the chair: 0.70 m
+/// and the crawl's stop corridor (3 cm a side), less the measurement's
+/// cell (a 0.80 m doorway can measure 0.75 m); one that measures wide
+/// enough but is not, the supervisor holds, and the passage is given up, m.
 pub(super) const MIN_DOORWAY_M: f64 = 0.78;
 
 /// Replan this often, or when the goal moved this far (s, m).
@@ -45,9 +47,16 @@ pub(super) const REPLAN_MOVED_M: f64 = 0.3;
 /// searched, m.
 pub(super) const EXPLORE_MIN_M: f64 = 1.0;
 pub(super) const EXPLORE_APART_M: f64 = 1.5;
+/// The camera is taken to have looked this far along the floor, m (the
+/// tracker confirms objects within it).
+pub(super) const LOOK_RANGE_M: f64 = 4.0;
+/// A search turn held by something in its circle goes on at least this
+/// far away, m.
+pub(super) const ROOM_TO_TURN_MIN_M: f64 = 0.6;
 /// A place to search has this much room about it (to turn on the spot: the
-/// chair's corners reach 0.65 m from base_link), m.
-pub(super) const EXPLORE_ROOM_M: f64 = 0.7;
+/// chair's corners reach 0.65 m from base_link, the supervisor keeps 0.10 m
+/// more), m.
+pub(super) const EXPLORE_ROOM_M: f64 = 0.8;
 /// The way more than this off the heading: turn on the spot first (rad),
 /// at this rate (rad/s).
 pub(super) const TURN_FIRST_RAD: f64 = 0.7;
@@ -79,6 +88,7 @@ impl Router {
         pose: crate::msg::Pose2,
         lasers: Option<&Stamped<Obstacles>>,
         camera: Option<&Stamped<MapObstacles>>,
+        view: Option<&crate::estimation::view::CameraView>,
     ) {
         let settings = self.settings;
         let map = self
@@ -91,6 +101,18 @@ impl Router {
         if let Some(c) = camera.filter(|c| Some(c.stamp) != self.camera) {
             self.camera = Some(c.stamp);
             map.set_camera(&c.value.obstacles_odom, &c.value.drop_offs_odom);
+            // what the camera looked at, from where the chair is now
+            if let Some(v) = view {
+                let odom_from_camera = pose.to_isometry3() * v.base_from_camera;
+                let o = odom_from_camera.translation.vector;
+                let axis = odom_from_camera.rotation * nalgebra::Vector3::z();
+                map.look(
+                    [o.x, o.y],
+                    axis.y.atan2(axis.x),
+                    v.half_fov_h_rad(),
+                    v.max_range_m.min(LOOK_RANGE_M),
+                );
+            }
         }
     }
 

@@ -190,7 +190,7 @@ pub struct GoalKeeper {
 /// At most this many places searched after the first turn.
 pub const MAX_EXPLORATIONS: usize = 6;
 /// A place to search is reached this close, m.
-const EXPLORED_WITHIN_M: f64 = 0.5;
+const EXPLORED_WITHIN_M: f64 = 0.3;
 /// Driving to a place to search gives up after this long (and searches
 /// where it is).
 const EXPLORE_FOR: Duration = Duration::from_secs(40);
@@ -250,6 +250,14 @@ impl GoalKeeper {
         self.explores
             && matches!(self.state, GoalState::Searching { .. })
             && self.search_turned_rad >= std::f64::consts::TAU
+    }
+
+    /// The search turn cannot go on (something in its circle): what it
+    /// has seen is all it will see from here, as after a whole turn.
+    pub fn turn_done(&mut self) {
+        if matches!(self.state, GoalState::Searching { .. }) {
+            self.search_turned_rad = self.search_turned_rad.max(std::f64::consts::TAU);
+        }
     }
 
     /// The next place to search (odom), or None: no place is left, and the

@@ -166,6 +166,8 @@ pub fn find(map: &mut GridMap, path: &MapPath, from: [f64; 2]) -> Option<Doorway
     Some(Doorway {
         center,
         axis_rad: axis[1].atan2(axis[0]),
+        // each face's cell centre lies within half a cell of its surface,
+        // either side: the centres' spacing is the width to a cell
         width_m: face_b - face_a - res,
     })
 }

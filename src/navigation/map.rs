@@ -27,7 +27,7 @@ pub struct MapSettings {
     /// A ray with no return marks free space this far, m.
     pub free_range_m: f64,
     /// Paths keep this far from every blocked cell (half the chair's
-    /// width and a little), m.
+    /// width and a little; less one cell for the cells' rounding), m.
     pub half_width_m: f64,
     /// Closer than this to something costs more (the middle of a doorway
     /// is cheapest), m.
@@ -79,6 +79,9 @@ pub struct GridMap {
     known: Vec<bool>,
     /// The camera's obstacles and drop-offs (replaced at each update).
     camera: Vec<bool>,
+    /// Seen free cells the camera has looked at (what it looks for would
+    /// have been seen there).
+    looked: Vec<bool>,
     camera_cells: Vec<usize>,
     /// Distance to the nearest blocked cell, m (valid when not dirty).
     dist: Vec<f32>,
@@ -137,6 +140,7 @@ impl GridMap {
             evidence: vec![0; n * n],
             known: vec![false; n * n],
             camera: vec![false; n * n],
+            looked: vec![false; n * n],
             camera_cells: Vec::new(),
             dist: vec![dist_cap_m; n * n],
             dist_dirty: true,
@@ -276,6 +280,35 @@ impl GridMap {
         self.dist_dirty = true;
     }
 
+    /// The camera at `origin` (odom) looking along `yaw_rad` with a
+    /// horizontal half-angle of `half_fov_rad`, out to `range_m`: the
+    /// seen free cells in its view, up to the first blocked or unseen cell
+    /// of each ray, and that blocked cell, are looked at.
+    pub fn look(&mut self, origin: [f64; 2], yaw_rad: f64, half_fov_rad: f64, range_m: f64) {
+        let r = self.settings.resolution_m;
+        // rays one cell apart at the far end
+        let rays = ((2.0 * half_fov_rad * range_m / r).ceil() as usize).clamp(2, 4096);
+        let mut cells = Vec::new();
+        for k in 0..=rays {
+            let a = yaw_rad - half_fov_rad + 2.0 * half_fov_rad * k as f64 / rays as f64;
+            self.ray_cells(origin, [a.cos(), a.sin()], range_m, &mut cells);
+            for &i in &cells {
+                if !self.is_known(i) {
+                    break;
+                }
+                self.looked[i] = true;
+                if self.is_blocked(i) {
+                    break;
+                }
+            }
+        }
+    }
+
+    /// Looked at by the camera ([`GridMap::look`]).
+    pub fn is_looked(&self, i: usize) -> bool {
+        self.looked[i]
+    }
+
     /// The depth camera's remembered obstacles and drop-offs (odom),
     /// replacing the previous set.
     pub fn set_camera(&mut self, obstacles_odom: &[[f64; 2]], drop_offs_odom: &[[f64; 2]]) {
@@ -401,7 +434,11 @@ impl GridMap {
     fn cost_per_m(&self, i: usize, escape: &dyn Fn(usize) -> bool) -> Option<f64> {
         let s = &self.settings;
         let d = self.dist[i] as f64;
-        if d < s.half_width_m && (self.is_blocked(i) || !escape(i)) {
+        // distances run between cell centres: a jamb's cell reaches up to
+        // half a cell into a doorway and the middle cell lies up to half a
+        // cell off its middle, so a 0.80 m doorway can measure 0.35 m from
+        // its middle cell — one cell of slack, or it would seem closed
+        if d + s.resolution_m < s.half_width_m && (self.is_blocked(i) || !escape(i)) {
             return None;
         }
         let tight = ((s.comfort_m - d) / (s.comfort_m - s.half_width_m)).clamp(0.0, 1.0);
@@ -523,8 +560,9 @@ impl GridMap {
         Some(p)
     }
 
-    /// The nearest frontier by path (a seen free cell next to unseen
-    /// space, with `room_m` to everything — room to turn there) at least
+    /// The nearest frontier by path (a seen free cell next to space the
+    /// camera has not looked at, laser-unseen space included, with
+    /// `room_m` to everything — room to turn there) at least
     /// `min_m` from `from` and farther than `avoid_m` from each of `avoid`
     /// (frontiers already visited).
     pub fn frontier(
@@ -556,7 +594,7 @@ impl GridMap {
                     && ny >= 0
                     && (nx as usize) < n
                     && (ny as usize) < n
-                    && !self.is_known(ny as usize * n + nx as usize)
+                    && !self.looked[ny as usize * n + nx as usize]
             };
             if ![(1i64, 0i64), (-1, 0), (0, 1), (0, -1)]
                 .iter()
@@ -573,6 +611,21 @@ impl GridMap {
                 }
             }
             count * 4 >= samples
+        };
+        let (end, _) = self.search(from, &is_goal, &|_| 0.0, false)?;
+        Some(self.center(end))
+    }
+
+    /// The nearest place by path, at least `min_m` from `from`, with
+    /// `room_m` to everything (room to turn on the spot), through seen
+    /// free space.
+    pub fn room_to_turn(&mut self, from: [f64; 2], min_m: f64, room_m: f64) -> Option<[f64; 2]> {
+        self.update_distances();
+        let is_goal = |i: usize| {
+            let p = self.center(i);
+            self.dist[i] as f64 >= room_m
+                && self.is_known(i)
+                && (p[0] - from[0]).hypot(p[1] - from[1]) >= min_m
         };
         let (end, _) = self.search(from, &is_goal, &|_| 0.0, false)?;
         Some(self.center(end))
@@ -713,6 +766,14 @@ mod tests {
             ..Default::default()
         };
         map.add_scan(Pose2::default(), &rays);
+        // not looked at by the camera: everywhere is worth a look, the
+        // nearest place first
+        let near = map
+            .frontier([0.0, 0.0], 1.0, 0.5, &[], 1.0)
+            .expect("a frontier");
+        assert!(near[0].hypot(near[1]) < 1.2, "{near:?}");
+        // the camera turned all round: what is left is beyond the seen
+        map.look([0.0, 0.0], 0.0, std::f64::consts::PI, 4.0);
         let f = map
             .frontier([0.0, 0.0], 1.0, 0.5, &[], 1.0)
             .expect("a frontier");
@@ -720,5 +781,40 @@ mod tests {
         // once visited, there is none left that the chair can reach
         // through seen free space
         assert!(map.frontier([0.0, 0.0], 1.0, 0.5, &[f], 1.5).is_none());
+    }
+
+    #[test]
+    fn the_camera_looks_at_seen_free_cells_up_to_the_first_obstacle() {
+        let mut map = GridMap::new(MapSettings::default(), [0.0, 0.0]);
+        // a ring of walls 2 m away
+        map.add_scan(Pose2::default(), &ring(Some(2.0), false));
+        map.look([0.0, 0.0], 0.0, 0.5, 4.0);
+        let at = |map: &GridMap, p: [f64; 2]| map.is_looked(map.cell(p).expect("on the map"));
+        // ahead, up to and including the wall; not beyond it, not behind
+        assert!(at(&map, [1.0, 0.0]) && at(&map, [1.99, 0.0]));
+        assert!(!at(&map, [2.5, 0.0]));
+        assert!(!at(&map, [-1.0, 0.0]) && !at(&map, [0.0, 1.0]));
+        // the view's edge: 0.5 rad either side
+        assert!(at(&map, [1.0, 0.5]) && !at(&map, [1.0, 0.6]));
+    }
+
+    #[test]
+    fn room_to_turn_is_the_nearest_place_clear_all_round() {
+        let mut map = GridMap::new(MapSettings::default(), [0.0, 0.0]);
+        // a wall 0.5 m to the left (y = 0.5), open elsewhere to 3 m
+        let rays: Vec<LaserRay> = ring(Some(3.0), false)
+            .into_iter()
+            .map(|mut r| {
+                if r.dir[1] > 0.2 {
+                    r.range_m = Some((0.5 / r.dir[1]).min(3.0));
+                }
+                r
+            })
+            .collect();
+        map.add_scan(Pose2::default(), &rays);
+        let p = map.room_to_turn([0.0, 0.0], 0.3, 0.8).expect("a place");
+        // 0.8 m from the wall (and no farther than it needs)
+        assert!(p[1] <= -0.25 && p[1] >= -0.45, "{p:?}");
+        assert!(map.room_to_turn([0.0, 0.0], 0.3, 3.0).is_none());
     }
 }

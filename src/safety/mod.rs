@@ -160,9 +160,24 @@ impl Supervisor {
         self.fault = None;
     }
 
+    /// How far the footprint's corners reach from base_link, m.
+    fn corner_reach_m(&self) -> f64 {
+        let l = &self.limits;
+        l.front_offset_m
+            .max(l.rear_offset_m)
+            .hypot(l.chair_width_m / 2.0)
+    }
+
+    /// The fastest turn on the spot whose corners move at a crawl (a third
+    /// of the forward cap), rad/s: it keeps the crawl's narrow margin.
+    pub fn crawl_turn_radps(&self) -> f64 {
+        self.limits.v_forward_max_mps / 3.0 / self.corner_reach_m()
+    }
+
     /// Turning on the spot (|v| below 5 cm/s, |ω| above 0.05 rad/s): true
     /// when an obstacle point lies inside the circle the footprint's
-    /// corners sweep, plus the corridor margin.
+    /// corners sweep, plus the corridor margin (the crawl's margin when the
+    /// corners move at a crawl).
     pub fn turn_blocked(&self, obstacles: &Obstacles, v_mps: f64, omega_radps: f64) -> bool {
         self.turn_hits(all_points(obstacles), v_mps, omega_radps)
     }
@@ -177,9 +192,63 @@ impl Supervisor {
             return false;
         }
         let l = &self.limits;
-        let reach = l.front_offset_m.max(l.rear_offset_m);
-        let r = reach.hypot(l.chair_width_m / 2.0) + l.corridor_margin_m;
+        // a turn whose corners move at a crawl keeps the crawl's margin
+        let margin = if omega_radps.abs() <= self.crawl_turn_radps() {
+            l.corridor_margin_slow_m.min(l.corridor_margin_m)
+        } else {
+            l.corridor_margin_m
+        };
+        let r = self.corner_reach_m() + margin;
         points.any(|p| (p[0] as f64).powi(2) + (p[1] as f64).powi(2) < r * r)
+    }
+
+    /// On an arc (|v| ≥ 5 cm/s and |ω| above 0.05 rad/s): true when an
+    /// obstacle point lies inside the footprint (and the corridor margin,
+    /// the crawl's at a crawl) at any of eight poses along the arc over
+    /// the stop distance — the rear corners swing out on a bend, which the
+    /// corridor ahead does not cover.
+    fn arc_hits<'p>(
+        &self,
+        points: impl Iterator<Item = &'p [f32; 2]> + Clone,
+        v_mps: f64,
+        omega_radps: f64,
+    ) -> bool {
+        if v_mps.abs() < 0.05 || omega_radps.abs() <= TURNING_RADPS {
+            return false;
+        }
+        let l = &self.limits;
+        let margin = if v_mps.abs() <= l.v_forward_max_mps / 3.0 {
+            l.corridor_margin_slow_m.min(l.corridor_margin_m)
+        } else {
+            l.corridor_margin_m
+        };
+        let (front, rear, half) = (
+            l.front_offset_m + margin,
+            l.rear_offset_m + margin,
+            l.chair_width_m / 2.0 + margin,
+        );
+        let horizon_s = l.stop_distance_m / v_mps.abs();
+        const POSES: usize = 8;
+        let poses: Vec<(f64, f64, f64, f64)> = (1..=POSES)
+            .map(|k| {
+                let t = horizon_s * k as f64 / POSES as f64;
+                let th = omega_radps * t;
+                // the unicycle's exact arc from base_link
+                let (x, y) = (
+                    v_mps / omega_radps * th.sin(),
+                    v_mps / omega_radps * (1.0 - th.cos()),
+                );
+                (x, y, th.cos(), th.sin())
+            })
+            .collect();
+        points.into_iter().any(|p| {
+            let (px, py) = (p[0] as f64, p[1] as f64);
+            poses.iter().any(|&(x, y, c, s)| {
+                let (dx, dy) = (px - x, py - y);
+                let (qx, qy) = (c * dx + s * dy, -s * dx + c * dy);
+                qx >= -rear && qx <= front && qy.abs() <= half
+            })
+        })
     }
 
     /// True when an obstacle point lies in the corridor ahead (v > 0) or
@@ -347,6 +416,8 @@ impl Supervisor {
                         .any(|d| self.corridor_hits(all(), d))
                         || self.turn_hits(all(), v, w)
                         || (w_now.abs() > TURNING_RADPS && self.turn_hits(all(), v_now, w_now))
+                        || self.arc_hits(all(), v, w)
+                        || self.arc_hits(all(), v_now, w_now)
                 };
                 let camera = inputs.camera.map(|c| &c.value);
                 let no_points: &[[f32; 2]] = &[];

@@ -87,6 +87,21 @@ fn turning_on_the_spot_stops_when_something_is_inside_the_swept_circle() {
     let c = s.step(ms(20), &w.inputs());
     assert_eq!(c.state, SupervisorState::Navigating);
     assert!(c.cmd.omega_radps > 0.0);
+    // turning so slowly that the corners crawl (0.1 m/s / 0.652 m =
+    // 0.153 rad/s): the crawl's margin, 0.652 + 0.03 m — 0.7 m is clear,
+    // 0.67 m is not
+    let mut s = moving(0.0);
+    let crawl = s.crawl_turn_radps();
+    assert!((crawl - 0.1 / 0.55f64.hypot(0.35)).abs() < 1e-3, "{crawl}");
+    let mut w = World::new(20, 0.0, crawl);
+    w.obstacles.value.points_base = vec![[0.0, 0.7]];
+    let c = s.step(ms(20), &w.inputs());
+    assert_eq!(c.state, SupervisorState::Navigating);
+    let mut s = moving(0.0);
+    let mut w = World::new(20, 0.0, crawl);
+    w.obstacles.value.points_base = vec![[0.0, 0.67]];
+    let c = s.step(ms(20), &w.inputs());
+    assert_eq!(c.state, SupervisorState::Stopped(StopReason::Obstacle));
     // driving forward past it is the corridor's business, not this check
     let mut s = moving(0.2);
     let mut w = World::new(20, 0.2, 0.5);
