@@ -8,7 +8,8 @@
 
 use crate::msg::Pose2;
 
-use super::room::{Room, SimObject};
+use super::room::{Pit, Room, SimObject};
+use super::world::Walker;
 
 /// SplitMix64: small, fast, and fixed.
 #[derive(Debug, Clone)]
@@ -71,6 +72,14 @@ pub const START_TO_TARGET_M: f64 = 1.5;
 
 /// The label of the boxes that make walls between rooms.
 pub const WALL_LABEL: &str = "wall";
+/// The label of a person walking across a room (never the word asked for;
+/// not in the yardstick's way: a person steps aside).
+pub const WALKER_LABEL: &str = "person";
+/// How often a scene has a step down against a wall, a sunken last room
+/// (the word only there: unreachable by construction), a person walking.
+const STEP_DOWN_CHANCE: f64 = 0.2;
+const SUNKEN_ROOM_CHANCE: f64 = 0.08;
+const WALKER_CHANCE: f64 = 0.25;
 
 /// A kind of furniture: label, Replica class id, footprint range (x, y)
 /// and height, m, and whether it stands against a wall.
@@ -166,6 +175,11 @@ pub struct Scene {
     pub start: Pose2,
     /// The word the person asks for (an object of the scene).
     pub prompt: String,
+    /// People walking across a room (their boxes are in `room.objects`).
+    pub walkers: Vec<Walker>,
+    /// The last room lies a step down and holds the only objects of the
+    /// word: no place beside one can be reached.
+    pub sunken_room: bool,
 }
 
 fn overlaps(a: &SimObject, b: &SimObject, gap: f64) -> bool {
@@ -179,9 +193,16 @@ fn overlaps(a: &SimObject, b: &SimObject, gap: f64) -> bool {
 pub fn clearance_at(room: &Room, x: f64, y: f64) -> f64 {
     let [sx, sy, _] = room.size_m;
     let walls = x.min(sx - x).min(y).min(sy - y);
+    let pits = room.pits.iter().map(|p| {
+        let dx = (p.min_m[0] - x).max(x - p.max_m[0]).max(0.0);
+        let dy = (p.min_m[1] - y).max(y - p.max_m[1]).max(0.0);
+        (dx * dx + dy * dy).sqrt()
+    });
     room.objects
         .iter()
+        .filter(|o| o.label != WALKER_LABEL)
         .map(|o| distance_to_box(x, y, o))
+        .chain(pits)
         .fold(walls, f64::min)
 }
 
@@ -257,22 +278,128 @@ pub fn generate(seed: u64) -> Scene {
             place_anywhere(&mut rng, k, *r, depth, &aprons, &mut objects);
         }
     }
+    let mut pits = Vec::new();
+    // sometimes a step down against a wall (a sunken corner, a stairwell)
+    if rng.chance(STEP_DOWN_CHANCE) {
+        let r = rooms_x_m[rng.below(n_rooms)];
+        for _ in 0..20 {
+            let (w, d) = (rng.range(0.8, 1.6), rng.range(0.8, 1.4));
+            let x0 = rng.range(r[0], (r[1] - w).max(r[0]));
+            let y0 = if rng.chance(0.5) { 0.0 } else { depth - d };
+            let area = SimObject {
+                label_id: -1,
+                label: String::new(),
+                min_m: [x0, y0, 0.0],
+                max_m: [(x0 + w).min(r[1]), y0 + d, 0.0],
+                color: [0, 0, 0],
+            };
+            if fits(&area, &aprons, &objects) {
+                pits.push(Pit {
+                    min_m: [area.min_m[0], area.min_m[1]],
+                    max_m: [area.max_m[0], area.max_m[1]],
+                    depth_m: rng.range(0.1, 0.3),
+                });
+                break;
+            }
+        }
+    }
     // the word: an object of the scene (a wall or clutter is not asked for)
-    let askable: Vec<&SimObject> = objects[n_walls..]
-        .iter()
-        .filter(|o| !CLUTTER.iter().any(|c| c.label == o.label))
+    let askable = |objects: &[SimObject], within: Option<[f64; 2]>| -> Vec<String> {
+        objects[n_walls..]
+            .iter()
+            .filter(|o| !CLUTTER.iter().any(|c| c.label == o.label))
+            .filter(|o| within.is_none_or(|r| o.min_m[0] >= r[0] && o.max_m[0] <= r[1]))
+            .map(|o| o.label.clone())
+            .collect()
+    };
+    // sometimes the last room lies a step down, and only it has the word
+    let last = rooms_x_m[n_rooms - 1];
+    let only_there: Vec<String> = askable(&objects, Some(last))
+        .into_iter()
+        .filter(|l| {
+            !objects[n_walls..]
+                .iter()
+                .any(|o| &o.label == l && o.max_m[0] <= last[0])
+        })
         .collect();
-    let prompt = if askable.is_empty() {
-        "chair".to_string()
+    let sunken_room = n_rooms >= 2 && !only_there.is_empty() && rng.chance(SUNKEN_ROOM_CHANCE);
+    let prompt = if sunken_room {
+        let depth_m = rng.range(0.15, 0.3);
+        pits.retain(|p| p.max_m[0] <= last[0]);
+        pits.push(Pit {
+            min_m: [last[0], 0.0],
+            max_m: [last[1], depth],
+            depth_m,
+        });
+        // the furniture down there stands on its floor
+        for o in objects[n_walls..]
+            .iter_mut()
+            .filter(|o| o.min_m[0] >= last[0])
+        {
+            o.min_m[2] = -depth_m;
+        }
+        only_there[rng.below(only_there.len())].clone()
     } else {
-        askable[rng.below(askable.len())].label.clone()
+        let all = askable(&objects, None);
+        if all.is_empty() {
+            "chair".to_string()
+        } else {
+            all[rng.below(all.len())].clone()
+        }
     };
     let mut room = Room {
         size_m: [size_x, depth, 2.8],
         objects,
-        pits: Vec::new(),
+        pits,
     };
-    let start = free_pose(&mut rng, &mut room, n_walls, &prompt);
+    let start = free_pose(
+        &mut rng,
+        &mut room,
+        n_walls,
+        &prompt,
+        &rooms_x_m,
+        sunken_room,
+    );
+    // sometimes a person walks to and fro across a room
+    let mut walkers = Vec::new();
+    if rng.chance(WALKER_CHANCE) {
+        let r = rooms_x_m[rng.below(n_rooms)];
+        for _ in 0..60 {
+            let x0 = rng.range(r[0] + 0.3, r[1] - 0.75);
+            let length = rng.range(1.5, depth - 0.6);
+            let ya = rng.range(0.3, depth - 0.3 - length);
+            let lane = SimObject {
+                label_id: 0,
+                label: WALKER_LABEL.into(),
+                min_m: [x0, ya, 0.0],
+                max_m: [x0 + 0.45, ya + length, 1.7],
+                color: [200, 120, 90],
+            };
+            let on_pit = room.pits.iter().any(|p| {
+                lane.min_m[0] < p.max_m[0]
+                    && p.min_m[0] < lane.max_m[0]
+                    && lane.min_m[1] < p.max_m[1]
+                    && p.min_m[1] < lane.max_m[1]
+            });
+            let start_gap = distance_to_box(start.x_m, start.y_m, &lane);
+            if !on_pit && start_gap > START_CLEARANCE_M && fits(&lane, &[], &room.objects) {
+                let y0 = rng.range(ya, ya + length - 0.3);
+                walkers.push(Walker {
+                    object: room.objects.len(),
+                    from_m: [x0, ya],
+                    to_m: [x0, ya + length - 0.3],
+                    speed_mps: rng.range(0.4, 0.8),
+                    size_m: [0.45, 0.3, 1.7],
+                });
+                room.objects.push(SimObject {
+                    min_m: [x0, y0, 0.0],
+                    max_m: [x0 + 0.45, y0 + 0.3, 1.7],
+                    ..lane
+                });
+                break;
+            }
+        }
+    }
     Scene {
         seed,
         room,
@@ -280,6 +407,8 @@ pub fn generate(seed: u64) -> Scene {
         doorways,
         start,
         prompt,
+        walkers,
+        sunken_room,
     }
 }
 
@@ -426,8 +555,20 @@ fn place_anywhere(
 /// anywhere; in a room too full for one, the last pieces
 /// placed (never a wall, never the last of the prompted word) go until
 /// there is.
-fn free_pose(rng: &mut SplitMix64, room: &mut Room, n_walls: usize, prompt: &str) -> Pose2 {
+fn free_pose(
+    rng: &mut SplitMix64,
+    room: &mut Room,
+    n_walls: usize,
+    prompt: &str,
+    rooms_x_m: &[[f64; 2]],
+    sunken_room: bool,
+) -> Pose2 {
     let [sx, sy, _] = room.size_m;
+    // on the upper floor, before the sunken room
+    let sx = match rooms_x_m.last() {
+        Some(last) if sunken_room => last[0] - WALL_M,
+        _ => sx,
+    };
     let mut keep_away = true;
     loop {
         for _ in 0..1000 {
@@ -488,6 +629,7 @@ mod tests {
     fn scenes_are_plausible_apartments() {
         let mut room_counts = [0usize; 5];
         let mut near_start = 0;
+        let (mut steps_down, mut walkers, mut sunken) = (0, 0, 0);
         for k in 0..300 {
             let s = generate(scene_seed(1, k));
             let n = s.rooms_x_m.len();
@@ -507,8 +649,50 @@ mod tests {
                 .room
                 .objects
                 .iter()
-                .filter(|o| o.label != WALL_LABEL)
+                .filter(|o| o.label != WALL_LABEL && o.label != WALKER_LABEL)
                 .collect();
+            steps_down += usize::from(!s.room.pits.is_empty() && !s.sunken_room);
+            walkers += s.walkers.len();
+            for w in &s.walkers {
+                let o = &s.room.objects[w.object];
+                assert_eq!(o.label, WALKER_LABEL);
+                // on their line, clear of the furniture and of the steps
+                assert!(
+                    furniture.iter().all(|f| !overlaps(o, f, 0.0)),
+                    "seed {}",
+                    s.seed
+                );
+                assert!((o.min_m[0] - w.from_m[0]).abs() < 1e-9);
+            }
+            // nothing stands on a step's edge (a sunken room's furniture
+            // stands on its floor)
+            for p in &s.room.pits {
+                for f in &furniture {
+                    let inside = f.min_m[0] >= p.min_m[0] - 1e-9 && f.max_m[0] <= p.max_m[0] + 1e-9;
+                    let apart = f.max_m[0] <= p.min_m[0] + 1e-9
+                        || f.min_m[0] >= p.max_m[0] - 1e-9
+                        || f.max_m[1] <= p.min_m[1] + 1e-9
+                        || f.min_m[1] >= p.max_m[1] - 1e-9;
+                    assert!(
+                        apart || (s.sunken_room && inside),
+                        "seed {}: {f:?} on {p:?}",
+                        s.seed
+                    );
+                }
+            }
+            if s.sunken_room {
+                sunken += 1;
+                // the word is only down there: no place beside it is reached
+                let reach = crate::sim::path::shortest_path_m(
+                    &s.room,
+                    [s.start.x_m, s.start.y_m],
+                    &s.prompt,
+                    0.95,
+                    0.35,
+                    0.4,
+                );
+                assert_eq!(reach, None, "seed {}", s.seed);
+            }
             // inside the apartment, and not on top of each other
             for a in &furniture {
                 assert!(a.min_m[0] >= 0.0 && a.min_m[1] >= 0.0, "{a:?}");
@@ -564,5 +748,9 @@ mod tests {
         assert!(near_start <= 15, "{near_start} of 300 start near the word");
         // every size of apartment occurs
         assert!(room_counts[1..].iter().all(|&c| c > 30), "{room_counts:?}");
+        // steps down, people walking, words out of reach: each sometimes
+        assert!((30..=90).contains(&steps_down), "{steps_down} steps down");
+        assert!((40..=110).contains(&walkers), "{walkers} people");
+        assert!((5..=30).contains(&sunken), "{sunken} sunken rooms");
     }
 }

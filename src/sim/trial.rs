@@ -28,6 +28,12 @@ pub struct TrialResult {
     pub scene: u64,
     pub seed: u64,
     pub prompt: String,
+    /// What the scene holds: rooms, a step down, a person walking, the
+    /// word only in a sunken room (unreachable by construction).
+    pub rooms: usize,
+    pub step_down: bool,
+    pub person: bool,
+    pub sunken_room: bool,
     /// At rest, the chair's front within the standoff's tolerance of the
     /// prompted object.
     pub reached: bool,
@@ -150,7 +156,8 @@ pub async fn run(
     let mut settings = settings.clone();
     settings.sim.seed = scene.seed;
     let settings = &settings;
-    let world = SimWorld::in_room(scene.room.clone(), scene.start, settings.drive_params());
+    let mut world = SimWorld::in_room(scene.room.clone(), scene.start, settings.drive_params());
+    world.walkers = scene.walkers.iter().map(|w| (w.clone(), false)).collect();
     let clock: Arc<dyn Clock> = Arc::new(TokioClock::new());
     let (devs, sim) = devices(settings, world, clock.clone()).map_err(|e| e.to_string())?;
     let (tx, rx) = tokio::sync::mpsc::channel(4);
@@ -234,6 +241,10 @@ pub async fn run(
         scene: index,
         seed: scene.seed,
         prompt: scene.prompt.clone(),
+        rooms: scene.rooms_x_m.len(),
+        step_down: !scene.room.pits.is_empty() && !scene.sunken_room,
+        person: !scene.walkers.is_empty(),
+        sunken_room: scene.sunken_room,
         reached,
         collision,
         fell,

@@ -48,6 +48,22 @@ pub struct SimReport {
     pub distance_travelled_m: f64,
 }
 
+/// A person walking to and fro along a line (their box's lower corner
+/// goes from `from_m` to `to_m` and back), who waits while the chair is
+/// within [`WALKER_KEEPS_M`] of where they would step.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Walker {
+    /// Their box in `room.objects`.
+    pub object: usize,
+    pub from_m: [f64; 2],
+    pub to_m: [f64; 2],
+    pub speed_mps: f64,
+    pub size_m: [f64; 3],
+}
+
+/// A walking person keeps this far from the chair's footprint, m.
+pub const WALKER_KEEPS_M: f64 = 0.4;
+
 #[derive(Debug, Clone)]
 pub struct SimWorld {
     pub room: Room,
@@ -68,6 +84,8 @@ pub struct SimWorld {
     pub now: crate::msg::Stamp,
     /// Where base_link went (world), a point every 5 cm.
     pub trace: Vec<[f64; 2]>,
+    /// People walking, and whether each is on the way back.
+    pub walkers: Vec<(Walker, bool)>,
 }
 
 /// 2D segments of everything a laser at `height_m` sees: the walls and the
@@ -168,6 +186,7 @@ impl SimWorld {
             },
             now: crate::msg::Stamp::ZERO,
             trace: vec![[start.x_m, start.y_m]],
+            walkers: Vec::new(),
         }
     }
 
@@ -204,6 +223,7 @@ impl SimWorld {
         {
             self.trace.push(here);
         }
+        self.walk(dt_s);
         let c = self.clearance();
         self.report.min_clearance_m = self.report.min_clearance_m.min(c);
         if c <= 0.0 {
@@ -213,6 +233,46 @@ impl SimWorld {
         self.report.min_drop_clearance_m = self.report.min_drop_clearance_m.min(dc);
         if dc <= 0.0 {
             self.report.fell_steps += 1;
+        }
+    }
+
+    /// Moves the walking people on by `dt_s` (each waits while the chair
+    /// is near where they would step).
+    fn walk(&mut self, dt_s: f64) {
+        if self.walkers.is_empty() {
+            return;
+        }
+        let outline = self.outline_world();
+        for (w, back) in self.walkers.iter_mut() {
+            let Some(o) = self.room.objects.get(w.object) else {
+                continue;
+            };
+            let here = [o.min_m[0], o.min_m[1]];
+            let goal = if *back { w.from_m } else { w.to_m };
+            let (dx, dy) = (goal[0] - here[0], goal[1] - here[1]);
+            let left = (dx * dx + dy * dy).sqrt();
+            let step = (w.speed_mps * dt_s).min(left);
+            let next = if left > 1e-9 {
+                [here[0] + dx / left * step, here[1] + dy / left * step]
+            } else {
+                here
+            };
+            let (lo, hi) = (next, [next[0] + w.size_m[0], next[1] + w.size_m[1]]);
+            if outline
+                .iter()
+                .any(|p| box_distance(lo, hi, *p) < WALKER_KEEPS_M)
+            {
+                continue;
+            }
+            if let Some(o) = self.room.objects.get_mut(w.object) {
+                o.min_m[0] = lo[0];
+                o.min_m[1] = lo[1];
+                o.max_m[0] = hi[0];
+                o.max_m[1] = hi[1];
+            }
+            if left - step <= 1e-9 {
+                *back = !*back;
+            }
         }
     }
 
@@ -384,6 +444,68 @@ mod tests {
         )
         .expect("hit");
         assert!((ahead as f64 - truth).abs() < 0.002, "{ahead} vs {truth}");
+    }
+
+    #[test]
+    fn a_walking_person_walks_to_and_fro_and_waits_for_the_chair() {
+        let mut w = world();
+        let mapping = JoystickMapping {
+            forward_full_mps: 1.0,
+            reverse_full_mps: 0.5,
+            turn_full_radps: 1.5,
+            deadband: 3,
+        };
+        // across the room's free middle, the chair out of the way
+        w.truth = Pose2 {
+            x_m: 4.6,
+            y_m: 1.9,
+            theta_rad: 0.0,
+        };
+        let idx = w.room.objects.len();
+        w.room.objects.push(crate::sim::room::SimObject {
+            label_id: 0,
+            label: "person".into(),
+            min_m: [3.2, 1.0, 0.0],
+            max_m: [3.65, 1.3, 1.7],
+            color: [0, 0, 0],
+        });
+        let walker = Walker {
+            object: idx,
+            from_m: [3.2, 1.0],
+            to_m: [3.2, 3.0],
+            speed_mps: 0.5,
+            size_m: [0.45, 0.3, 1.7],
+        };
+        w.walkers = vec![(walker.clone(), false)];
+        // 2 m at 0.5 m/s: there in 4 s, and back in another 4
+        for _ in 0..400 {
+            w.step(0.01, None, &mapping);
+        }
+        assert!((w.room.objects[idx].min_m[1] - 3.0).abs() < 0.01);
+        for _ in 0..400 {
+            w.step(0.01, None, &mapping);
+        }
+        assert!((w.room.objects[idx].min_m[1] - 1.0).abs() < 0.01);
+        // the chair in their way: they stop short of it
+        w.truth = Pose2 {
+            x_m: 3.425,
+            y_m: 2.5,
+            theta_rad: 0.0,
+        };
+        for _ in 0..1000 {
+            w.step(0.01, None, &mapping);
+        }
+        let o = &w.room.objects[idx];
+        let gap = w
+            .outline_world()
+            .iter()
+            .map(|p| box_distance([o.min_m[0], o.min_m[1]], [o.max_m[0], o.max_m[1]], *p))
+            .fold(f64::INFINITY, f64::min);
+        assert!(
+            gap >= WALKER_KEEPS_M - 0.01 && gap < WALKER_KEEPS_M + 0.02,
+            "{gap}"
+        );
+        assert_eq!(w.report.collision_steps, 0);
     }
 
     #[test]
