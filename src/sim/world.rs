@@ -502,7 +502,7 @@ mod tests {
             .map(|p| box_distance([o.min_m[0], o.min_m[1]], [o.max_m[0], o.max_m[1]], *p))
             .fold(f64::INFINITY, f64::min);
         assert!(
-            gap >= WALKER_KEEPS_M - 0.01 && gap < WALKER_KEEPS_M + 0.02,
+            (WALKER_KEEPS_M - 0.01..WALKER_KEEPS_M + 0.02).contains(&gap),
             "{gap}"
         );
         assert_eq!(w.report.collision_steps, 0);
