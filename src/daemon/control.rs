@@ -108,6 +108,11 @@ pub struct Control {
     rear_yes: bool,
     /// Since when a search turn is held by an obstacle.
     turn_held_since: Option<Stamp>,
+    /// Since when the way to a goal is held by an obstacle; backing off
+    /// since when; how often it backed off.
+    held_since: Option<Stamp>,
+    backing: Option<Stamp>,
+    pub back_offs: u64,
     /// The chair asked "Did you say the X?" (an unsure utterance).
     asked_goal: Option<String>,
     /// A person acknowledged the fault (the latch file goes too).
@@ -118,6 +123,11 @@ pub struct Control {
 }
 
 /// A turn on the spot refused this long for an unseen rear: the chair asks.
+/// Held this long by an obstacle on the way to a goal: back off at this
+/// speed for this long (about 12 cm).
+const BACK_OFF_AFTER: std::time::Duration = std::time::Duration::from_secs(3);
+const BACK_OFF_FOR: std::time::Duration = std::time::Duration::from_millis(1500);
+const BACK_OFF_MPS: f64 = 0.08;
 /// A search turn held this long by an obstacle ends there.
 const TURN_HELD_FOR: std::time::Duration = std::time::Duration::from_secs(3);
 const ASK_REAR_AFTER: std::time::Duration = std::time::Duration::from_secs(1);
@@ -166,6 +176,9 @@ impl Control {
             asked_rear: None,
             rear_yes: false,
             turn_held_since: None,
+            held_since: None,
+            backing: None,
+            back_offs: 0,
             asked_goal: None,
             acknowledged: false,
             route: None,
@@ -570,6 +583,36 @@ impl Control {
             .map(|a| ([a.x_m, a.y_m], self.goal.settings.reached_within_m))
             .or_else(|| self.goal.explore_target().map(|t| (t, 0.3)));
         let state = self.supervisor.state();
+        // held by something ahead on the way for a while: back off a
+        // little, straight (the supervisor checks the way behind), then
+        // the planner tries again from there
+        let held =
+            target.is_some() && state == SupervisorState::Stopped(crate::msg::StopReason::Obstacle);
+        if !held {
+            self.held_since = None;
+        }
+        if held
+            && self.backing.is_none()
+            && self.held_since.get_or_insert(now).age_at(now) >= BACK_OFF_AFTER
+        {
+            self.held_since = None;
+            self.backing = Some(now);
+            self.back_offs += 1;
+            tracing::info!(?pose, "held by an obstacle: backing off");
+        }
+        if let Some(since) = self.backing {
+            if target.is_some() && since.age_at(now) < BACK_OFF_FOR {
+                self.planner_cmd = Some(Stamped::new(
+                    now,
+                    VelocityCmd {
+                        v_mps: -BACK_OFF_MPS,
+                        omega_radps: 0.0,
+                    },
+                ));
+                return self.finish_step(event);
+            }
+            self.backing = None;
+        }
         self.planner_cmd = if let Some((to, within)) = target {
             let door = self
                 .route
