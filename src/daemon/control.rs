@@ -591,9 +591,11 @@ impl Control {
         if !held {
             self.held_since = None;
         }
+        // (only with the rear seen: the supervisor refuses a blind reverse)
         if held
             && self.backing.is_none()
             && self.held_since.get_or_insert(now).age_at(now) >= BACK_OFF_AFTER
+            && (!self.supervisor.limits.turn_needs_seen_rear || self.rear.view(now, pose).seen)
         {
             self.held_since = None;
             self.backing = Some(now);

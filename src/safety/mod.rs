@@ -437,7 +437,12 @@ impl Supervisor {
                     inputs.rear.map_or(no_points, |r| &r.points_base),
                 ]) {
                     Some(StopReason::Obstacle)
-                } else if turning_on_the_spot && l.turn_needs_seen_rear && !rear_seen {
+                } else if (turning_on_the_spot || v < -MOVING_MPS)
+                    && l.turn_needs_seen_rear
+                    && !rear_seen
+                {
+                    // a turn on the spot sweeps the rear; reversing drives
+                    // into it: neither without the rear seen or vouched for
                     Some(StopReason::RearUnseen)
                 } else if blocked_by(&[camera.map_or(no_points, |c| &c.drop_offs_base)]) {
                     Some(StopReason::DropOff)

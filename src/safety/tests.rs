@@ -427,6 +427,14 @@ fn a_turn_on_the_spot_needs_the_rear_seen_and_what_was_seen_there_counts() {
         s.step(ms(20), &w.inputs()).state,
         SupervisorState::Stopped(StopReason::RearUnseen)
     );
+    // reversing drives into it: refused too
+    let mut s = moving(0.0);
+    let mut w = World::new(20, -0.1, 0.0);
+    w.rear.seen = false;
+    assert_eq!(
+        s.step(ms(20), &w.inputs()).state,
+        SupervisorState::Stopped(StopReason::RearUnseen)
+    );
     // driving (not on the spot) does not need it; nor does the switch off
     let mut s = moving(0.2);
     let mut w = World::new(20, 0.2, 0.3);
