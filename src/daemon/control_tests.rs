@@ -304,6 +304,36 @@ fn held_by_something_ahead_on_the_way_it_backs_off_a_little_then_tries_again() {
     // a place to search 2 m ahead, a box 0.7 m ahead in the way
     c.goal.explore(at(0), Some([2.0, 0.0]));
     let tracker = Tracker::new(crate::config::Settings::defaults().tracker);
+    // a chair that never moved does not back onto floor it has not stood
+    // on (a step down behind is seen by nothing)
+    let mut still = control(false);
+    still.on_input(UserInput::Goto("chair".into()));
+    step_empty(&mut still, 0);
+    still.goal.explore(at(0), Some([2.0, 0.0]));
+    for k in 1..=140u64 {
+        let now = at(50 * k);
+        let (mut o, odo) = fresh(now);
+        o.value.points_base = vec![[0.7, 0.0], [4.0, 0.0]];
+        let out = still.step(
+            now,
+            ControlInputs {
+                obstacles: Some(&o),
+                odometry: Some(&odo),
+                tracker: &tracker,
+                camera: None,
+            },
+        );
+        assert!(out.cmd.cmd.v_mps >= 0.0, "backed off at {k}");
+    }
+    assert_eq!(still.back_offs, 0);
+    // this one came 0.4 m forward to where it stands
+    for x in [-0.4, -0.3, -0.2, -0.1] {
+        c.trail.push(Pose2 {
+            x_m: x,
+            y_m: 0.0,
+            theta_rad: 0.0,
+        });
+    }
     let mut first_back = None;
     let mut last_back = None;
     for k in 1..=140u64 {
