@@ -7,6 +7,7 @@
 
 use serde::Serialize;
 
+use super::backoff::BackOff;
 use crate::actuation::ActuatorEvent;
 use crate::estimation::goal::{GoalEvent, GoalKeeper, GoalState};
 use crate::estimation::tracker::Tracker;
@@ -108,13 +109,8 @@ pub struct Control {
     rear_yes: bool,
     /// Since when a search turn is held by an obstacle.
     turn_held_since: Option<Stamp>,
-    /// Since when the way to a goal is held by an obstacle; backing off
-    /// since when; how often it backed off.
-    held_since: Option<Stamp>,
-    backing: Option<Stamp>,
-    /// Where the chair has been (odom), a pose every 5 cm, the newest last.
-    trail: Vec<crate::msg::Pose2>,
-    pub back_offs: u64,
+    /// Backing off when the way is held.
+    pub back_off: BackOff,
     /// The chair asked "Did you say the X?" (an unsure utterance).
     asked_goal: Option<String>,
     /// A person acknowledged the fault (the latch file goes too).
@@ -125,14 +121,6 @@ pub struct Control {
 }
 
 /// A turn on the spot refused this long for an unseen rear: the chair asks.
-/// Held this long by an obstacle on the way to a goal: back off at this
-/// speed for this long (about 12 cm).
-const BACK_OFF_AFTER: std::time::Duration = std::time::Duration::from_secs(3);
-const BACK_OFF_FOR: std::time::Duration = std::time::Duration::from_millis(1500);
-const BACK_OFF_MPS: f64 = 0.08;
-/// The trail keeps a pose every this far, this many (5 m).
-const TRAIL_STEP_M: f64 = 0.05;
-const TRAIL_POSES: usize = 100;
 /// A search turn held this long by an obstacle ends there.
 const TURN_HELD_FOR: std::time::Duration = std::time::Duration::from_secs(3);
 const ASK_REAR_AFTER: std::time::Duration = std::time::Duration::from_secs(1);
@@ -181,10 +169,7 @@ impl Control {
             asked_rear: None,
             rear_yes: false,
             turn_held_since: None,
-            held_since: None,
-            backing: None,
-            trail: Vec::new(),
-            back_offs: 0,
+            back_off: BackOff::default(),
             asked_goal: None,
             acknowledged: false,
             route: None,
@@ -589,48 +574,23 @@ impl Control {
             .map(|a| ([a.x_m, a.y_m], self.goal.settings.reached_within_m))
             .or_else(|| self.goal.explore_target().map(|t| (t, 0.3)));
         let state = self.supervisor.state();
-        if self
-            .trail
-            .last()
-            .is_none_or(|p| (p.x_m - pose.x_m).hypot(p.y_m - pose.y_m) >= TRAIL_STEP_M)
-        {
-            self.trail.push(pose);
-            if self.trail.len() > TRAIL_POSES {
-                self.trail.remove(0);
-            }
-        }
         // held by something ahead on the way for a while: back off a
-        // little, straight (the supervisor checks the way behind), then
-        // the planner tries again from there
-        let held =
-            target.is_some() && state == SupervisorState::Stopped(crate::msg::StopReason::Obstacle);
-        if !held {
-            self.held_since = None;
-        }
-        // (only with the rear seen: the supervisor refuses a blind reverse)
-        if held
-            && self.backing.is_none()
-            && self.held_since.get_or_insert(now).age_at(now) >= BACK_OFF_AFTER
-            && (!self.supervisor.limits.turn_needs_seen_rear || self.rear.view(now, pose).seen)
-            && self.came_through_behind(pose)
-        {
-            self.held_since = None;
-            self.backing = Some(now);
-            self.back_offs += 1;
-            tracing::info!(?pose, "held by an obstacle: backing off");
-        }
-        if let Some(since) = self.backing {
-            if target.is_some() && since.age_at(now) < BACK_OFF_FOR {
-                self.planner_cmd = Some(Stamped::new(
-                    now,
-                    VelocityCmd {
-                        v_mps: -BACK_OFF_MPS,
-                        omega_radps: 0.0,
-                    },
-                ));
-                return self.finish_step(event);
-            }
-            self.backing = None;
+        // little, straight (the supervisor checks the way behind; only with
+        // the rear seen: it refuses a blind reverse), then the planner tries
+        // again from there
+        let held = state == SupervisorState::Stopped(crate::msg::StopReason::Obstacle);
+        let rear_ok =
+            || !self.supervisor.limits.turn_needs_seen_rear || self.rear.view(now, pose).seen;
+        if let Some(cmd) = self.back_off.step(
+            now,
+            pose,
+            target.is_some(),
+            held,
+            rear_ok,
+            &self.supervisor.limits,
+        ) {
+            self.planner_cmd = Some(Stamped::new(now, cmd));
+            return self.finish_step(event);
         }
         self.planner_cmd = if let Some((to, within)) = target {
             let door = self
@@ -693,29 +653,6 @@ impl Control {
                 .map(|c| Stamped::new(now, self.turn_within_room(c, &o)))
         };
         self.finish_step(event);
-    }
-
-    /// Whether the floor the chair would back onto is floor it stood on:
-    /// the rear edge's middle and corners after backing off lie inside the
-    /// footprint at some pose of its trail (a step down behind that no
-    /// sensor saw cannot be there).
-    fn came_through_behind(&self, pose: crate::msg::Pose2) -> bool {
-        let l = &self.supervisor.limits;
-        let back = l.rear_offset_m + BACK_OFF_MPS * BACK_OFF_FOR.as_secs_f64();
-        let half = l.chair_width_m / 2.0 - 0.05;
-        let (c, s) = (pose.theta_rad.cos(), pose.theta_rad.sin());
-        [-half, 0.0, half].iter().all(|side| {
-            let p = [
-                pose.x_m - c * back - s * side,
-                pose.y_m - s * back + c * side,
-            ];
-            self.trail.iter().any(|q| {
-                let (dx, dy) = (p[0] - q.x_m, p[1] - q.y_m);
-                let (qc, qs) = (q.theta_rad.cos(), q.theta_rad.sin());
-                let (x, y) = (qc * dx + qs * dy, -qs * dx + qc * dy);
-                x >= -l.rear_offset_m && x <= l.front_offset_m && y.abs() <= l.chair_width_m / 2.0
-            })
-        })
     }
 
     /// A turn on the spot with something inside the corners' circle and

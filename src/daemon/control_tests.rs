@@ -296,6 +296,22 @@ fn stale_inputs_give_zero_and_a_dead_task_latches_a_fault() {
     assert_eq!(out.cmd.cmd, VelocityCmd::default());
 }
 
+/// One step at `ms_` with a box 0.7 m ahead (and the room's far wall).
+fn step_with_a_box_ahead(c: &mut Control, ms_: u64, tracker: &Tracker) -> ControlOutput {
+    let now = at(ms_);
+    let (mut o, odo) = fresh(now);
+    o.value.points_base = vec![[0.7, 0.0], [4.0, 0.0]];
+    c.step(
+        now,
+        ControlInputs {
+            obstacles: Some(&o),
+            odometry: Some(&odo),
+            tracker,
+            camera: None,
+        },
+    )
+}
+
 #[test]
 fn held_by_something_ahead_on_the_way_it_backs_off_a_little_then_tries_again() {
     let mut c = control(false);
@@ -311,24 +327,13 @@ fn held_by_something_ahead_on_the_way_it_backs_off_a_little_then_tries_again() {
     step_empty(&mut still, 0);
     still.goal.explore(at(0), Some([2.0, 0.0]));
     for k in 1..=140u64 {
-        let now = at(50 * k);
-        let (mut o, odo) = fresh(now);
-        o.value.points_base = vec![[0.7, 0.0], [4.0, 0.0]];
-        let out = still.step(
-            now,
-            ControlInputs {
-                obstacles: Some(&o),
-                odometry: Some(&odo),
-                tracker: &tracker,
-                camera: None,
-            },
-        );
+        let out = step_with_a_box_ahead(&mut still, 50 * k, &tracker);
         assert!(out.cmd.cmd.v_mps >= 0.0, "backed off at {k}");
     }
-    assert_eq!(still.back_offs, 0);
+    assert_eq!(still.back_off.count, 0);
     // this one came 0.4 m forward to where it stands
     for x in [-0.4, -0.3, -0.2, -0.1] {
-        c.trail.push(Pose2 {
+        c.back_off.trail.push(Pose2 {
             x_m: x,
             y_m: 0.0,
             theta_rad: 0.0,
@@ -337,18 +342,7 @@ fn held_by_something_ahead_on_the_way_it_backs_off_a_little_then_tries_again() {
     let mut first_back = None;
     let mut last_back = None;
     for k in 1..=140u64 {
-        let now = at(50 * k);
-        let (mut o, odo) = fresh(now);
-        o.value.points_base = vec![[0.7, 0.0], [4.0, 0.0]];
-        let out = c.step(
-            now,
-            ControlInputs {
-                obstacles: Some(&o),
-                odometry: Some(&odo),
-                tracker: &tracker,
-                camera: None,
-            },
-        );
+        let out = step_with_a_box_ahead(&mut c, 50 * k, &tracker);
         if out.cmd.cmd.v_mps < -0.01 {
             first_back.get_or_insert(50 * k);
             last_back = Some(50 * k);
@@ -358,6 +352,6 @@ fn held_by_something_ahead_on_the_way_it_backs_off_a_little_then_tries_again() {
     // this test: held again, it backs off again after another 3 s)
     let first = first_back.expect("it backs off");
     assert!((3000..=3300).contains(&first), "{first} ms");
-    assert!(c.back_offs >= 1);
+    assert!(c.back_off.count >= 1);
     assert!(last_back.expect("backing") >= first + 1300);
 }

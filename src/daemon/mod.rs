@@ -25,6 +25,7 @@
 //! Shutdown order: the chair first (centred frames, then release), then the
 //! devices, then the recording.
 
+pub mod backoff;
 pub mod chair;
 pub mod control;
 pub mod control_task;

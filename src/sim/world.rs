@@ -424,6 +424,15 @@ impl SimWorld {
 mod tests {
     use super::*;
 
+    fn mapping() -> JoystickMapping {
+        JoystickMapping {
+            forward_full_mps: 1.0,
+            reverse_full_mps: 0.5,
+            turn_full_radps: 1.5,
+            deadband: 3,
+        }
+    }
+
     fn world() -> SimWorld {
         SimWorld::living_room(DiffDriveParams::paper_chair())
     }
@@ -449,12 +458,7 @@ mod tests {
     #[test]
     fn a_walking_person_walks_to_and_fro_and_waits_for_the_chair() {
         let mut w = world();
-        let mapping = JoystickMapping {
-            forward_full_mps: 1.0,
-            reverse_full_mps: 0.5,
-            turn_full_radps: 1.5,
-            deadband: 3,
-        };
+        let mapping = mapping();
         // across the room's free middle, the chair out of the way
         w.truth = Pose2 {
             x_m: 4.6,
@@ -511,12 +515,7 @@ mod tests {
     #[test]
     fn driving_forward_moves_the_chair_and_the_wheels_agree() {
         let mut w = world();
-        let mapping = JoystickMapping {
-            forward_full_mps: 1.0,
-            reverse_full_mps: 0.5,
-            turn_full_radps: 1.5,
-            deadband: 3,
-        };
+        let mapping = mapping();
         let mut odo = crate::estimation::odometry::WheelOdometry::new(w.drive);
         odo.update(&w.wheel_ticks());
         for _ in 0..200 {
