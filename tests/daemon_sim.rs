@@ -73,7 +73,9 @@ fn check_arrival(r: &RunReport, s: &SimSummary, word: &str) {
     // the front), within the goal tolerance and the odometry's error
     let d = s.distance_to_goal_object_m.expect("distance");
     assert!((0.95..=1.45).contains(&d), "{d} m from the {word}");
-    assert!(s.world.v_mps.abs() < 0.05, "still moving: {s:?}");
+    // the trip ends with the chair at rest (odometry ≤ 0.02 m/s), not as
+    // the stop is decided
+    assert!(s.world.v_mps.abs() <= 0.025, "still moving: {s:?}");
     assert!(r.estimation.scan_matches > 10, "{r:?}");
     // the IMU's yaw rate went into the heading
     assert!(r.estimation.gyro_fused > 100, "{r:?}");

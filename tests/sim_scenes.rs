@@ -63,3 +63,24 @@ fn the_command_prints_a_line_per_scene_and_a_summary_whatever_the_job_count() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("--scenes"));
 }
+
+#[test]
+fn the_benchmark_reads_the_configuration_it_is_given() {
+    // a configuration the benchmark would ignore could not compare two
+    // set-ups (a camera's pose, the planner's weights)
+    let dir = tempfile::tempdir().expect("tempdir");
+    let bad = dir.path().join("opennav.toml");
+    std::fs::write(&bad, "[safety]\nv_forward_max_mps = 9.0\n").expect("write");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_opennav"))
+        .args(["sim", "--scenes", "1", "--json", "--config"])
+        .arg(&bad)
+        .output()
+        .expect("runs");
+    assert_eq!(out.status.code(), Some(2), "{out:?}");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("v_forward_max_mps"), "{err}");
+    assert!(
+        out.stdout.is_empty(),
+        "a run with a bad configuration printed lines"
+    );
+}

@@ -140,7 +140,7 @@ fn dispatch(cli: Cli) -> Result<(), Failure> {
     let config = cli.config.as_deref();
     match cli.command {
         Command::Eval(cmd) => eval::run(Settings::load(config).map_err(bad_input)?, cmd),
-        Command::Sim(args) => sim::run(args),
+        Command::Sim(args) => sim::run(config, args),
         Command::Check(cmd) => check::run(config, cmd),
         Command::Run(args) => run::run(config, args),
         Command::Detect(args) => detect::run(Settings::load(config).map_err(bad_input)?, args),

@@ -70,9 +70,9 @@ pub enum SimCommand {
     },
 }
 
-pub fn run(args: SimArgs) -> Result<(), Failure> {
+pub fn run(config: Option<&std::path::Path>, args: SimArgs) -> Result<(), Failure> {
     let Some(cmd) = args.command else {
-        return trips(&args);
+        return trips(config, &args);
     };
     match cmd {
         SimCommand::ReplicaScene {
@@ -103,7 +103,7 @@ pub fn run(args: SimArgs) -> Result<(), Failure> {
 
 /// Drives the scenes, `jobs` at a time, each on its own paused runtime;
 /// prints their lines in scene order, then the summary.
-fn trips(args: &SimArgs) -> Result<(), Failure> {
+fn trips(config: Option<&std::path::Path>, args: &SimArgs) -> Result<(), Failure> {
     use opennav::sim::scene::{generate, scene_seed};
     use opennav::sim::trial::{self, TrialResult};
     let indices: Vec<u64> = match (args.scene, args.scenes) {
@@ -120,7 +120,7 @@ fn trips(args: &SimArgs) -> Result<(), Failure> {
         .jobs
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
         .max(1);
-    let mut settings = opennav::config::Settings::load(None).map_err(failed)?;
+    let mut settings = opennav::config::Settings::load(config).map_err(bad_input)?;
     for (name, v) in [
         ("--misses", args.misses),
         ("--false-positives", args.false_positives),

@@ -22,6 +22,13 @@ use crate::msg::{
 
 pub use crate::config::CONTROL_PERIOD;
 
+/// A trip ends (arrived, not found, lost, stopped) with the chair at rest:
+/// odometry's speeds at most these, m/s and rad/s…
+const AT_REST_MPS: f64 = 0.02;
+const AT_REST_RADPS: f64 = 0.05;
+/// …or this long after its end was decided, whatever odometry says.
+const SETTLE_LIMIT: Duration = Duration::from_secs(2);
+
 pub struct ControlTaskIo {
     pub inputs: mpsc::Receiver<UserInput>,
     /// A task that died: its name and why.
@@ -75,6 +82,7 @@ pub async fn run(mut control: Control, mut io: ControlTaskIo) -> ControlEnd {
     let mut inputs_open = true;
     let mut stops = io.stops.take();
     let mut last_said: std::collections::VecDeque<String> = Default::default();
+    let mut ending: Option<(Outcome, Stamp)> = None;
     let outcome = loop {
         tokio::select! {
             biased;
@@ -233,8 +241,18 @@ pub async fn run(mut control: Control, mut io: ControlTaskIo) -> ControlEnd {
                 }
             }
         }
+        // the trip is over once the chair is at rest: it was told to stop
+        // (a stop's outcome is the first one)
         if let Some(o) = out.done {
-            break o;
+            ending.get_or_insert((o, now));
+        }
+        if let Some((o, since)) = ending.clone() {
+            let at_rest = odometry.is_none_or(|d| {
+                d.value.v_mps.abs() <= AT_REST_MPS && d.value.omega_radps.abs() <= AT_REST_RADPS
+            });
+            if at_rest || now.0.saturating_sub(since.0) >= SETTLE_LIMIT {
+                break o;
+            }
         }
         if io
             .max_duration

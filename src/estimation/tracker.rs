@@ -235,6 +235,10 @@ pub struct ApproachPose {
 const LINE_OF_SIGHT_M: f64 = 0.36;
 /// An obstacle point this close to the object's box is the object's own, m.
 const OWN_POINT_M: f64 = 0.1;
+/// The object's own points within this of the line from its centre to
+/// the stopping place make its edge there (about the chair's half
+/// width), m.
+const OWN_FACE_HALF_M: f64 = 0.35;
 
 /// Distance from `p` to the segment `a`–`b`.
 fn segment_distance(a: [f64; 2], b: [f64; 2], p: [f64; 2]) -> f64 {
@@ -265,13 +269,38 @@ pub fn approach_pose(
         let ty = if s > 1e-9 { hy / s } else { f64::INFINITY };
         tx.min(ty)
     };
+    let (hx, hy) = (track.size_m[0] / 2.0, track.size_m[1] / 2.0);
+    let own: Vec<[f64; 2]> = obstacles
+        .iter()
+        .filter(|o| (o[0] - cx).abs() - hx <= OWN_POINT_M && (o[1] - cy).abs() - hy <= OWN_POINT_M)
+        .copied()
+        .collect();
+    // the box is upright in odom: an object turned in it is smaller than
+    // its box, most at the box's corners. Where the object's own obstacle
+    // points lie across the chair's way in (within its half width of the
+    // line from the centre), the farthest of them along the line is its
+    // real edge there.
+    let edge_along = |a: f64| {
+        let (c, s) = (a.cos(), a.sin());
+        let seen = own
+            .iter()
+            .filter(|o| ((o[0] - cx) * s - (o[1] - cy) * c).abs() <= OWN_FACE_HALF_M)
+            .map(|o| (o[0] - cx) * c + (o[1] - cy) * s)
+            .fold(f64::NEG_INFINITY, f64::max);
+        let r = reach(a);
+        if seen.is_finite() {
+            seen.clamp(0.0, r)
+        } else {
+            r
+        }
+    };
     for k in 0..=12 {
         for sign in [1.0, -1.0] {
             if k == 0 && sign < 0.0 {
                 continue;
             }
             let a = base + sign * (k as f64) * 15f64.to_radians();
-            let r = reach(a) + standoff_m;
+            let r = edge_along(a) + standoff_m;
             let (x, y) = (cx + r * a.cos(), cy + r * a.sin());
             let free = obstacles
                 .iter()
@@ -279,7 +308,6 @@ pub fn approach_pose(
             // and the chair's body and its view of the object clear of
             // everything else
             let edge = [cx + reach(a) * a.cos(), cy + reach(a) * a.sin()];
-            let (hx, hy) = (track.size_m[0] / 2.0, track.size_m[1] / 2.0);
             let in_sight = obstacles.iter().all(|o| {
                 let off_box =
                     (o[0] - cx).abs() - hx > OWN_POINT_M || (o[1] - cy).abs() - hy > OWN_POINT_M;
@@ -411,5 +439,28 @@ mod tests {
             })
             .collect();
         assert!(approach_pose(&t, [0.0, 0.0], 0.6, &ring, 0.4).is_none());
+    }
+
+    #[test]
+    fn approach_pose_stops_at_the_objects_own_points_inside_its_box() {
+        // a box 1 m square about (3, 0): the object turned in it, its face
+        // towards the chair seen by the lasers 0.3 m inside the box
+        let mut tr = Tracker::new(TrackerParams {
+            confirm_hits: 1,
+            ..crate::config::Settings::defaults().tracker
+        });
+        tr.update(s(0.0), &[obj("desk", [3.0, 0.0, 0.4], 0.5)], |_| true);
+        let t = tr.goal("desk", [0.0, 0.0]).unwrap().clone();
+        let face: Vec<[f64; 2]> = (-3..=3).map(|k| [2.8, k as f64 * 0.1]).collect();
+        let p = approach_pose(&t, [0.0, 0.0], 0.6, &face, 0.4).unwrap();
+        assert!((p.x_m - (2.8 - 0.6)).abs() < 1e-6, "{p:?}");
+        // its points beside the way in, or nothing seen: the box's edge
+        let aside: Vec<[f64; 2]> = vec![[2.8, 0.45]];
+        let p = approach_pose(&t, [0.0, 0.0], 0.6, &aside, 0.4).unwrap();
+        assert!((p.x_m - (2.5 - 0.6)).abs() < 1e-6, "{p:?}");
+        // a point outside the box (0.1 m short of it) is not the object's
+        // edge: never beyond the box
+        let p = approach_pose(&t, [0.0, 0.0], 0.6, &[[2.45, 0.0]], 0.3).unwrap();
+        assert!((p.x_m - (2.5 - 0.6)).abs() < 1e-6, "{p:?}");
     }
 }

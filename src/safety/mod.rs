@@ -436,6 +436,18 @@ impl Supervisor {
                     camera.map_or(no_points, |c| &c.points_base),
                     inputs.rear.map_or(no_points, |r| &r.points_base),
                 ]) {
+                    if tracing::enabled!(tracing::Level::DEBUG) {
+                        let by = |p: &[[f32; 2]]| blocked_by(&[p]);
+                        tracing::debug!(
+                            lasers = by(&obs.value.points_base),
+                            laser_drops = by(&obs.value.drop_offs_base),
+                            camera = by(camera.map_or(no_points, |c| &c.points_base)),
+                            rear = by(inputs.rear.map_or(no_points, |r| &r.points_base)),
+                            v,
+                            w,
+                            "blocked by"
+                        );
+                    }
                     Some(StopReason::Obstacle)
                 } else if (turning_on_the_spot || v < -MOVING_MPS)
                     && l.turn_needs_seen_rear

@@ -40,6 +40,14 @@ pub struct TrialResult {
     pub collision: bool,
     pub fell: bool,
     pub min_clearance_m: f64,
+    /// At the end: the distance from base_link to the nearest object of
+    /// the word less the standoff and the front's offset (positive: short
+    /// of where it should stop), m.
+    pub standoff_error_m: Option<f64>,
+    /// What the chair first touched, when and how it moved then (a
+    /// collision's explanation).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub contact: Option<String>,
     pub path_m: f64,
     /// None: no place beside the object can be reached.
     pub shortest_path_m: Option<f64>,
@@ -195,6 +203,16 @@ pub async fn run(
                 <= g.reached_within_m + 0.25
             && super::path::in_sight(&scene.room, here, o)
     });
+    // how far the chair's front stopped from the nearest object of the
+    // word, less the standoff (positive: short of it)
+    let standoff_error_m = scene
+        .room
+        .objects
+        .iter()
+        .filter(|o| o.label.eq_ignore_ascii_case(&scene.prompt))
+        .map(|o| super::scene::distance_to_box(here[0], here[1], o))
+        .min_by(f64::total_cmp)
+        .map(|d| d - (g.standoff_m + g.front_offset_m));
     let reached = r.outcome == Outcome::Arrived && w.v_mps.abs() < 0.05 && beside;
     let shortest = shortest_path_m(
         &scene.room,
@@ -205,6 +223,16 @@ pub async fn run(
         0.4,
     );
     let collision = w.collision_steps > 0;
+    let contact = w.first_contact.map(|c| {
+        let what = match c.object.and_then(|i| scene.room.objects.get(i)) {
+            Some(o) => format!("{} ({:.2} m high)", o.label, o.max_m[2]),
+            None => "the outer wall".to_string(),
+        };
+        format!(
+            "{what} at {:.1} s, moving {:.2} m/s, {:.2} rad/s",
+            c.time_s, c.v_mps, c.omega_radps
+        )
+    });
     let fell = w.fell_steps > 0;
     let said_unreachable = shortest.is_none()
         && w.v_mps.abs() < 0.05
@@ -249,6 +277,8 @@ pub async fn run(
         collision,
         fell,
         min_clearance_m: w.min_clearance_m,
+        standoff_error_m,
+        contact,
         path_m: w.distance_travelled_m,
         shortest_path_m: shortest,
         time_s: r.duration_s,

@@ -46,6 +46,19 @@ pub struct SimReport {
     /// (infinite without one; negative: over it).
     pub min_drop_clearance_m: f64,
     pub distance_travelled_m: f64,
+    /// The first step in which the footprint touched something.
+    pub first_contact: Option<Contact>,
+}
+
+/// What the footprint first touched, when, and how the chair moved.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Contact {
+    /// Seconds since the start.
+    pub time_s: f64,
+    /// Index into the room's objects; None: a wall.
+    pub object: Option<usize>,
+    pub v_mps: f64,
+    pub omega_radps: f64,
 }
 
 /// A person walking to and fro along a line (their box's lower corner
@@ -183,6 +196,7 @@ impl SimWorld {
                 fell_steps: 0,
                 min_drop_clearance_m: f64::INFINITY,
                 distance_travelled_m: 0.0,
+                first_contact: None,
             },
             now: crate::msg::Stamp::ZERO,
             trace: vec![[start.x_m, start.y_m]],
@@ -224,10 +238,18 @@ impl SimWorld {
             self.trace.push(here);
         }
         self.walk(dt_s);
-        let c = self.clearance();
+        let (c, nearest) = self.clearance_to();
         self.report.min_clearance_m = self.report.min_clearance_m.min(c);
         if c <= 0.0 {
             self.report.collision_steps += 1;
+            if self.report.first_contact.is_none() {
+                self.report.first_contact = Some(Contact {
+                    time_s: self.mcu_us as f64 * 1e-6,
+                    object: nearest,
+                    v_mps: self.v_mps,
+                    omega_radps: self.omega_radps,
+                });
+            }
         }
         let dc = self.drop_clearance();
         self.report.min_drop_clearance_m = self.report.min_drop_clearance_m.min(dc);
@@ -386,13 +408,28 @@ impl SimWorld {
     /// Smallest distance from the chair's footprint to the walls and to
     /// objects taller than 5 cm (negative: overlapping).
     pub fn clearance(&self) -> f64 {
+        self.clearance_to().0
+    }
+
+    /// [`Self::clearance`] and what is nearest: an object's index in the
+    /// room, or None for a wall.
+    pub fn clearance_to(&self) -> (f64, Option<usize>) {
         let [sx, sy, _] = self.room.size_m;
-        let mut best = f64::INFINITY;
+        let mut best = (f64::INFINITY, None);
         for p in self.outline_world() {
-            best = best.min(p[0]).min(p[1]).min(sx - p[0]).min(sy - p[1]);
-            for o in self.room.objects.iter().filter(|o| o.max_m[2] > 0.05) {
+            let wall = p[0].min(p[1]).min(sx - p[0]).min(sy - p[1]);
+            if wall < best.0 {
+                best = (wall, None);
+            }
+            for (i, o) in self.room.objects.iter().enumerate() {
+                if o.max_m[2] <= 0.05 {
+                    continue;
+                }
                 let (lo, hi) = ([o.min_m[0], o.min_m[1]], [o.max_m[0], o.max_m[1]]);
-                best = best.min(box_distance(lo, hi, p));
+                let d = box_distance(lo, hi, p);
+                if d < best.0 {
+                    best = (d, Some(i));
+                }
             }
         }
         best
@@ -531,5 +568,36 @@ mod tests {
             w.step(0.01, None, &mapping);
         }
         assert!(w.v_mps.abs() < 1e-3);
+    }
+
+    #[test]
+    fn the_first_contact_says_what_was_touched_and_how_the_chair_moved() {
+        let mut w = world();
+        let mapping = mapping();
+        // a low box 0.3 m ahead of the chair's front
+        let (c, s) = (w.truth.theta_rad.cos(), w.truth.theta_rad.sin());
+        let at = [
+            w.truth.x_m + c * (w.footprint.front_m + 0.4),
+            w.truth.y_m + s * (w.footprint.front_m + 0.4),
+        ];
+        let idx = w.room.objects.len();
+        w.room.objects.push(crate::sim::room::SimObject {
+            label_id: 0,
+            label: "footstool".into(),
+            min_m: [at[0] - 0.1, at[1] - 0.1, 0.0],
+            max_m: [at[0] + 0.1, at[1] + 0.1, 0.25],
+            color: [0, 0, 0],
+        });
+        assert!(w.report.first_contact.is_none());
+        for _ in 0..300 {
+            w.step(0.01, Some((0, 30)), &mapping);
+        }
+        let contact = w
+            .report
+            .first_contact
+            .expect("the chair drove into the box");
+        assert_eq!(contact.object, Some(idx));
+        assert!(contact.v_mps > 0.1 && contact.time_s > 0.5, "{contact:?}");
+        assert!(w.report.collision_steps > 0);
     }
 }
