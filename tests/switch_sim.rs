@@ -140,7 +140,7 @@ fn secs(s: f64) -> Duration {
 async fn a_switch_press_mid_trip_brings_the_chair_to_rest() {
     let t = trip(
         None,
-        vec![(secs(0.0), Act::Word(UserInput::Goto("chair".into())))],
+        vec![(secs(0.0), Act::Word(UserInput::Goto("table".into())))],
         &[2.5],
         secs(8.0),
     )
@@ -210,9 +210,11 @@ async fn one_switch_scanning_chooses_the_second_object_seen_after_two_dwell_time
 #[tokio::test(start_paused = true)]
 async fn look_around_from_the_menu_turns_the_chair_once_and_says_what_is_around() {
     let dwell = Settings::load(None).expect("defaults").input.switch.dwell_s;
-    // it sees the chairs from the start: "chair?", then "look around?"
+    // it sees three things from the start (the camera pitched down: the
+    // table, a chair and the sofa): "table?", "chair?", "sofa?", then
+    // "look around?"
     let open = 3.0;
-    let choose = open + dwell + dwell / 2.0;
+    let choose = open + 3.0 * dwell + dwell / 2.0;
     let t = trip(
         None,
         vec![(secs(open - 0.1), Act::NoteSeen)],
@@ -222,7 +224,7 @@ async fn look_around_from_the_menu_turns_the_chair_once_and_says_what_is_around(
     )
     .await;
     let r = &t.report;
-    assert_eq!(t.seen.first().map(Vec::len), Some(1), "{:?}", t.seen);
+    assert_eq!(t.seen.first().map(Vec::len), Some(3), "{:?}", t.seen);
     assert!(r.said.contains(&"look around?".to_string()), "{:?}", r.said);
     assert!(
         r.said.contains(&"Looking around.".to_string()),
@@ -238,6 +240,10 @@ async fn look_around_from_the_menu_turns_the_chair_once_and_says_what_is_around(
     for thing in ["the chair", "the table", "the sofa"] {
         assert!(told.contains(thing), "{told}");
     }
+    assert!(
+        ["the cabinet", "the bed"].iter().any(|t| told.contains(t)),
+        "nothing more than from the start: {told}"
+    );
     // back at rest, with no goal, where it started
     assert_eq!(r.goal.label(), None, "{r:?}");
     assert!(t.sim.world.v_mps.abs() < 0.02 && t.sim.world.omega_radps.abs() < 0.05);

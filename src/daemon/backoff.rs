@@ -1,8 +1,9 @@
 //! Backing off when the way is held (pure, for the control step): held by
 //! something on the way to a goal for [`BACK_OFF_AFTER`], the chair backs
 //! off about 12 cm straight — only with the rear seen (the caller's word)
-//! and only onto floor it stood on (its trail: nothing sees a step down
-//! behind) — then the planner tries again. The supervisor checks the
+//! and only onto floor it stood on (its trail: no sensor sees a step down
+//! behind) or that the person said is clear — then the planner tries
+//! again. The supervisor checks the
 //! reverse like any motion.
 
 use crate::msg::{Pose2, Stamp, VelocityCmd};
@@ -31,15 +32,17 @@ pub struct BackOff {
 impl BackOff {
     /// One step at `now`, the chair at `pose`: `going` — there is a goal
     /// to go to; `held` — the supervisor holds the chair for an obstacle;
-    /// `rear_ok` — the rear counts as seen. The reverse command while
-    /// backing off, else None.
+    /// `rear` — whether the rear counts as seen, and whether the person
+    /// said it is clear behind here (they would see a step down: the floor
+    /// behind need not be on the trail). The reverse command while backing
+    /// off, else None.
     pub fn step(
         &mut self,
         now: Stamp,
         pose: Pose2,
         going: bool,
         held: bool,
-        rear_ok: impl FnOnce() -> bool,
+        rear: impl FnOnce() -> (bool, bool),
         limits: &SafetyLimits,
     ) -> Option<VelocityCmd> {
         if self
@@ -59,8 +62,10 @@ impl BackOff {
         if held
             && self.backing.is_none()
             && self.held_since.get_or_insert(now).age_at(now) >= BACK_OFF_AFTER
-            && rear_ok()
-            && self.came_through_behind(pose, limits)
+            && {
+                let (rear_ok, floor_vouched) = rear();
+                rear_ok && (floor_vouched || self.came_through_behind(pose, limits))
+            }
         {
             self.held_since = None;
             self.backing = Some(now);

@@ -579,14 +579,18 @@ impl Control {
         // the rear seen: it refuses a blind reverse), then the planner tries
         // again from there
         let held = state == SupervisorState::Stopped(crate::msg::StopReason::Obstacle);
-        let rear_ok =
-            || !self.supervisor.limits.turn_needs_seen_rear || self.rear.view(now, pose).seen;
+        let rear = || {
+            (
+                !self.supervisor.limits.turn_needs_seen_rear || self.rear.view(now, pose).seen,
+                self.rear.vouched_at(now, &pose),
+            )
+        };
         if let Some(cmd) = self.back_off.step(
             now,
             pose,
             target.is_some(),
             held,
-            rear_ok,
+            rear,
             &self.supervisor.limits,
         ) {
             self.planner_cmd = Some(Stamped::new(now, cmd));

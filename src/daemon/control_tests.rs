@@ -331,6 +331,17 @@ fn held_by_something_ahead_on_the_way_it_backs_off_a_little_then_tries_again() {
         assert!(out.cmd.cmd.v_mps >= 0.0, "backed off at {k}");
     }
     assert_eq!(still.back_off.count, 0);
+    // the same, with the person's word that it is clear behind (they see
+    // a step down): it backs off
+    let mut told = control(false);
+    told.on_input(UserInput::Goto("chair".into()));
+    step_empty(&mut told, 0);
+    told.goal.explore(at(0), Some([2.0, 0.0]));
+    told.rear.confirm(at(0), Pose2::default());
+    let backed = (1..=140u64)
+        .map(|k| step_with_a_box_ahead(&mut told, 50 * k, &tracker))
+        .any(|out| out.cmd.cmd.v_mps < -0.01);
+    assert!(backed && told.back_off.count >= 1);
     // this one came 0.4 m forward to where it stands
     for x in [-0.4, -0.3, -0.2, -0.1] {
         c.back_off.trail.push(Pose2 {

@@ -158,6 +158,12 @@ impl RearWatch {
         (a.x_m - b.x_m).hypot(a.y_m - b.y_m) <= self.settings.near_m
     }
 
+    /// Whether the person said it is clear behind (a look that sees a
+    /// step down too), and that holds at `pose` now.
+    pub fn vouched_at(&self, now: Stamp, pose: &Pose2) -> bool {
+        self.vouched(now, pose)
+    }
+
     /// Whether the person's "clear behind" holds at `pose` now.
     fn vouched(&self, now: Stamp, pose: &Pose2) -> bool {
         self.confirmed
