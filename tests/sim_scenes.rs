@@ -52,6 +52,18 @@ fn the_command_prints_a_line_per_scene_and_a_summary_whatever_the_job_count() {
     assert_eq!(summary["scenes"], 3);
     let reached = one[..3].iter().filter(|l| l["reached"] == true).count();
     assert_eq!(summary["reached"], reached);
+    // each line says how the trip went: the stopping error, the doorways
+    // and back-offs
+    for l in &one[..3] {
+        assert!(l["standoff_error_m"].is_number(), "{l}");
+        for k in ["doorways", "doorways_given_up", "back_offs"] {
+            assert!(l["navigation"][k].is_u64(), "{k}: {l}");
+        }
+        assert!(
+            l["navigation"]["doorways_given_up"].as_u64() <= l["navigation"]["doorways"].as_u64()
+        );
+        assert_eq!(l["collision"] == true, l["contact"].is_string(), "{l}");
+    }
     // a scene re-runs alone
     let alone = sim_lines(&["--scene", "2", "--seed", "5", "--json"]);
     assert_eq!(alone[0], one[2]);

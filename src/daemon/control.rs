@@ -73,6 +73,16 @@ pub struct ControlOutput {
     pub done: Option<Outcome>,
 }
 
+/// What the chair did on its way besides following the planner.
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+pub struct NavigationStats {
+    /// Doorway passages begun, and given up (held in them, or too long).
+    pub doorways: u64,
+    pub doorways_given_up: u64,
+    /// Times it backed off, held by something on the way.
+    pub back_offs: u64,
+}
+
 pub struct Control {
     pub supervisor: Supervisor,
     pub goal: GoalKeeper,
@@ -691,6 +701,14 @@ impl Control {
             if let Some(o) = outcome {
                 self.done.get_or_insert(o);
             }
+        }
+    }
+
+    pub fn navigation_stats(&self) -> NavigationStats {
+        NavigationStats {
+            doorways: self.route.as_ref().map_or(0, |r| r.doorways),
+            doorways_given_up: self.route.as_ref().map_or(0, |r| r.doorways_given_up),
+            back_offs: self.back_off.count,
         }
     }
 

@@ -104,6 +104,8 @@ pub struct RunReport {
     pub planner: PlannerStats,
     /// Stops on the way (see `Supervisor::stops`).
     pub stops: u64,
+    /// Doorways passed or given up, back-offs when held.
+    pub navigation: control::NavigationStats,
     pub estimation: EstimationStats,
     pub actuator: ActuatorStatus,
     /// What the chair said, in order.
@@ -650,6 +652,7 @@ pub async fn run(
         odometry,
         planner: control.planner.stats.clone(),
         stops: control.supervisor.stops,
+        navigation: control.navigation_stats(),
         estimation,
         actuator: actuator_status,
         said,

@@ -56,6 +56,8 @@ pub struct TrialResult {
     /// Times the chair stopped for safety on the way (the supervisor's
     /// stops, the planner's) — not counting the stop on arrival.
     pub stops: u64,
+    /// Doorway passages begun and given up, back-offs.
+    pub navigation: crate::daemon::control::NavigationStats,
     /// The chair's last sentence.
     pub last_said: Option<String>,
     /// The supervisor's state at the end (why a stuck chair stood).
@@ -284,6 +286,7 @@ pub async fn run(
         time_s: r.duration_s,
         outcome: r.outcome,
         stops: r.planner.stops + r.stops,
+        navigation: r.navigation,
         last_said: r.said.last().cloned(),
         supervisor: r.supervisor,
         success,
