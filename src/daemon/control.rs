@@ -81,8 +81,6 @@ pub struct NavigationStats {
     pub doorways_given_up: u64,
     /// Times it backed off, held by something on the way.
     pub back_offs: u64,
-    /// Places ahead where it stood held, avoided for a while.
-    pub held_places: u64,
 }
 
 pub struct Control {
@@ -591,16 +589,6 @@ impl Control {
         // the rear seen: it refuses a blind reverse), then the planner tries
         // again from there
         let held = state == SupervisorState::Stopped(crate::msg::StopReason::Obstacle);
-        if let Some(r) = self.route.as_mut() {
-            let l = &self.supervisor.limits;
-            r.on_held(
-                now,
-                pose,
-                held && target.is_some(),
-                l.front_offset_m,
-                l.chair_width_m / 2.0,
-            );
-        }
         let rear = || {
             (
                 !self.supervisor.limits.turn_needs_seen_rear || self.rear.view(now, pose).seen,
@@ -721,7 +709,6 @@ impl Control {
             doorways: self.route.as_ref().map_or(0, |r| r.doorways),
             doorways_given_up: self.route.as_ref().map_or(0, |r| r.doorways_given_up),
             back_offs: self.back_off.count,
-            held_places: self.route.as_ref().map_or(0, |r| r.held_places),
         }
     }
 

@@ -27,20 +27,7 @@ pub struct Router {
     skip: Option<([f64; 2], Stamp)>,
     pub doorways: u64,
     pub doorways_given_up: u64,
-    /// Since when the supervisor holds the chair on its way (outside a
-    /// doorway passage), and the places marked held so.
-    held_since: Option<Stamp>,
-    pub held_places: u64,
 }
-
-/// Held this long on the way outside a doorway passage, the strip just
-/// ahead of the chair's front ([`HELD_STRIP_M`] deep, the chair's width)
-/// is blocked on the map for [`HELD_BLOCK_FOR`]: the way goes elsewhere
-/// (a gap the map's rounding let through, something only the supervisor's
-/// model sees) rather than back to the same spot after each back-off.
-pub(super) const HELD_MARK_AFTER: std::time::Duration = std::time::Duration::from_millis(2500);
-pub(super) const HELD_BLOCK_FOR: std::time::Duration = std::time::Duration::from_secs(20);
-pub(super) const HELD_STRIP_M: f64 = 0.25;
 
 /// A doorway given up after the chair stood blocked in it this long, or
 /// took this long in all; not tried again for this long.
@@ -92,59 +79,7 @@ impl Router {
             skip: None,
             doorways: 0,
             doorways_given_up: 0,
-            held_since: None,
-            held_places: 0,
         }
-    }
-
-    /// The supervisor holds the chair at `pose` (`held`) on its way at
-    /// `now`: held long enough outside a doorway passage, the strip ahead
-    /// of its front (`front_m` ahead of base_link, `half_width_m` a side)
-    /// is blocked for a while and the way replanned.
-    pub(super) fn on_held(
-        &mut self,
-        now: Stamp,
-        pose: crate::msg::Pose2,
-        held: bool,
-        front_m: f64,
-        half_width_m: f64,
-    ) {
-        if let Some(map) = self.map.as_mut() {
-            map.release_held(now);
-        }
-        if !held || self.passage.is_some() {
-            self.held_since = None;
-            return;
-        }
-        if self.held_since.get_or_insert(now).age_at(now) < HELD_MARK_AFTER {
-            return;
-        }
-        self.held_since = None;
-        let Some(map) = self.map.as_mut() else {
-            return;
-        };
-        let step = map.settings.resolution_m / 2.0;
-        let (c, s) = (pose.theta_rad.cos(), pose.theta_rad.sin());
-        let mut strip = Vec::new();
-        let (along, across) = (
-            (HELD_STRIP_M / step).round() as i32,
-            (half_width_m / step).round() as i32,
-        );
-        for i in 0..=along {
-            let dx = front_m + i as f64 * step;
-            for j in -across..=across {
-                let dy = j as f64 * step;
-                strip.push([pose.x_m + c * dx - s * dy, pose.y_m + s * dx + c * dy]);
-            }
-        }
-        map.hold(&strip, Stamp(now.0 + HELD_BLOCK_FOR));
-        self.held_places += 1;
-        // the next way avoids it
-        self.path = None;
-        tracing::info!(
-            ?pose,
-            "held on the way: the place ahead is avoided for a while"
-        );
     }
 
     /// Puts the newest laser set (seen from `pose`) and camera set in.

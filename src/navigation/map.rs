@@ -14,7 +14,7 @@ use std::collections::BinaryHeap;
 
 use serde::Deserialize;
 
-use crate::msg::{LaserRay, Pose2, Stamp};
+use crate::msg::{LaserRay, Pose2};
 
 /// The map's settings (config `[map]`).
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
@@ -83,10 +83,6 @@ pub struct GridMap {
     /// have been seen there).
     looked: Vec<bool>,
     camera_cells: Vec<usize>,
-    /// Where the chair stood held by its supervisor: blocked until then,
-    /// so the way goes elsewhere for a while.
-    held: Vec<bool>,
-    held_cells: Vec<(usize, Stamp)>,
     /// Distance to the nearest blocked cell, m (valid when not dirty).
     dist: Vec<f32>,
     dist_dirty: bool,
@@ -146,8 +142,6 @@ impl GridMap {
             camera: vec![false; n * n],
             looked: vec![false; n * n],
             camera_cells: Vec::new(),
-            held: vec![false; n * n],
-            held_cells: Vec::new(),
             dist: vec![dist_cap_m; n * n],
             dist_dirty: true,
             seen_lo: [n, n],
@@ -193,33 +187,7 @@ impl GridMap {
     /// Something is there (a laser's return, the camera's obstacle or
     /// drop-off).
     pub fn is_blocked(&self, i: usize) -> bool {
-        self.camera[i] || self.held[i] || (self.known[i] && self.evidence[i] > 0)
-    }
-
-    /// Blocks the cells of `points_odom` until `until` (where the chair was
-    /// held: the way avoids them meanwhile).
-    pub fn hold(&mut self, points_odom: &[[f64; 2]], until: Stamp) {
-        for p in points_odom {
-            if let Some(i) = self.cell(*p) {
-                self.held[i] = true;
-                self.held_cells.push((i, until));
-                self.seen(i);
-            }
-        }
-        self.dist_dirty = true;
-    }
-
-    /// Frees the held cells whose time is over at `now`.
-    pub fn release_held(&mut self, now: Stamp) {
-        let before = self.held_cells.len();
-        self.held_cells.retain(|(_, until)| *until > now);
-        if self.held_cells.len() != before {
-            self.held.iter_mut().for_each(|h| *h = false);
-            for &(i, _) in &self.held_cells {
-                self.held[i] = true;
-            }
-            self.dist_dirty = true;
-        }
+        self.camera[i] || (self.known[i] && self.evidence[i] > 0)
     }
 
     fn nudge(&mut self, i: usize, by: i8) {
@@ -722,34 +690,6 @@ mod tests {
             q.length_m,
             p.length_m
         );
-    }
-
-    #[test]
-    fn a_held_place_is_avoided_until_its_time_is_over() {
-        let mut map = GridMap::new(MapSettings::default(), [0.0, 0.0]);
-        map.set_camera(&wall_with_door(0.85), &[]);
-        let through = map.path([0.0, -2.0], [4.0, -2.0], 0.1).expect("a way");
-        // the doorway held (a strip across it) for 20 s
-        let strip: Vec<[f64; 2]> = (0..9).map(|k| [2.0, 0.6 + k as f64 * 0.1]).collect();
-        let until = Stamp::from_secs_f64(20.0);
-        map.hold(&strip, until);
-        let cell = map.cell([2.0, 1.0]).expect("on the map");
-        assert!(map.is_blocked(cell));
-        let round = map
-            .path([0.0, -2.0], [4.0, -2.0], 0.1)
-            .expect("round the wall");
-        assert!(
-            round.length_m > through.length_m + 1.0,
-            "{}",
-            round.length_m
-        );
-        // still held at 19 s; free again at 20 s
-        map.release_held(Stamp::from_secs_f64(19.0));
-        assert!(map.is_blocked(cell));
-        map.release_held(until);
-        assert!(!map.is_blocked(cell));
-        let again = map.path([0.0, -2.0], [4.0, -2.0], 0.1).expect("a way");
-        assert!((again.length_m - through.length_m).abs() < 1e-6);
     }
 
     #[test]
