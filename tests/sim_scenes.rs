@@ -96,3 +96,17 @@ fn the_benchmark_reads_the_configuration_it_is_given() {
         "a run with a bad configuration printed lines"
     );
 }
+
+#[test]
+fn logs_to_a_pipe_carry_no_colour_codes() {
+    // under systemd stderr is journald's pipe: escape codes would be kept
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_opennav"))
+        .args(["sim", "--scenes", "1", "--json"])
+        .env("RUST_LOG", "opennav=info")
+        .output()
+        .expect("runs");
+    assert!(out.status.success(), "{out:?}");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("say="), "no log lines to check: {err}");
+    assert!(!err.contains('\u{1b}'), "escape codes in the log: {err}");
+}
