@@ -110,3 +110,27 @@ fn logs_to_a_pipe_carry_no_colour_codes() {
     assert!(err.contains("say="), "no log lines to check: {err}");
     assert!(!err.contains('\u{1b}'), "escape codes in the log: {err}");
 }
+
+#[test]
+fn the_version_names_the_git_revision() {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_opennav"))
+        .arg("--version")
+        .output()
+        .expect("runs");
+    assert!(out.status.success(), "{out:?}");
+    let line = String::from_utf8_lossy(&out.stdout).to_string();
+    let head = std::process::Command::new("git")
+        .args(["rev-parse", "--short=12", "HEAD"])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .ok()
+        .filter(|o| o.status.success())
+        .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string());
+    match head {
+        Some(rev) => assert!(line.contains(&format!("(git {rev})")), "{line} vs {rev}"),
+        None => {
+            eprintln!("NOT CHECKED AGAINST GIT: no git checkout here");
+            assert!(line.contains("(git unknown)"), "{line}");
+        }
+    }
+}

@@ -106,7 +106,7 @@ pub enum Format {
 #[derive(Parser, Debug)]
 #[command(
     name = "opennav",
-    version,
+    version = concat!(env!("CARGO_PKG_VERSION"), " (git ", env!("OPENNAV_GIT_REV"), ")"),
     about = "Smart wheelchair: open-vocabulary 3D object detection and navigation"
 )]
 pub struct Cli {
