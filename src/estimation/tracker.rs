@@ -270,11 +270,10 @@ pub fn approach_pose(
         tx.min(ty)
     };
     let (hx, hy) = (track.size_m[0] / 2.0, track.size_m[1] / 2.0);
-    let own: Vec<[f64; 2]> = obstacles
-        .iter()
-        .filter(|o| (o[0] - cx).abs() - hx <= OWN_POINT_M && (o[1] - cy).abs() - hy <= OWN_POINT_M)
-        .copied()
-        .collect();
+    let is_own = |o: &[f64; 2]| {
+        (o[0] - cx).abs() - hx <= OWN_POINT_M && (o[1] - cy).abs() - hy <= OWN_POINT_M
+    };
+    let own: Vec<[f64; 2]> = obstacles.iter().filter(|o| is_own(o)).copied().collect();
     // the box is upright in odom: an object turned in it is smaller than
     // its box, most at the box's corners. Where the object's own obstacle
     // points lie across the chair's way in (within its half width of the
@@ -308,11 +307,9 @@ pub fn approach_pose(
             // and the chair's body and its view of the object clear of
             // everything else
             let edge = [cx + reach(a) * a.cos(), cy + reach(a) * a.sin()];
-            let in_sight = obstacles.iter().all(|o| {
-                let off_box =
-                    (o[0] - cx).abs() - hx > OWN_POINT_M || (o[1] - cy).abs() - hy > OWN_POINT_M;
-                !off_box || segment_distance([x, y], edge, *o) >= LINE_OF_SIGHT_M
-            });
+            let in_sight = obstacles
+                .iter()
+                .all(|o| is_own(o) || segment_distance([x, y], edge, *o) >= LINE_OF_SIGHT_M);
             if free && in_sight {
                 return Some(ApproachPose {
                     x_m: x,
@@ -412,14 +409,20 @@ mod tests {
         assert_eq!(tr.tracks()[0].hits, 2);
     }
 
-    #[test]
-    fn approach_pose_faces_the_object_from_the_free_side() {
+    /// The confirmed track of one box `label` of half size `half` about
+    /// `c`, seen once.
+    fn one_track(label: &str, c: [f32; 3], half: f32) -> Track {
         let mut tr = Tracker::new(TrackerParams {
             confirm_hits: 1,
             ..crate::config::Settings::defaults().tracker
         });
-        tr.update(s(0.0), &[obj("chair", [3.0, 0.0, 0.4], 0.25)], |_| true);
-        let t = tr.goal("chair", [0.0, 0.0]).unwrap().clone();
+        tr.update(s(0.0), &[obj(label, c, half)], |_| true);
+        tr.goal(label, [0.0, 0.0]).unwrap().clone()
+    }
+
+    #[test]
+    fn approach_pose_faces_the_object_from_the_free_side() {
+        let t = one_track("chair", [3.0, 0.0, 0.4], 0.25);
         let p = approach_pose(&t, [0.0, 0.0], 0.6, &[], 0.4).unwrap();
         assert!(
             (p.x_m - (3.0 - 0.25 - 0.6)).abs() < 1e-6
@@ -445,12 +448,7 @@ mod tests {
     fn approach_pose_stops_at_the_objects_own_points_inside_its_box() {
         // a box 1 m square about (3, 0): the object turned in it, its face
         // towards the chair seen by the lasers 0.3 m inside the box
-        let mut tr = Tracker::new(TrackerParams {
-            confirm_hits: 1,
-            ..crate::config::Settings::defaults().tracker
-        });
-        tr.update(s(0.0), &[obj("desk", [3.0, 0.0, 0.4], 0.5)], |_| true);
-        let t = tr.goal("desk", [0.0, 0.0]).unwrap().clone();
+        let t = one_track("desk", [3.0, 0.0, 0.4], 0.5);
         let face: Vec<[f64; 2]> = (-3..=3).map(|k| [2.8, k as f64 * 0.1]).collect();
         let p = approach_pose(&t, [0.0, 0.0], 0.6, &face, 0.4).unwrap();
         assert!((p.x_m - (2.8 - 0.6)).abs() < 1e-6, "{p:?}");
