@@ -121,6 +121,8 @@ pub struct Control {
     turn_held_since: Option<Stamp>,
     /// Backing off when the way is held.
     pub back_off: BackOff,
+    /// Since when the chair, going to the object, is held by an obstacle.
+    goal_held_since: Option<Stamp>,
     /// The chair asked "Did you say the X?" (an unsure utterance).
     asked_goal: Option<String>,
     /// A person acknowledged the fault (the latch file goes too).
@@ -131,6 +133,12 @@ pub struct Control {
 }
 
 /// A turn on the spot refused this long for an unseen rear: the chair asks.
+/// Held this long on the way to the object within [`NEAR_ENOUGH_M`] of
+/// the place beside it: the trip ends there, as near as the chair safely
+/// goes (before it would back off and try again).
+pub const ARRIVE_HELD_AFTER: std::time::Duration = std::time::Duration::from_secs(2);
+pub const NEAR_ENOUGH_M: f64 = 0.3;
+
 /// A search turn held this long by an obstacle ends there.
 const TURN_HELD_FOR: std::time::Duration = std::time::Duration::from_secs(3);
 const ASK_REAR_AFTER: std::time::Duration = std::time::Duration::from_secs(1);
@@ -180,6 +188,7 @@ impl Control {
             rear_yes: false,
             turn_held_since: None,
             back_off: BackOff::default(),
+            goal_held_since: None,
             asked_goal: None,
             acknowledged: false,
             route: None,
@@ -565,6 +574,22 @@ impl Control {
             }
             e => e,
         };
+        // held on the way, close to the place beside the object: as near
+        // as it safely goes
+        let goal_held = matches!(self.goal.state(), GoalState::Tracking { .. })
+            && self.supervisor.state()
+                == SupervisorState::Stopped(crate::msg::StopReason::Obstacle);
+        if !goal_held {
+            self.goal_held_since = None;
+        }
+        let event = match event {
+            None if goal_held
+                && self.goal_held_since.get_or_insert(now).age_at(now) >= ARRIVE_HELD_AFTER =>
+            {
+                self.goal.arrive_near(pose, NEAR_ENOUGH_M)
+            }
+            e => e,
+        };
         if let Some(e) = &event {
             tracing::debug!(event = ?e, approach = ?self.goal.approach(), ?pose, "goal");
             self.say(e.say());
@@ -693,7 +718,9 @@ impl Control {
     fn finish_step(&mut self, event: Option<GoalEvent>) {
         if self.exit_on_arrival {
             let outcome = match event {
-                Some(GoalEvent::Reached { .. }) => Some(Outcome::Arrived),
+                Some(GoalEvent::Reached { .. } | GoalEvent::ReachedNear { .. }) => {
+                    Some(Outcome::Arrived)
+                }
                 Some(GoalEvent::Lost { .. }) => Some(Outcome::Lost),
                 Some(GoalEvent::NotFound { .. }) => Some(Outcome::NotFound),
                 _ => None,

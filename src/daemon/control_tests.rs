@@ -366,3 +366,67 @@ fn held_by_something_ahead_on_the_way_it_backs_off_a_little_then_tries_again() {
     assert!(c.back_off.count >= 1);
     assert!(last_back.expect("backing") >= first + 1300);
 }
+
+/// A chair (0.5 m square, 0.9 m high) centred `x_m` ahead, in odom.
+fn chair_at(x_m: f32) -> crate::msg::Object3D {
+    use nalgebra::Point3;
+    let pts = vec![
+        Point3::new(x_m - 0.25, -0.25, 0.0),
+        Point3::new(x_m + 0.25, 0.25, 0.9),
+    ];
+    crate::msg::Object3D::from_points("chair".into(), 0.9, crate::msg::Frame::Odom, pts, None)
+        .expect("object")
+}
+
+/// Goes to a chair centred `x_m` ahead with a box ahead and to the left
+/// holding the way (off the line to the chair: the place beside it stays
+/// straight ahead), for `steps` steps of 50 ms; the step at which the trip
+/// ended and what was said.
+fn held_on_the_way_to_a_chair_at(x_m: f32, steps: u64) -> (Option<u64>, Vec<String>) {
+    let mut c = control(true);
+    c.on_input(UserInput::Goto("chair".into()));
+    let mut tracker = Tracker::new(crate::config::Settings::defaults().tracker);
+    let mut said = Vec::new();
+    for k in 0..steps {
+        tracker.update(at(50 * k), &[chair_at(x_m)], |_| true);
+        let now = at(50 * k);
+        let (mut o, odo) = fresh(now);
+        o.value.points_base = vec![[0.72, 0.38], [4.0, 0.0]];
+        let out = c.step(
+            now,
+            ControlInputs {
+                obstacles: Some(&o),
+                odometry: Some(&odo),
+                tracker: &tracker,
+                camera: None,
+            },
+        );
+        said.extend(out.said);
+        if out.done.is_some() {
+            assert_eq!(out.done, Some(Outcome::Arrived));
+            assert_eq!(out.cmd.cmd, VelocityCmd::default());
+            return (Some(k), said);
+        }
+    }
+    (None, said)
+}
+
+#[test]
+fn held_near_the_place_beside_the_object_it_arrives_as_near_as_it_safely_goes() {
+    // the place beside this chair is ~0.2 m ahead (not within the 0.1 m
+    // of an arrival), the box holds the chair where it stands
+    let (done, said) = held_on_the_way_to_a_chair_at(1.65, 100);
+    let k = done.unwrap_or_else(|| panic!("no arrival: {said:?}"));
+    // held for ARRIVE_HELD_AFTER (2 s) from the first held step
+    assert!((40..=48).contains(&k), "ended at step {k}");
+    assert!(
+        said.iter()
+            .any(|s| s.contains("as near the chair as I can safely go")),
+        "{said:?}"
+    );
+    // the same hold 1.4 m short of the place: no arrival (it backs off and
+    // tries again instead)
+    let (done, said) = held_on_the_way_to_a_chair_at(3.0, 100);
+    assert_eq!(done, None, "{said:?}");
+    assert!(said.iter().any(|s| s == "Going to the chair."), "{said:?}");
+}

@@ -121,6 +121,13 @@ pub enum GoalEvent {
     Reached {
         label: String,
     },
+    /// Held by something on the way within reach of the place beside the
+    /// object: as near as the chair can safely go, so the trip ends there.
+    ReachedNear {
+        label: String,
+        /// How far the place beside the object still is, m.
+        off_m: f64,
+    },
     /// A full search turn without seeing the word: the goal is dropped.
     NotFound {
         label: String,
@@ -149,6 +156,9 @@ impl GoalEvent {
                 format!("I could not find the {label} again after {held_s:.0} seconds. Stopped.")
             }
             GoalEvent::Reached { label } => format!("Arrived at the {label}."),
+            GoalEvent::ReachedNear { label, .. } => {
+                format!("Arrived: this is as near the {label} as I can safely go.")
+            }
             GoalEvent::NotFound { label } => format!("I cannot find a {label} here. Stopped."),
             GoalEvent::LookingFurther { label } => {
                 format!("I cannot see a {label} from here. Looking further.")
@@ -258,6 +268,31 @@ impl GoalKeeper {
         if matches!(self.state, GoalState::Searching { .. }) {
             self.search_turned_rad = self.search_turned_rad.max(std::f64::consts::TAU);
         }
+    }
+
+    /// The chair is held by something on the way (the caller knows how
+    /// long): within `within_m` of the place beside the object, the trip
+    /// ends there, as near as it safely goes. None otherwise (not tracking,
+    /// or too far: the caller backs off and tries again).
+    pub fn arrive_near(&mut self, chair: Pose2, within_m: f64) -> Option<GoalEvent> {
+        let GoalState::Tracking {
+            label,
+            track,
+            approach,
+        } = &self.state
+        else {
+            return None;
+        };
+        let off_m = (approach.x_m - chair.x_m).hypot(approach.y_m - chair.y_m);
+        if off_m > within_m {
+            return None;
+        }
+        let label = label.clone();
+        self.state = GoalState::Reached {
+            label: label.clone(),
+            track: *track,
+        };
+        Some(GoalEvent::ReachedNear { label, off_m })
     }
 
     /// The next place to search (odom), or None: no place is left, and the
@@ -671,5 +706,47 @@ mod tests {
             g.update(t(0.4), &tracker, at, &[], &|_| true),
             Some(GoalEvent::Reached { .. })
         ));
+    }
+
+    #[test]
+    fn held_near_the_approach_pose_ends_as_near_as_it_goes() {
+        let mut tracker = Tracker::new(crate::config::Settings::defaults().tracker);
+        let mut g = GoalKeeper::new(crate::config::Settings::defaults().goal_settings());
+        g.set_prompt("chair");
+        // not tracking yet: nothing to arrive at
+        assert_eq!(g.arrive_near(Pose2::default(), 10.0), None);
+        for k in 0..3 {
+            tracker.update(t(k as f64 * 0.1), &[chair_obj(3.0)], |_| true);
+            g.update(t(k as f64 * 0.1), &tracker, Pose2::default(), &[], &|_| {
+                true
+            });
+        }
+        let Some(a) = g.approach() else {
+            panic!("no approach: {:?}", g.state())
+        };
+        let short = |d: f64| Pose2 {
+            x_m: a.x_m - d,
+            y_m: a.y_m,
+            theta_rad: 0.0,
+        };
+        // held 0.5 m short: too far, the caller backs off and tries again
+        assert_eq!(g.arrive_near(short(0.5), 0.3), None);
+        assert!(matches!(g.state(), GoalState::Tracking { .. }));
+        let e = g.arrive_near(short(0.25), 0.3).expect("near enough");
+        match &e {
+            GoalEvent::ReachedNear { label, off_m } => {
+                assert_eq!(label, "chair");
+                assert!((off_m - 0.25).abs() < 1e-9, "{off_m}");
+            }
+            e => panic!("{e:?}"),
+        }
+        assert!(
+            e.say().contains("as near the chair as I can safely go"),
+            "{}",
+            e.say()
+        );
+        assert!(matches!(g.state(), GoalState::Reached { .. }));
+        // once reached, no second arrival
+        assert_eq!(g.arrive_near(short(0.0), 0.3), None);
     }
 }
