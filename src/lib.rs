@@ -11,6 +11,7 @@ pub mod daemon;
 pub mod estimation;
 pub mod eval;
 pub mod input;
+pub mod live;
 pub mod msg;
 pub mod navigation;
 pub mod output;

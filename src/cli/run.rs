@@ -69,6 +69,11 @@ pub struct RunArgs {
     /// from the microphone (needs the `voice` feature).
     #[arg(long)]
     pub voice_wav: Option<PathBuf>,
+    /// Stream the live view to Foxglove (WebSocket) on ADDR, default
+    /// `[live] address` (127.0.0.1:8765); `[live] enabled` turns it on
+    /// without the flag.
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "")]
+    pub live: Option<String>,
     /// With --sim: speak the sentences too (espeak-ng, `[speech]`); on
     /// the chair they are spoken unless speech.enabled = false.
     #[arg(long)]
@@ -129,6 +134,16 @@ pub fn run(config: Option<&std::path::Path>, args: RunArgs) -> Result<(), Failur
     let switch_sentences = speech_tx.clone();
     let voice_sentences = speech_tx.clone();
     let voice_wav = args.voice_wav.clone();
+    let live = match args.live.as_deref() {
+        Some("") => Some(settings.live.socket_addr().map_err(bad_input)?),
+        Some(a) => Some(a.parse().map_err(|e| {
+            bad_input(anyhow::anyhow!(
+                "--live {a:?}: not host:port with an IP address ({e})"
+            ))
+        })?),
+        None if settings.live.enabled => Some(settings.live.socket_addr().map_err(bad_input)?),
+        None => None,
+    };
     let opts = RunOptions {
         exit_on_arrival: args.exit_on_arrival,
         max_duration: args.max_duration,
@@ -150,6 +165,20 @@ pub fn run(config: Option<&std::path::Path>, args: RunArgs) -> Result<(), Failur
         inject_panic,
         stops: Some(receivers.stops),
         status: Some(status_tx),
+        live,
+        live_started: live.map(|_| {
+            // where to point Foxglove, on stderr as the run starts
+            let (tx, rx) = std::sync::mpsc::channel::<std::net::SocketAddr>();
+            std::thread::spawn(move || {
+                if let Ok(a) = rx.recv() {
+                    eprintln!(
+                        "opennav: live view on ws://{a} (Foxglove: Open connection → Foxglove WebSocket)"
+                    );
+                }
+            });
+            tx
+        }),
+        live_wait: None,
     };
     let input_rx = receivers.words;
     for p in &args.prompt {

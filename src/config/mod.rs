@@ -55,7 +55,29 @@ pub struct Settings {
     pub input: InputSection,
     pub speech: crate::speech::SpeechSettings,
     pub voice: crate::voice::VoiceSettings,
+    pub live: LiveSection,
     pub sim: SimSection,
+}
+
+/// The live view (config `[live]`): Foxglove's WebSocket protocol.
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct LiveSection {
+    /// Stream with `opennav run` (also `--live`).
+    pub enabled: bool,
+    /// host:port to listen on; 127.0.0.1 keeps it on the laptop.
+    pub address: String,
+}
+
+impl LiveSection {
+    /// The address, or an error naming the key.
+    pub fn socket_addr(&self) -> Result<std::net::SocketAddr, ConfigError> {
+        self.address.parse().map_err(|e| ConfigError::Range {
+            key: "live.address".into(),
+            value: self.address.clone(),
+            reason: format!("not host:port with an IP address ({e})"),
+        })
+    }
 }
 
 /// The simulator's detector (config `[sim]`): the ground truth, with
@@ -603,6 +625,7 @@ mod tests {
             ),
             ("OPENNAV_ODOMETRY__LEFT_SIGN", "0.5", "odometry.left_sign"),
             ("OPENNAV_ODOMETRY__TRACK_M", "-1", "odometry.track_m"),
+            ("OPENNAV_LIVE__ADDRESS", "localhost", "live.address"),
         ] {
             let e = Settings::load_with_env(None, env(&[(k, v)]))
                 .unwrap_err()

@@ -338,6 +338,7 @@ impl Settings {
             })?;
         }
         finite_range("voice.min_confidence", self.voice.min_confidence, 0.0, 1.0)?;
+        self.live.socket_addr()?;
         let sp = &self.speech;
         range("speech.rate_wpm", sp.rate_wpm, 80, 450)?;
         range("speech.volume", sp.volume, 0, 200)?;

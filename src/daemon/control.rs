@@ -123,6 +123,8 @@ pub struct Control {
     pub back_off: BackOff,
     /// Since when the chair, going to the object, is held by an obstacle.
     goal_held_since: Option<Stamp>,
+    /// The MPC's last predicted path (odom), for the live view.
+    pub planned_path: Vec<[f64; 2]>,
     /// The chair asked "Did you say the X?" (an unsure utterance).
     asked_goal: Option<String>,
     /// A person acknowledged the fault (the latch file goes too).
@@ -189,6 +191,7 @@ impl Control {
             turn_held_since: None,
             back_off: BackOff::default(),
             goal_held_since: None,
+            planned_path: Vec::new(),
             asked_goal: None,
             acknowledged: false,
             route: None,
@@ -500,6 +503,7 @@ impl Control {
         odo: &Stamped<Odometry>,
         tracker: &Tracker,
     ) {
+        self.planned_path.clear();
         // everything the chair must not enter, in base_link: the lasers'
         // points, the camera's obstacles and its drop-offs
         let mut points_base = lasers.value.points_base.clone();
@@ -674,6 +678,7 @@ impl Control {
                 aim,
                 &o,
             );
+            self.planned_path = std::mem::take(&mut out.path_odom);
             if turn_first {
                 // the way goes off to the side: face it first, on the spot
                 out.cmd = VelocityCmd {

@@ -15,6 +15,7 @@ use super::control::{Control, ControlInputs, Outcome};
 use super::latch;
 use super::notify::sd_notify;
 use crate::actuation::ActuatorEvent;
+use crate::estimation::goal::GoalState;
 use crate::estimation::tracker::Tracker;
 use crate::msg::{
     Clock, MapObstacles, Obstacles, Odometry, SafeCmd, Stamp, Stamped, SupervisorState, UserInput,
@@ -56,6 +57,8 @@ pub struct ControlTaskIo {
     pub stops: Option<watch::Receiver<u64>>,
     /// What the daemon is doing, for the control socket.
     pub status: Option<watch::Sender<crate::input::DaemonStatus>>,
+    /// The live view (Foxglove), when it is on.
+    pub live: Option<crate::live::LiveSink>,
 }
 
 /// How the control task ended.
@@ -200,6 +203,39 @@ pub async fn run(mut control: Control, mut io: ControlTaskIo) -> ControlEnd {
                 said: last_said.iter().cloned().collect(),
             });
         }
+        crate::live::show(&io.live, || {
+            let goal = control.goal_state();
+            let tracks = io.tracks.borrow();
+            crate::live::LiveItem::Step(Box::new(crate::live::StepView {
+                stamp: now,
+                pose: odometry.map(|o| o.value.pose),
+                state: out.cmd.state,
+                cmd: out.cmd.cmd,
+                goal: goal.label().map(str::to_string),
+                phase: goal.phase().map(str::to_string),
+                goal_track: match goal {
+                    GoalState::Tracking { track, .. }
+                    | GoalState::Holding { track, .. }
+                    | GoalState::Reached { track, .. } => Some(*track),
+                    _ => None,
+                },
+                approach: control.goal.approach(),
+                tracks: tracks
+                    .tracks()
+                    .iter()
+                    .filter(|t| t.confirmed)
+                    .map(|t| crate::live::TrackView {
+                        id: t.id,
+                        label: t.label.clone(),
+                        center_m: t.center_m,
+                        size_m: t.size_m,
+                    })
+                    .collect(),
+                plan_odom: control.planned_path.clone(),
+                camera: camera.as_ref().map(|c| c.value.clone()),
+                said: out.said.clone(),
+            }))
+        });
         for s in out.said {
             tracing::info!(say = %s, "opennav");
             if let Some(tx) = &io.speech {

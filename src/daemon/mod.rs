@@ -91,6 +91,14 @@ pub struct RunOptions {
     pub stops: Option<watch::Receiver<u64>>,
     /// Where the daemon publishes what it is doing (the control socket).
     pub status: Option<watch::Sender<crate::input::DaemonStatus>>,
+    /// Stream the live view (Foxglove WebSocket) on this address.
+    pub live: Option<std::net::SocketAddr>,
+    /// The live view's address once it listens (port 0 in `live`: the port
+    /// it got), for a client that waits for it.
+    pub live_started: Option<std::sync::mpsc::Sender<std::net::SocketAddr>>,
+    /// Start only once a viewer subscribed to every topic (at most this
+    /// long): a trip on the virtual clock is over in seconds.
+    pub live_wait: Option<Duration>,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -111,6 +119,7 @@ pub struct RunReport {
     /// What the chair said, in order.
     pub said: Vec<String>,
     pub record: Option<RecordReport>,
+    pub live: Option<crate::live::LiveReport>,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -277,6 +286,34 @@ pub async fn run(
         stop: devices_stop,
         close,
     } = devices;
+    let base_from_camera = settings
+        .camera
+        .base_from_camera
+        .to_isometry("camera.base_from_camera")
+        .map_err(|e| DaemonError::Setup(e.to_string()))?;
+    let (live, live_sink) = match opts.live {
+        Some(address) => {
+            let mounting = crate::live::Mounting {
+                laser_left: lasers[0].1,
+                laser_right: lasers[1].1,
+                camera: base_from_camera,
+            };
+            // stamps are the run's clock: wall time = stamp + offset
+            let wall = std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .unwrap_or_default();
+            let offset = wall.saturating_sub(start.0);
+            let (started, wait) = (opts.live_started.clone(), opts.live_wait);
+            let (l, s) = tokio::task::spawn_blocking(move || {
+                crate::live::Live::start(address, mounting, offset, started.as_ref(), wait)
+            })
+            .await
+            .map_err(|e| DaemonError::Setup(format!("live view: {e}")))?
+            .map_err(DaemonError::Setup)?;
+            (Some(l), Some(s))
+        }
+        None => (None, None),
+    };
     let sources = CancellationToken::new();
     let mut tasks = Tasks::new(opts.inject_panic.clone());
     let (first_tx, first_rx) = mpsc::unbounded_channel::<&'static str>();
@@ -312,6 +349,7 @@ pub async fn run(
     {
         let poses = [left_pose, right_pose];
         let cancel = sources.clone();
+        let live = live_sink.clone();
         tasks.spawn("lasers", async move {
             loop {
                 tokio::select! {
@@ -328,6 +366,10 @@ pub async fn run(
                 // so a dead scanner makes the set stale and the chair stops
                 if let (Some(l), Some(r)) = (l, r) {
                     obst_tx.send_replace(merge_scans(&[(&l, &poses[0]), (&r, &poses[1])]));
+                    crate::live::show(&live, || crate::live::LiveItem::Scans {
+                        left: l.clone(),
+                        right: r.clone(),
+                    });
                 }
             }
         });
@@ -384,11 +426,6 @@ pub async fn run(
         .depth_obstacles
         .enabled
         .then_some(settings.depth_obstacles);
-    let base_from_camera = settings
-        .camera
-        .base_from_camera
-        .to_isometry("camera.base_from_camera")
-        .map_err(|e| DaemonError::Setup(e.to_string()))?;
     let view = match camera {
         Some(CameraDevice {
             mut open,
@@ -435,6 +472,7 @@ pub async fn run(
                         gyro: camera_gyro,
                         first_frame: first_tx.clone(),
                         record: sink.clone(),
+                        live: live_sink.clone(),
                     },
                     clock.clone(),
                     sources.clone(),
@@ -536,6 +574,7 @@ pub async fn run(
                 max_duration: opts.max_duration,
                 stops: opts.stops.clone(),
                 status: opts.status.clone(),
+                live: live_sink,
             },
         ),
     ));
@@ -643,6 +682,14 @@ pub async fn run(
         ),
         None => None,
     };
+    let live = match live {
+        Some(l) => Some(
+            tokio::task::spawn_blocking(move || l.finish())
+                .await
+                .map_err(|e| DaemonError::Setup(format!("live view: {e}")))?,
+        ),
+        None => None,
+    };
     let odometry = odo_report.borrow().map(|o| o.value);
     Ok(RunReport {
         outcome,
@@ -657,5 +704,6 @@ pub async fn run(
         actuator: actuator_status,
         said,
         record,
+        live,
     })
 }

@@ -28,6 +28,8 @@ pub struct PerceptionIo {
     /// The first frame arrived (for READY).
     pub first_frame: mpsc::UnboundedSender<&'static str>,
     pub record: Option<RecordSink>,
+    /// The live view (Foxglove), when it is on.
+    pub live: Option<crate::live::LiveSink>,
 }
 
 /// The camera's side of the loop.
@@ -196,6 +198,11 @@ pub async fn run(
                         continue;
                     }
                 };
+                crate::live::show(&io.live, || crate::live::LiveItem::View {
+                    frame: Stamped::new(stamp, frame.value.clone()),
+                    detections: view.detections.clone(),
+                    objects: view.objects.clone(),
+                });
                 record(&io.record, || RecordItem::View {
                     frame: Stamped::new(stamp, frame.value),
                     detections: view.detections.clone(),

@@ -21,12 +21,14 @@ pub enum CommandSource {
     Stop,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct PlanOutput {
     pub cmd: VelocityCmd,
     pub source: CommandSource,
     pub goal_distance_m: f64,
     pub reached: bool,
+    /// The MPC's predicted positions (odom); empty when it did not solve.
+    pub path_odom: Vec<[f64; 2]>,
 }
 
 #[derive(Debug, Clone, Default, PartialEq, Eq, Serialize)]
@@ -85,6 +87,7 @@ impl Planner {
                 source: CommandSource::Stop,
                 goal_distance_m: dist,
                 reached: true,
+                path_odom: Vec::new(),
             };
         }
         self.grid.update(obstacles);
@@ -105,10 +108,12 @@ impl Planner {
             v_ref_mps: field.v_mps.max(0.0),
             obstacles: obstacles_odom,
         };
+        let mut path_odom = Vec::new();
         let (cmd, source) = match solve(&problem, &self.mpc) {
             Ok(plan) => {
                 self.stats.mpc_solved += 1;
                 self.failures_in_row = 0;
+                path_odom = plan.states.iter().map(|s| [s.x_m, s.y_m]).collect();
                 (plan.cmd, CommandSource::Mpc)
             }
             Err(e) => {
@@ -136,6 +141,7 @@ impl Planner {
             source,
             goal_distance_m: dist,
             reached: false,
+            path_odom,
         }
     }
 }
