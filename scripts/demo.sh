@@ -23,10 +23,22 @@ if [ -z "$models" ]; then
   if [ -f "$repo/../shared/models/yolo11n_coco.onnx" ]; then models=$repo/../shared/models; else models=$repo/models; fi
 fi
 fx=tests/fixtures/mrpt_openni2
+echo "== building opennav (release; the first build takes several minutes) =="
 cargo build --release --quiet
-target/release/opennav detect \
-  --rgb $fx/rgb.png --depth $fx/depth_mm.png --calibration $fx/calibration.json \
-  --prompt "book" --score-threshold 0.15 --models "$models" --out out/demo --format text "$@"
+mkdir -p out/demo
+# the detection part needs a detector's weights (not in the repository)
+detector=""
+for f in yolo_world.onnx yolo11n_coco.onnx; do
+  if [ -f "$models/$f" ]; then detector=$models/$f; break; fi
+done
+if [ -n "$detector" ]; then
+  echo "== opennav detect: the bundled RGB-D frame, prompt \"book\" ($detector) =="
+  target/release/opennav detect \
+    --rgb $fx/rgb.png --depth $fx/depth_mm.png --calibration $fx/calibration.json \
+    --prompt "book" --score-threshold 0.15 --models "$models" --out out/demo --format text "$@"
+else
+  echo "== opennav detect skipped: it needs yolo11n_coco.onnx (or yolo_world.onnx) in $models; models/README.md says how to get it (or set OPENNAV_MODELS) =="
+fi
 echo
 if [ -n "${OPENNAV_DEMO_WAV:-}" ]; then
   echo "== opennav run --sim: the simulated living room at the wall clock's pace, listening to $OPENNAV_DEMO_WAV =="

@@ -220,7 +220,7 @@ fn ready_only_after_every_device_gave_a_first_reading() {
     let mut msgs: Vec<(Duration, String)> = Vec::new();
     let mut buf = [0u8; 512];
     while let Ok(n) = sock.recv(&mut buf) {
-        let m = String::from_utf8_lossy(&buf[..n]).to_string();
+        let m = String::from_utf8_lossy(&buf[..n]).trim_end().to_string();
         let done = m == "STOPPING=1";
         msgs.push((started.elapsed(), m));
         if done {
@@ -263,5 +263,41 @@ fn ready_only_after_every_device_gave_a_first_reading() {
             .count()
             > 10,
         "{msgs:?}"
+    );
+}
+
+/// `opennav check encoders` reads the board on the configured port (no
+/// --port), and a port that is not there is one line naming it.
+#[test]
+fn check_encoders_reads_the_configured_port() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let link = dir.path().join("encoders");
+    let stop = Arc::new(AtomicBool::new(false));
+    let board = encoder_board(link.clone(), stop.clone());
+    wait_for(&link);
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_opennav"))
+        .args(["check", "encoders", "--count", "5"])
+        .env("OPENNAV_ENCODERS__PORT", &link)
+        .output()
+        .expect("runs");
+    stop.store(true, Ordering::SeqCst);
+    board.join().expect("board");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let lines: Vec<Value> = String::from_utf8_lossy(&o.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("json line"))
+        .collect();
+    assert_eq!(lines.len(), 5);
+    assert!(lines.iter().all(|l| l["left"] == 0 && l["right"] == 0));
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_opennav"))
+        .args(["check", "encoders"])
+        .env("OPENNAV_ENCODERS__PORT", "/dev/opennav-no-such-board")
+        .output()
+        .expect("runs");
+    assert_eq!(o.status.code(), Some(1));
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        e.contains("/dev/opennav-no-such-board") && e.lines().count() == 1,
+        "{e}"
     );
 }

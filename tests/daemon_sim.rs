@@ -371,7 +371,7 @@ fn notifies_systemd_ready_after_first_readings_and_feeds_the_watchdog() {
     let mut msgs = Vec::new();
     let mut buf = [0u8; 512];
     while let Ok(n) = sock.recv(&mut buf) {
-        let m = String::from_utf8_lossy(&buf[..n]).to_string();
+        let m = String::from_utf8_lossy(&buf[..n]).trim_end().to_string();
         let done = m == "STOPPING=1";
         msgs.push(m);
         if done {
@@ -393,6 +393,13 @@ fn notifies_systemd_ready_after_first_readings_and_feeds_the_watchdog() {
         "{msgs:?}"
     );
     assert_eq!(msgs.iter().filter(|m| *m == "READY=1").count(), 1);
+    // then what it does, for `systemctl status` (no word given: idle)
+    assert!(
+        msgs[ready..]
+            .iter()
+            .any(|m| m.starts_with("STATUS=idle, waiting for a word")),
+        "{msgs:?}"
+    );
     let feeds = msgs[ready..].iter().filter(|m| *m == "WATCHDOG=1").count();
     // 20 Hz for about 2 s
     assert!(feeds > 20, "{feeds} watchdog messages");

@@ -264,15 +264,10 @@ fn check_hokuyo_prints_json_lines_and_fails_clearly() {
     let link = dir.path().join("hokuyo_right");
     let _emu =
         HokuyoEmulator::spawn(&link, all.clone(), Duration::from_millis(20), 0).expect("emulator");
+    // the port from the config, by --laser (as the daemon would open it)
     let o = std::process::Command::new(env!("CARGO_BIN_EXE_opennav"))
-        .args([
-            "check",
-            "hokuyo",
-            "--port",
-            &link.display().to_string(),
-            "--count",
-            "3",
-        ])
+        .args(["check", "hokuyo", "--laser", "right", "--count", "3"])
+        .env("OPENNAV_LASERS__RIGHT__PORT", &link)
         .output()
         .expect("runs");
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -298,9 +293,11 @@ fn check_hokuyo_prints_json_lines_and_fails_clearly() {
             .all(|m| (0.02..=5.6).contains(&m)));
         assert!(l["stamp_s"].is_number());
     }
-    // nothing there: exit 1, one line naming the port
+    // nothing there (the left laser's configured port): exit 1, one line
+    // naming the port
     let o = std::process::Command::new(env!("CARGO_BIN_EXE_opennav"))
-        .args(["check", "hokuyo", "--port", "/dev/opennav-no-such-port"])
+        .args(["check", "hokuyo"])
+        .env("OPENNAV_LASERS__LEFT__PORT", "/dev/opennav-no-such-port")
         .output()
         .expect("runs");
     assert_eq!(o.status.code(), Some(1));

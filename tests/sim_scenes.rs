@@ -111,6 +111,46 @@ fn logs_to_a_pipe_carry_no_colour_codes() {
     assert!(!err.contains('\u{1b}'), "escape codes in the log: {err}");
 }
 
+/// Under systemd (`JOURNAL_STREAM` names stderr) the log goes to journald
+/// with its fields, and each sentence is logged once, not also printed;
+/// where journald cannot be reached (no systemd here) it says so and logs
+/// as text — and still prints each sentence once.
+#[test]
+fn under_systemd_the_log_goes_to_journald_and_each_sentence_once() {
+    use std::os::unix::fs::MetadataExt;
+    let dir = tempfile::tempdir().expect("tmp");
+    let log = dir.path().join("stderr");
+    let file = std::fs::File::create(&log).expect("file");
+    let meta = file.metadata().expect("meta");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_opennav"))
+        .args([
+            "run",
+            "--sim",
+            "--no-stdin",
+            "--prompt",
+            "chair",
+            "--exit-on-arrival",
+        ])
+        .env("JOURNAL_STREAM", format!("{}:{}", meta.dev(), meta.ino()))
+        .env("RUST_LOG", "opennav=info")
+        .stderr(file)
+        .output()
+        .expect("runs");
+    assert!(out.status.success(), "{out:?}");
+    let err = std::fs::read_to_string(&log).expect("log");
+    if std::path::Path::new("/run/systemd/journal/socket").exists() {
+        // journald took the log: nothing of it on stderr
+        assert!(!err.contains("Arrived at the chair."), "{err}");
+    } else {
+        assert!(err.contains("journald cannot be reached"), "{err}");
+        assert_eq!(
+            err.matches("opennav says: Arrived at the chair.").count(),
+            1,
+            "{err}"
+        );
+    }
+}
+
 #[test]
 fn the_version_names_the_git_revision() {
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_opennav"))

@@ -292,7 +292,13 @@ impl RebusActuator {
         let mut port = serialport::new(&self.port, 115_200)
             .timeout(Duration::from_millis(1))
             .open()
-            .map_err(|e| ActuatorError::Rebus(format!("{}: {e}", self.port)))?;
+            .map_err(|e| {
+                ActuatorError::Rebus(format!(
+                    "{}: {}",
+                    self.port,
+                    crate::sensors::serial_open_reason(&self.port, &e)
+                ))
+            })?;
         let mut link = RebusLink::new(s);
         let mut decoder = Decoder::default();
         let mut next_tick = io.clock.now();

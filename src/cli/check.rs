@@ -38,9 +38,10 @@ pub enum CheckCommand {
     },
     /// Reads the wheel-encoder board and prints each frame as a JSON line.
     Encoders {
-        /// Serial port (e.g. /dev/ttyACM1 or the udev link /dev/opennav_encoders).
+        /// Serial port (default: config encoders.port, the udev link
+        /// /dev/opennav_encoders).
         #[arg(long)]
-        port: String,
+        port: Option<String>,
         /// Frames to print before exiting.
         #[arg(long, default_value_t = 100)]
         count: u64,
@@ -66,13 +67,23 @@ pub enum CheckCommand {
     },
     /// Reads a Hokuyo URG over SCIP 2.0 and prints each scan as a JSON line.
     Hokuyo {
-        /// Serial port (e.g. /dev/ttyACM0 or the udev link /dev/hokuyo_left).
+        /// Serial port (default: config lasers.left.port or
+        /// lasers.right.port, by --laser).
         #[arg(long)]
-        port: String,
+        port: Option<String>,
+        /// Which configured laser's port, without --port.
+        #[arg(long, value_enum, default_value = "left", conflicts_with = "port")]
+        laser: LaserArg,
         /// Scans to print before exiting.
         #[arg(long, default_value_t = 10)]
         count: u64,
     },
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum LaserArg {
+    Left,
+    Right,
 }
 
 #[derive(Debug, Clone, Copy, ValueEnum)]
@@ -317,7 +328,19 @@ pub fn check_hokuyo(port: &str, count: u64) -> Result<(), Failure> {
 
 pub fn run(config: Option<&std::path::Path>, cmd: CheckCommand) -> Result<(), Failure> {
     match cmd {
-        CheckCommand::Hokuyo { port, count } => check_hokuyo(&port, count),
+        CheckCommand::Hokuyo { port, laser, count } => {
+            let port = match port {
+                Some(p) => p,
+                None => {
+                    let s = Settings::load(config).map_err(super::bad_input)?;
+                    match laser {
+                        LaserArg::Left => s.lasers.left.port,
+                        LaserArg::Right => s.lasers.right.port,
+                    }
+                }
+            };
+            check_hokuyo(&port, count)
+        }
         CheckCommand::Rnet {
             iface,
             listen,
@@ -325,7 +348,18 @@ pub fn run(config: Option<&std::path::Path>, cmd: CheckCommand) -> Result<(), Fa
             drive_for,
             mode,
         } => check_rnet(config, iface, listen, drive.as_deref(), drive_for, mode),
-        CheckCommand::Encoders { port, count } => check_encoders(&port, count),
+        CheckCommand::Encoders { port, count } => {
+            let port = match port {
+                Some(p) => p,
+                None => {
+                    Settings::load(config)
+                        .map_err(super::bad_input)?
+                        .encoders
+                        .port
+                }
+            };
+            check_encoders(&port, count)
+        }
         CheckCommand::Camera { replay, count } => check_camera(config, replay.as_deref(), count),
         CheckCommand::Voice {
             wav,

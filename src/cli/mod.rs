@@ -117,17 +117,67 @@ pub struct Cli {
     pub command: Command,
 }
 
-pub fn main() -> ExitCode {
+/// The log goes to journald natively (under systemd): the sentences are
+/// log events there, not lines on stderr as well.
+pub static TO_JOURNAL: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// Whether stderr is the journal stream systemd connected
+/// (`JOURNAL_STREAM` = its device and inode).
+fn stderr_is_journal() -> bool {
+    let Some((dev, ino)) = std::env::var("JOURNAL_STREAM").ok().and_then(|v| {
+        v.split_once(':')
+            .map(|(d, i)| (d.to_string(), i.to_string()))
+    }) else {
+        return false;
+    };
+    // SAFETY: fstat on fd 2 writes only into the zeroed struct given
+    let mut st: libc::stat = unsafe { std::mem::zeroed() };
+    if unsafe { libc::fstat(2, &mut st) } != 0 {
+        return false;
+    }
+    dev.parse::<u64>().ok() == Some(st.st_dev) && ino.parse::<u64>().ok() == Some(st.st_ino)
+}
+
+/// Logs: to journald with each event's fields (task, reason, device…) as
+/// journal fields when stderr is the journal; else to stderr, coloured
+/// only for a person at a terminal (files would keep the escape codes).
+fn init_logs() {
+    use tracing_subscriber::layer::SubscriberExt;
+    use tracing_subscriber::util::SubscriberInitExt;
+    let filter = |default: &str| {
+        tracing_subscriber::EnvFilter::try_from_default_env()
+            .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(default))
+    };
+    let journal = if stderr_is_journal() {
+        Some(tracing_journald::layer())
+    } else {
+        None
+    };
+    let fallback = match journal {
+        Some(Ok(j)) => {
+            // the sentences are info events: kept by default
+            tracing_subscriber::registry()
+                .with(filter("info"))
+                .with(j.with_syslog_identifier("opennav".into()))
+                .init();
+            TO_JOURNAL.store(true, std::sync::atomic::Ordering::SeqCst);
+            return;
+        }
+        Some(Err(e)) => Some(e),
+        None => None,
+    };
     tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn")),
-        )
+        .with_env_filter(filter("warn"))
         .with_writer(std::io::stderr)
-        // colour only for a person at a terminal: journald and files would
-        // keep the escape codes
         .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .init();
+    if let Some(e) = fallback {
+        tracing::warn!(error = %e, "stderr is the journal but journald cannot be reached: logging as text");
+    }
+}
+
+pub fn main() -> ExitCode {
+    init_logs();
     let cli = Cli::parse();
     match dispatch(cli) {
         Ok(()) => ExitCode::SUCCESS,

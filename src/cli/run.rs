@@ -119,7 +119,10 @@ pub fn run(config: Option<&std::path::Path>, args: RunArgs) -> Result<(), Failur
         .name("sentences".into())
         .spawn(move || {
             while let Some(s) = speech_rx.blocking_recv() {
-                eprintln!("opennav says: {s}");
+                // in the journal the control task's event says it already
+                if !super::TO_JOURNAL.load(std::sync::atomic::Ordering::SeqCst) {
+                    eprintln!("opennav says: {s}");
+                }
                 if let Some(sp) = &speaker {
                     sp.say(&s);
                 }

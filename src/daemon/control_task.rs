@@ -13,7 +13,7 @@ use tokio_util::sync::CancellationToken;
 
 use super::control::{Control, ControlInputs, Outcome};
 use super::latch;
-use super::notify::sd_notify;
+use super::notify::{sd_notify, status_line, NotifyState};
 use crate::actuation::ActuatorEvent;
 use crate::estimation::goal::GoalState;
 use crate::estimation::tracker::Tracker;
@@ -82,6 +82,8 @@ pub async fn run(mut control: Control, mut io: ControlTaskIo) -> ControlEnd {
     let mut ready = false;
     let mut persisted: Option<crate::msg::FaultReason> = None;
     let mut status_sent = String::new();
+    // the last stop's reason, for systemd's status line
+    let mut last_stop: Option<String> = None;
     let mut inputs_open = true;
     let mut stops = io.stops.take();
     let mut last_said: std::collections::VecDeque<String> = Default::default();
@@ -261,21 +263,32 @@ pub async fn run(mut control: Control, mut io: ControlTaskIo) -> ControlEnd {
                 }
             }
         }
-        if !ready {
-            if io.waiting.is_empty() {
-                ready = true;
-                sd_notify("READY=1");
-                sd_notify("STATUS=running");
-            } else {
-                let status = format!(
-                    "STATUS=waiting for a first reading from: {}",
-                    io.waiting.iter().copied().collect::<Vec<_>>().join(", ")
-                );
-                if status != status_sent {
-                    sd_notify(&status);
-                    status_sent = status;
-                }
-            }
+        match &out.cmd.state {
+            SupervisorState::Stopped(r) => last_stop = Some(format!("{r:?}")),
+            SupervisorState::Fault(r) => last_stop = Some(format!("fault {r:?}")),
+            _ => {}
+        }
+        if !ready && io.waiting.is_empty() {
+            ready = true;
+            sd_notify(NotifyState::Ready);
+        }
+        let status = if ready {
+            let goal = control.goal_state();
+            status_line(
+                &out.cmd.state,
+                goal.label(),
+                goal.phase(),
+                last_stop.as_deref(),
+            )
+        } else {
+            format!(
+                "waiting for a first reading from: {}",
+                io.waiting.iter().copied().collect::<Vec<_>>().join(", ")
+            )
+        };
+        if status != status_sent {
+            sd_notify(NotifyState::Status(&status));
+            status_sent = status;
         }
         // the trip is over once the chair is at rest: it was told to stop
         // (a stop's outcome is the first one)
@@ -298,7 +311,7 @@ pub async fn run(mut control: Control, mut io: ControlTaskIo) -> ControlEnd {
         }
         // fed only while every task runs and nothing is faulted
         if !matches!(out.cmd.state, SupervisorState::Fault(_)) {
-            sd_notify("WATCHDOG=1");
+            sd_notify(NotifyState::Watchdog);
         }
     };
     // the last word to the actuator: zero
@@ -308,7 +321,7 @@ pub async fn run(mut control: Control, mut io: ControlTaskIo) -> ControlEnd {
         state: control.state(),
         stamp: now,
     }));
-    sd_notify("STOPPING=1");
+    sd_notify(NotifyState::Stopping);
     // the channels stay open until the daemon shuts the tasks down: a
     // closed channel means a dead task
     ControlEnd {

@@ -384,7 +384,7 @@ impl EncoderDriver {
                 .open()
                 .map_err(|e| EncoderError::Open {
                     port: self.port_name.clone(),
-                    reason: e.to_string(),
+                    reason: super::serial_open_reason(&self.port_name, &e),
                 })?;
             self.port = Some(p);
             self.decoder.reset_stream();

@@ -204,7 +204,7 @@ impl HokuyoDriver {
             .open()
             .map_err(|e| HokuyoError::Open {
                 port: self.port_name(),
-                reason: e.to_string(),
+                reason: super::serial_open_reason(&self.settings.port, &e),
             })?;
         self.port = Some(p);
         self.framer.clear();
