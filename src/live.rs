@@ -325,7 +325,7 @@ struct Channels {
 }
 
 /// The JSON schema of `/supervisor`.
-const SUPERVISOR_SCHEMA: &str = r#"{
+pub const SUPERVISOR_SCHEMA: &str = r#"{
   "type": "object",
   "properties": {
     "state": {"type": "string"},
@@ -430,59 +430,92 @@ impl Channels {
             self.tf
                 .log_with_time(&mounting_transforms(&self.mounting, ts), t);
         }
-        if let Some(p) = s.pose {
-            self.tf.log_with_time(
-                &fg::FrameTransforms {
-                    transforms: vec![transform(FRAME_ODOM, FRAME_BASE, &p.to_isometry3(), ts)],
-                },
-                t,
-            );
-        }
-        self.tracks.log_with_time(&tracks_scene(s, ts), t);
-        self.plan.log_with_time(
-            &fg::PosesInFrame {
-                timestamp: Some(ts),
-                frame_id: FRAME_ODOM.into(),
-                poses: s
-                    .plan_odom
-                    .iter()
-                    .map(|p| pose([p[0], p[1], 0.0], UnitQuaternion::identity()))
-                    .collect(),
-            },
-            t,
-        );
-        if let Some(c) = &s.camera {
-            self.camera_obstacles.log_with_time(&camera_cloud(c, ts), t);
-        }
-        for line in &s.said {
-            self.said.log_with_time(
-                &fg::Log {
-                    timestamp: Some(ts),
-                    level: fg::log::Level::Info as i32,
-                    message: line.clone(),
-                    name: "opennav".into(),
-                    file: String::new(),
-                    line: 0,
-                },
-                t,
-            );
-        }
-        let (state, reason) = state_words(&s.state);
-        let msg = SupervisorMsg {
-            state,
-            reason,
-            v_mps: s.cmd.v_mps,
-            omega_radps: s.cmd.omega_radps,
-            goal: s.goal.as_deref(),
-            phase: s.phase.as_deref(),
-        };
-        match serde_json::to_vec(&msg) {
-            Ok(bytes) => self
-                .supervisor
-                .log_with_meta(&bytes, PartialMetadata { log_time: Some(t) }),
-            Err(e) => tracing::warn!(error = %e, "live view: the supervisor's state"),
+        for (topic, msg) in step_messages(s, ts) {
+            match msg {
+                StepMessage::Tf(m) => self.tf.log_with_time(&m, t),
+                StepMessage::Scene(m) => self.tracks.log_with_time(&m, t),
+                StepMessage::Path(m) => self.plan.log_with_time(&m, t),
+                StepMessage::Cloud(m) => self.camera_obstacles.log_with_time(&m, t),
+                StepMessage::Log(m) => self.said.log_with_time(&m, t),
+                StepMessage::Supervisor(json) => self
+                    .supervisor
+                    .log_with_meta(&json, PartialMetadata { log_time: Some(t) }),
+            }
+            debug_assert!(TOPICS.contains(&topic));
         }
     }
+}
+
+/// One message of a control step, by its schema.
+pub enum StepMessage {
+    Tf(fg::FrameTransforms),
+    Scene(fg::SceneUpdate),
+    Path(fg::PosesInFrame),
+    Cloud(fg::PointCloud),
+    Log(fg::Log),
+    /// `opennav.Supervisor`, JSON.
+    Supervisor(Vec<u8>),
+}
+
+/// What a control step shows, topic by topic (the live view and the
+/// recording write the same): `odom`→`base_link`, the tracks and approach,
+/// the MPC's path, the camera's obstacles, each sentence, the supervisor.
+pub fn step_messages(s: &StepView, ts: fg::Timestamp) -> Vec<(&'static str, StepMessage)> {
+    let mut out = Vec::new();
+    if let Some(p) = s.pose {
+        out.push((
+            TOPIC_TF,
+            StepMessage::Tf(fg::FrameTransforms {
+                transforms: vec![transform(FRAME_ODOM, FRAME_BASE, &p.to_isometry3(), ts)],
+            }),
+        ));
+    }
+    out.push((TOPIC_TRACKS, StepMessage::Scene(tracks_scene(s, ts))));
+    out.push((
+        TOPIC_PLAN,
+        StepMessage::Path(fg::PosesInFrame {
+            timestamp: Some(ts),
+            frame_id: FRAME_ODOM.into(),
+            poses: s
+                .plan_odom
+                .iter()
+                .map(|p| pose([p[0], p[1], 0.0], UnitQuaternion::identity()))
+                .collect(),
+        }),
+    ));
+    if let Some(c) = &s.camera {
+        out.push((
+            TOPIC_CAMERA_OBSTACLES,
+            StepMessage::Cloud(camera_cloud(c, ts)),
+        ));
+    }
+    for line in &s.said {
+        out.push((
+            TOPIC_SAID,
+            StepMessage::Log(fg::Log {
+                timestamp: Some(ts),
+                level: fg::log::Level::Info as i32,
+                message: line.clone(),
+                name: "opennav".into(),
+                file: String::new(),
+                line: 0,
+            }),
+        ));
+    }
+    let (state, reason) = state_words(&s.state);
+    let msg = SupervisorMsg {
+        state,
+        reason,
+        v_mps: s.cmd.v_mps,
+        omega_radps: s.cmd.omega_radps,
+        goal: s.goal.as_deref(),
+        phase: s.phase.as_deref(),
+    };
+    match serde_json::to_vec(&msg) {
+        Ok(bytes) => out.push((TOPIC_SUPERVISOR, StepMessage::Supervisor(bytes))),
+        Err(e) => tracing::warn!(error = %e, "the supervisor's state as JSON"),
+    }
+    out
 }
 
 /// The supervisor's state as a word, and the reason of a stop or fault.

@@ -1,22 +1,31 @@
-//! Recordings in MCAP (the `mcap` crate, zstd chunks): what the chair
-//! sensed and what perception made of it, stamped with the acquisition
-//! time, for replay through the real pipeline and comparison.
+//! Recordings in MCAP (the `mcap` crate, zstd chunks) that open in
+//! Foxglove and replay exactly through the real pipeline. Every channel has
+//! a schema: the live view's topics in Foxglove's (protobuf) schemas, and
+//! JSON with a JSON schema for what exact replay needs beside them.
 //!
-//! Topics (message encodings):
-//! - `/laser/left`, `/laser/right` (`json`): a scan — sensor clock, angles,
-//!   per step the reading code (mm, or the URG's code below 20) and the
-//!   range in metres (null: no return);
-//! - `/odometry/ticks` (`json`): the encoder board's frame;
-//! - `/camera/rgbd` (`opennav.rgbd/1`): colour and depth of one paired
-//!   frame, binary: `"RGBD"`, u32 width, u32 height (little-endian), RGB
-//!   bytes, then depth as f32 metres (little-endian) — exact, not
-//!   re-quantised;
-//! - `/camera/calibration` (`json`): the calibration file
-//!   (`opennav-calibration/1`), once;
-//! - `/perception/detections`, `/perception/objects` (`json`): the 2D
-//!   detections of a frame and the 3D objects made of them.
+//! Topics (schema):
+//! - `/laser/left`, `/laser/right` (`foxglove.LaserScan`), and
+//!   `/laser/left/codes`, `/laser/right/codes` (`opennav.ScanCodes`): the
+//!   sensor clock, angles, per step the reading code (mm, or the URG's code
+//!   below 20) and the range in metres (null: no return);
+//! - `/odometry/ticks` (`opennav.WheelTicks`): the encoder board's frame;
+//! - `/camera/color`, `/camera/depth` (`foxglove.RawImage`, `rgb8` and
+//!   `32FC1` metres — exact, not re-quantised), one log time per pair;
+//! - `/camera/calibration` (`opennav.Calibration`): the calibration file
+//!   (`opennav-calibration/1`) as the run used it, once;
+//! - `/camera/detections` (`foxglove.ImageAnnotations`), `/objects`
+//!   (`foxglove.SceneUpdate`), and `/perception/detections`,
+//!   `/perception/objects` (`opennav.Detections`, `opennav.Objects`): the
+//!   2D detections of a frame and the 3D objects made of them;
+//! - from each control step, as the live view (`crate::live`): `/tf`,
+//!   `/tracks`, `/plan`, `/camera/obstacles`, `/said`, `/supervisor`.
 //!
-//! Log time = the data's stamp (ns of the monotonic clock).
+//! Log time = the data's stamp plus the wall-clock offset kept in the
+//! metadata record `opennav` (`wall_minus_monotonic_ns`, with `version`
+//! and the `config` as given), so Foxglove shows the real date and the
+//! reader gives the run's stamps back. The first format (JSON scans on
+//! `/laser/*`, `/camera/rgbd` as `opennav.rgbd/1`, log time = stamp) is
+//! still read.
 
 use std::collections::BTreeMap;
 use std::io::BufWriter;
@@ -156,20 +165,6 @@ pub struct ObjectRecord {
     pub points: usize,
 }
 
-fn encode_rgbd(f: &RgbdFrame) -> Vec<u8> {
-    let (w, h) = (f.color.width(), f.color.height());
-    let d = f.depth.data();
-    let mut out = Vec::with_capacity(12 + w * h * 3 + d.len() * 4);
-    out.extend_from_slice(b"RGBD");
-    out.extend_from_slice(&(w as u32).to_le_bytes());
-    out.extend_from_slice(&(h as u32).to_le_bytes());
-    out.extend_from_slice(f.color.data());
-    for z in d {
-        out.extend_from_slice(&z.to_le_bytes());
-    }
-    out
-}
-
 fn decode_rgbd(b: &[u8], stamp: Stamp) -> Result<RgbdFrame, String> {
     if b.len() < 12 || &b[..4] != b"RGBD" {
         return Err("not an opennav.rgbd/1 frame (no RGBD header)".into());
@@ -199,12 +194,48 @@ fn decode_rgbd(b: &[u8], stamp: Stamp) -> Result<RgbdFrame, String> {
     })
 }
 
-/// Writes a recording.
+/// What a recording says about itself (an MCAP metadata record named
+/// `opennav`, before any message).
+#[derive(Debug, Clone, Default)]
+pub struct RecordingInfo {
+    /// Wall-clock time minus the run's monotonic clock, ns: log times are
+    /// wall-clock (Foxglove shows the date); a stamp is log time − this.
+    pub wall_minus_monotonic_ns: u64,
+    /// The configuration the run was given (file text, overrides).
+    pub config: String,
+    /// Where the sensors sit (`base_link`), for the static transforms.
+    pub mounting: Option<crate::live::Mounting>,
+}
+
+/// The metadata record's name and keys.
+pub const METADATA_NAME: &str = "opennav";
+pub const META_OFFSET: &str = "wall_minus_monotonic_ns";
+
+/// JSON schemas of the JSON channels (`jsonschema`, draft 2020-12 subset).
+mod json_schemas {
+    pub const SCAN_CODES: &str = r#"{"title":"opennav.ScanCodes","type":"object","required":["sensor_ms","angle_min_rad","angle_increment_rad","codes","ranges_m"],"properties":{"sensor_ms":{"type":"integer"},"angle_min_rad":{"type":"number"},"angle_increment_rad":{"type":"number"},"codes":{"type":"array","items":{"type":"integer"}},"ranges_m":{"type":"array","items":{"type":["number","null"]}}}}"#;
+    pub const TICKS: &str = r#"{"title":"opennav.WheelTicks","type":"object","required":["seq","mcu_time_us","left","right","left_illegal","right_illegal","gap"],"properties":{"seq":{"type":"integer"},"mcu_time_us":{"type":"integer"},"left":{"type":"integer"},"right":{"type":"integer"},"left_illegal":{"type":"integer"},"right_illegal":{"type":"integer"},"gap":{"type":"integer"}}}"#;
+    pub const CALIBRATION: &str = r#"{"title":"opennav.Calibration","type":"object","required":["format","color","depth_scale_m","base_from_camera"],"properties":{"format":{"type":"string"},"color":{"type":"object"},"depth":{"type":"object"},"depth_scale_m":{"type":"number"},"color_from_depth":{"type":"object"},"base_from_camera":{"type":"object"},"source":{"type":"string"}}}"#;
+    pub const DETECTIONS: &str = r#"{"title":"opennav.Detections","type":"array","items":{"type":"object","required":["label","class","score","box_xyxy"],"properties":{"label":{"type":"string"},"class":{"type":"string"},"score":{"type":"number"},"box_xyxy":{"type":"array","items":{"type":"number"}}}}}"#;
+    pub const OBJECTS: &str = r#"{"title":"opennav.Objects","type":"array","items":{"type":"object","required":["label","score","min_m","max_m","points"],"properties":{"label":{"type":"string"},"score":{"type":"number"},"min_m":{"type":"array","items":{"type":"number"}},"max_m":{"type":"array","items":{"type":"number"}},"points":{"type":"integer"}}}}"#;
+}
+
+/// The raw laser codes (exact replay) beside each `foxglove.LaserScan`.
+pub const TOPIC_LASER_LEFT_CODES: &str = "/laser/left/codes";
+pub const TOPIC_LASER_RIGHT_CODES: &str = "/laser/right/codes";
+
+/// Writes a recording: every channel has a schema — Foxglove's
+/// (protobuf) where one fits, the live view's topics; JSON with a JSON
+/// schema for what exact replay needs beside them.
 pub struct Recorder {
     path: PathBuf,
     writer: mcap::Writer<BufWriter<std::fs::File>>,
+    /// topic → channel id (made when first written)
     channels: BTreeMap<&'static str, u16>,
     sequence: u32,
+    offset_ns: u64,
+    mounting: Option<crate::live::Mounting>,
+    static_sent: Option<Stamp>,
 }
 
 fn ns(s: Stamp) -> u64 {
@@ -212,86 +243,174 @@ fn ns(s: Stamp) -> u64 {
 }
 
 impl Recorder {
+    /// A recording whose log times are the stamps (no wall-clock offset).
     pub fn create(path: &Path) -> Result<Recorder, RecordError> {
+        Recorder::create_with(path, &RecordingInfo::default())
+    }
+
+    pub fn create_with(path: &Path, info: &RecordingInfo) -> Result<Recorder, RecordError> {
         let ferr = |e: &dyn std::fmt::Display| RecordError::File {
             path: path.display().to_string(),
             reason: e.to_string(),
         };
         let file = std::fs::File::create(path).map_err(|e| ferr(&e))?;
         let mut writer = mcap::WriteOptions::new()
-            .profile("opennav")
-            .library("opennav")
+            .profile("")
+            .library(concat!("opennav ", env!("CARGO_PKG_VERSION")))
             .create(BufWriter::new(file))
             .map_err(|e| ferr(&e))?;
-        let mut channels = BTreeMap::new();
-        for (topic, enc) in [
-            (TOPIC_LASER_LEFT, "json"),
-            (TOPIC_LASER_RIGHT, "json"),
-            (TOPIC_TICKS, "json"),
-            (TOPIC_RGBD, "opennav.rgbd/1"),
-            (TOPIC_CALIBRATION, "json"),
-            (TOPIC_DETECTIONS, "json"),
-            (TOPIC_OBJECTS, "json"),
-        ] {
-            let id = writer
-                .add_channel(0, topic, enc, &BTreeMap::new())
-                .map_err(|e| ferr(&e))?;
-            channels.insert(topic, id);
-        }
+        let mut metadata = BTreeMap::new();
+        metadata.insert(
+            "version".to_string(),
+            format!(
+                "{} (git {})",
+                env!("CARGO_PKG_VERSION"),
+                env!("OPENNAV_GIT_REV")
+            ),
+        );
+        metadata.insert(
+            META_OFFSET.to_string(),
+            info.wall_minus_monotonic_ns.to_string(),
+        );
+        metadata.insert("config".to_string(), info.config.clone());
+        writer
+            .write_metadata(&mcap::records::Metadata {
+                name: METADATA_NAME.to_string(),
+                metadata,
+            })
+            .map_err(|e| ferr(&e))?;
         Ok(Recorder {
             path: path.to_path_buf(),
             writer,
-            channels,
+            channels: BTreeMap::new(),
             sequence: 0,
+            offset_ns: info.wall_minus_monotonic_ns,
+            mounting: info.mounting,
+            static_sent: None,
         })
     }
 
-    fn write(&mut self, topic: &'static str, stamp: Stamp, data: &[u8]) -> Result<(), RecordError> {
-        let channel_id = *self.channels.get(topic).ok_or_else(|| RecordError::File {
+    fn err(&self, e: &dyn std::fmt::Display) -> RecordError {
+        RecordError::File {
             path: self.path.display().to_string(),
-            reason: format!("no channel {topic}"),
-        })?;
+            reason: e.to_string(),
+        }
+    }
+
+    /// The channel of `topic`, made with its schema the first time.
+    fn channel(
+        &mut self,
+        topic: &'static str,
+        encoding: &str,
+        schema: (&str, &str, &[u8]),
+    ) -> Result<u16, RecordError> {
+        if let Some(id) = self.channels.get(topic) {
+            return Ok(*id);
+        }
+        let (name, schema_encoding, data) = schema;
+        let schema_id = self
+            .writer
+            .add_schema(name, schema_encoding, data)
+            .map_err(|e| self.err(&e))?;
+        let id = self
+            .writer
+            .add_channel(schema_id, topic, encoding, &BTreeMap::new())
+            .map_err(|e| self.err(&e))?;
+        self.channels.insert(topic, id);
+        Ok(id)
+    }
+
+    fn put(&mut self, channel_id: u16, stamp: Stamp, data: &[u8]) -> Result<(), RecordError> {
         self.sequence = self.sequence.wrapping_add(1);
+        let t = ns(stamp).saturating_add(self.offset_ns);
         self.writer
             .write_to_known_channel(
                 &mcap::records::MessageHeader {
                     channel_id,
                     sequence: self.sequence,
-                    log_time: ns(stamp),
-                    publish_time: ns(stamp),
+                    log_time: t,
+                    publish_time: t,
                 },
                 data,
             )
-            .map_err(|e| RecordError::File {
-                path: self.path.display().to_string(),
-                reason: e.to_string(),
-            })
+            .map_err(|e| self.err(&e))
     }
 
-    fn write_json<T: Serialize>(
+    /// A Foxglove message (protobuf) on `topic`.
+    fn write_fg<T: foxglove::Encode>(
         &mut self,
         topic: &'static str,
         stamp: Stamp,
+        msg: &T,
+    ) -> Result<(), RecordError> {
+        let schema = T::get_schema().ok_or_else(|| self.err(&format!("{topic}: no schema")))?;
+        let id = self.channel(
+            topic,
+            &T::get_message_encoding(),
+            (&schema.name, &schema.encoding, &schema.data),
+        )?;
+        let mut buf = Vec::new();
+        msg.encode(&mut buf).map_err(|e| self.err(&e))?;
+        self.put(id, stamp, &buf)
+    }
+
+    /// A JSON message on `topic`, its JSON schema `schema` named `name`.
+    fn write_json<T: Serialize>(
+        &mut self,
+        topic: &'static str,
+        name: &str,
+        schema: &str,
+        stamp: Stamp,
         v: &T,
     ) -> Result<(), RecordError> {
-        let data = serde_json::to_vec(v).map_err(|e| RecordError::File {
-            path: self.path.display().to_string(),
-            reason: e.to_string(),
-        })?;
-        self.write(topic, stamp, &data)
+        let id = self.channel(topic, "json", (name, "jsonschema", schema.as_bytes()))?;
+        let data = serde_json::to_vec(v).map_err(|e| self.err(&e))?;
+        self.put(id, stamp, &data)
+    }
+
+    /// The wall-clock Foxglove timestamp of a stamp.
+    fn ts(&self, stamp: Stamp) -> foxglove::messages::Timestamp {
+        let t = ns(stamp).saturating_add(self.offset_ns);
+        foxglove::messages::Timestamp::new((t / 1_000_000_000) as u32, (t % 1_000_000_000) as u32)
     }
 
     pub fn scan(&mut self, left: bool, s: &Stamped<LaserScan>) -> Result<(), RecordError> {
-        let topic = if left {
-            TOPIC_LASER_LEFT
+        let (topic, codes, frame) = if left {
+            (
+                TOPIC_LASER_LEFT,
+                TOPIC_LASER_LEFT_CODES,
+                crate::live::FRAME_LASER_LEFT,
+            )
         } else {
-            TOPIC_LASER_RIGHT
+            (
+                TOPIC_LASER_RIGHT,
+                TOPIC_LASER_RIGHT_CODES,
+                crate::live::FRAME_LASER_RIGHT,
+            )
         };
-        self.write_json(topic, s.stamp, &ScanRecord::from_scan(&s.value))
+        let ts = self.ts(s.stamp);
+        self.write_fg(
+            topic,
+            s.stamp,
+            &crate::live::laser_scan(&s.value, frame, ts),
+        )?;
+        self.write_json(
+            codes,
+            "opennav.ScanCodes",
+            json_schemas::SCAN_CODES,
+            s.stamp,
+            &ScanRecord::from_scan(&s.value),
+        )
     }
 
     pub fn ticks(&mut self, t: &Stamped<WheelTicks>) -> Result<(), RecordError> {
-        self.write_json(TOPIC_TICKS, t.stamp, &TicksRecord::from(&t.value))
+        self.write_json(
+            TOPIC_TICKS,
+            "opennav.WheelTicks",
+            json_schemas::TICKS,
+            t.stamp,
+            &TicksRecord::from(&t.value),
+        )
     }
 
     pub fn calibration(
@@ -299,11 +418,20 @@ impl Recorder {
         stamp: Stamp,
         c: &crate::msg::calibration::CalibrationFile,
     ) -> Result<(), RecordError> {
-        self.write_json(TOPIC_CALIBRATION, stamp, c)
+        self.write_json(
+            TOPIC_CALIBRATION,
+            "opennav.Calibration",
+            json_schemas::CALIBRATION,
+            stamp,
+            c,
+        )
     }
 
+    /// Colour (`rgb8`) and depth (`32FC1`, metres: exact) with one stamp.
     pub fn rgbd(&mut self, f: &Stamped<RgbdFrame>) -> Result<(), RecordError> {
-        self.write(TOPIC_RGBD, f.stamp, &encode_rgbd(&f.value))
+        let (color, depth) = crate::live::images(&f.value, self.ts(f.stamp));
+        self.write_fg(crate::live::TOPIC_COLOR, f.stamp, &color)?;
+        self.write_fg(crate::live::TOPIC_DEPTH, f.stamp, &depth)
     }
 
     pub fn detections(&mut self, stamp: Stamp, d: &[Detection]) -> Result<(), RecordError> {
@@ -316,7 +444,19 @@ impl Recorder {
                 box_xyxy: d.box_xyxy,
             })
             .collect();
-        self.write_json(TOPIC_DETECTIONS, stamp, &v)
+        let ts = self.ts(stamp);
+        self.write_fg(
+            crate::live::TOPIC_DETECTIONS,
+            stamp,
+            &crate::live::image_annotations(d, ts),
+        )?;
+        self.write_json(
+            TOPIC_DETECTIONS,
+            "opennav.Detections",
+            json_schemas::DETECTIONS,
+            stamp,
+            &v,
+        )
     }
 
     pub fn objects(
@@ -325,7 +465,58 @@ impl Recorder {
         objects: &[crate::perception::boxes::Object3D],
     ) -> Result<(), RecordError> {
         let v: Vec<ObjectRecord> = objects.iter().map(object_record).collect();
-        self.write_json(TOPIC_OBJECTS, stamp, &v)
+        let ts = self.ts(stamp);
+        self.write_fg(
+            crate::live::TOPIC_OBJECTS,
+            stamp,
+            &crate::live::objects_scene(objects, ts),
+        )?;
+        self.write_json(
+            TOPIC_OBJECTS,
+            "opennav.Objects",
+            json_schemas::OBJECTS,
+            stamp,
+            &v,
+        )
+    }
+
+    /// A control step: the pose and the sensors' mounting (`/tf`), the
+    /// tracks and approach, the MPC's path, the camera's obstacles, the
+    /// sentences and the supervisor's state — as the live view shows them.
+    pub fn step(&mut self, s: &crate::live::StepView) -> Result<(), RecordError> {
+        use crate::live as lv;
+        let ts = self.ts(s.stamp);
+        if let Some(m) = self.mounting {
+            if self
+                .static_sent
+                .is_none_or(|at| at.age_at(s.stamp) >= std::time::Duration::from_secs(1))
+            {
+                self.static_sent = Some(s.stamp);
+                self.write_fg(lv::TOPIC_TF, s.stamp, &lv::mounting_transforms(&m, ts))?;
+            }
+        }
+        for (topic, msg) in lv::step_messages(s, ts) {
+            match msg {
+                lv::StepMessage::Tf(m) => self.write_fg(topic, s.stamp, &m)?,
+                lv::StepMessage::Scene(m) => self.write_fg(topic, s.stamp, &m)?,
+                lv::StepMessage::Path(m) => self.write_fg(topic, s.stamp, &m)?,
+                lv::StepMessage::Cloud(m) => self.write_fg(topic, s.stamp, &m)?,
+                lv::StepMessage::Log(m) => self.write_fg(topic, s.stamp, &m)?,
+                lv::StepMessage::Supervisor(json) => {
+                    let id = self.channel(
+                        lv::TOPIC_SUPERVISOR,
+                        "json",
+                        (
+                            "opennav.Supervisor",
+                            "jsonschema",
+                            lv::SUPERVISOR_SCHEMA.as_bytes(),
+                        ),
+                    )?;
+                    self.put(id, s.stamp, &json)?
+                }
+            }
+        }
+        Ok(())
     }
 
     pub fn finish(mut self) -> Result<(), RecordError> {
@@ -380,7 +571,13 @@ pub struct RecordReader {
     path: String,
     file: std::fs::File,
     reader: mcap::sans_io::linear_reader::LinearReader,
-    topics: BTreeMap<u16, String>,
+    /// channel id → topic and message encoding
+    topics: BTreeMap<u16, (String, String)>,
+    /// log time − this = the run's stamp (the `opennav` metadata record;
+    /// 0 in recordings without it)
+    offset_ns: u64,
+    /// A colour image waiting for its depth (same log time).
+    color: Option<(u64, RgbImage)>,
     /// Messages decoded so far.
     index: usize,
     offset: u64,
@@ -411,6 +608,8 @@ impl RecordReader {
                     .with_prevalidate_chunk_crcs(true),
             ),
             topics: BTreeMap::new(),
+            offset_ns: 0,
+            color: None,
             index: 0,
             offset: 0,
             done: false,
@@ -456,10 +655,24 @@ impl RecordReader {
                     };
                     match record {
                         Record::Channel(c) => {
-                            self.topics.insert(c.id, c.topic);
+                            self.topics.insert(c.id, (c.topic, c.message_encoding));
+                        }
+                        Record::Metadata(m) if m.name == METADATA_NAME => {
+                            if let Some(v) = m.metadata.get(META_OFFSET) {
+                                match v.parse::<u64>() {
+                                    Ok(o) => self.offset_ns = o,
+                                    Err(e) => {
+                                        return Err(self.file_error(format!(
+                                            "metadata {META_OFFSET} {v:?}: {e}"
+                                        )))
+                                    }
+                                }
+                            }
                         }
                         Record::Message { header, data } => {
-                            let Some(topic) = self.topics.get(&header.channel_id).cloned() else {
+                            let Some((topic, encoding)) =
+                                self.topics.get(&header.channel_id).cloned()
+                            else {
                                 let id = header.channel_id;
                                 return Err(
                                     self.file_error(format!("message on unknown channel {id}"))
@@ -467,10 +680,24 @@ impl RecordReader {
                             };
                             let index = self.index;
                             self.index += 1;
-                            let stamp = Stamp(std::time::Duration::from_nanos(header.log_time));
-                            return decode_message(&self.path, index, topic, stamp, &data)
-                                .map(Some)
-                                .inspect_err(|_| self.done = true);
+                            let stamp = Stamp(std::time::Duration::from_nanos(
+                                header.log_time.saturating_sub(self.offset_ns),
+                            ));
+                            let msg = Message {
+                                index,
+                                topic,
+                                encoding,
+                                log_time: header.log_time,
+                                stamp,
+                            };
+                            match decode(&self.path, &mut self.color, msg, &data) {
+                                Ok(Some(r)) => return Ok(Some(r)),
+                                Ok(None) => {}
+                                Err(e) => {
+                                    self.done = true;
+                                    return Err(e);
+                                }
+                            }
                         }
                         _ => {}
                     }
@@ -499,7 +726,122 @@ impl Iterator for RecordReader {
     }
 }
 
-/// One message decoded; a bad one is an error naming it.
+/// Where a message sits in the file.
+struct Message {
+    index: usize,
+    topic: String,
+    encoding: String,
+    log_time: u64,
+    stamp: Stamp,
+}
+
+/// One message decoded (None: it waits for its pair, or only shows); a
+/// bad one is an error naming it. `color`: a colour image waiting for its
+/// depth.
+fn decode(
+    path: &str,
+    pending_color: &mut Option<(u64, RgbImage)>,
+    m: Message,
+    data: &[u8],
+) -> Result<Option<Recorded>, RecordError> {
+    let path = path.to_string();
+    let bad = |reason: String| RecordError::Message {
+        path: path.clone(),
+        index: m.index,
+        topic: m.topic.clone(),
+        reason,
+    };
+    let image = |data: &[u8]| -> Result<foxglove::messages::RawImage, RecordError> {
+        use foxglove::Decode;
+        let im = foxglove::messages::RawImage::decode(data).map_err(|e| bad(e.to_string()))?;
+        let (w, h) = (im.width as usize, im.height as usize);
+        let px = match im.encoding.as_str() {
+            "rgb8" => 3,
+            "32FC1" => 4,
+            e => return Err(bad(format!("image encoding {e:?}, expected rgb8 or 32FC1"))),
+        };
+        let want = w.checked_mul(h).and_then(|n| n.checked_mul(px));
+        if want != Some(im.data.len()) || im.step as usize != w.saturating_mul(px) {
+            return Err(bad(format!(
+                "{} bytes, step {} for {w}×{h} {}",
+                im.data.len(),
+                im.step,
+                im.encoding
+            )));
+        }
+        Ok(im)
+    };
+    match (m.topic.as_str(), m.encoding.as_str()) {
+        (crate::live::TOPIC_COLOR, "protobuf") => {
+            let im = image(data)?;
+            if im.encoding != "rgb8" {
+                return Err(bad(format!("colour as {}", im.encoding)));
+            }
+            let rgb = RgbImage::new(im.width as usize, im.height as usize, im.data.to_vec())
+                .map_err(|e| bad(e.to_string()))?;
+            *pending_color = Some((m.log_time, rgb));
+            Ok(None)
+        }
+        (crate::live::TOPIC_DEPTH, "protobuf") => {
+            let im = image(data)?;
+            if im.encoding != "32FC1" {
+                return Err(bad(format!("depth as {}", im.encoding)));
+            }
+            let Some((t, color)) = pending_color.take() else {
+                return Err(bad("a depth image without its colour image".into()));
+            };
+            if t != m.log_time {
+                return Err(bad(format!(
+                    "depth at {} ns, its colour at {t} ns",
+                    m.log_time
+                )));
+            }
+            let depth: Vec<f32> = im
+                .data
+                .chunks_exact(4)
+                .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+                .collect();
+            let depth = DepthImage::new(im.width as usize, im.height as usize, depth)
+                .map_err(|e| bad(e.to_string()))?;
+            Ok(Some(Recorded::Rgbd(Stamped::new(
+                m.stamp,
+                RgbdFrame {
+                    color,
+                    depth,
+                    color_stamp: m.stamp,
+                    depth_stamp: m.stamp,
+                },
+            ))))
+        }
+        // the scans as Foxglove shows them: the codes beside them are
+        // what replays exactly
+        (TOPIC_LASER_LEFT | TOPIC_LASER_RIGHT, "protobuf") => Ok(None),
+        (topic, "protobuf" | "json") if !is_replayed(topic) => Ok(Some(Recorded::Other {
+            topic: m.topic.clone(),
+            stamp: m.stamp,
+        })),
+        _ => decode_message(&path, m.index, m.topic.clone(), m.stamp, data).map(Some),
+    }
+}
+
+/// Topics whose messages replay (the rest only show).
+fn is_replayed(topic: &str) -> bool {
+    [
+        TOPIC_LASER_LEFT,
+        TOPIC_LASER_RIGHT,
+        TOPIC_LASER_LEFT_CODES,
+        TOPIC_LASER_RIGHT_CODES,
+        TOPIC_TICKS,
+        TOPIC_RGBD,
+        TOPIC_CALIBRATION,
+        TOPIC_DETECTIONS,
+        TOPIC_OBJECTS,
+    ]
+    .contains(&topic)
+}
+
+/// One message of the JSON topics (and the first format's `/camera/rgbd`)
+/// decoded; a bad one is an error naming it.
 fn decode_message(
     p: &str,
     index: usize,
@@ -517,7 +859,7 @@ fn decode_message(
         serde_json::from_slice(d).map_err(|e| bad(e.to_string()))
     };
     let rec = match topic.as_str() {
-        TOPIC_LASER_LEFT | TOPIC_LASER_RIGHT => {
+        TOPIC_LASER_LEFT | TOPIC_LASER_RIGHT | TOPIC_LASER_LEFT_CODES | TOPIC_LASER_RIGHT_CODES => {
             let r: ScanRecord =
                 serde_json::from_value(json(data)?).map_err(|e| bad(e.to_string()))?;
             if r.codes.len() != r.ranges_m.len() {
@@ -528,7 +870,7 @@ fn decode_message(
                 )));
             }
             Recorded::Scan {
-                left: topic == TOPIC_LASER_LEFT,
+                left: topic == TOPIC_LASER_LEFT || topic == TOPIC_LASER_LEFT_CODES,
                 scan: Stamped::new(stamp, r.to_scan()),
             }
         }

@@ -123,18 +123,52 @@ fn runs_on_emulated_devices_turns_to_search_and_stops_on_the_word() {
         .spawn()
         .expect("runs");
     let mut stdin = child.stdin.take().expect("stdin");
-    std::thread::sleep(Duration::from_secs(2));
+    // what it says, as it says it (waited for, not slept for: a loaded
+    // machine starts it later)
+    let (said_tx, said_rx) = std::sync::mpsc::channel::<String>();
+    let err_pipe = child.stderr.take().expect("stderr");
+    let stderr_reader = std::thread::spawn(move || {
+        use std::io::BufRead;
+        let mut all = String::new();
+        for line in std::io::BufReader::new(err_pipe)
+            .lines()
+            .map_while(Result::ok)
+        {
+            said_tx.send(line.clone()).ok();
+            all.push_str(&line);
+            all.push('\n');
+        }
+        all
+    });
+    let wait_said = |what: &str| {
+        let until = Instant::now() + Duration::from_secs(30);
+        while Instant::now() < until {
+            if let Ok(l) = said_rx.recv_timeout(Duration::from_millis(100)) {
+                if l.contains(what) {
+                    return;
+                }
+            }
+        }
+        panic!("never said {what:?}");
+    };
+    // ready once every device has delivered: then the word
+    wait_said("No depth camera");
     writeln!(stdin, "chair").expect("word");
     // the rear was never seen: the chair asks before a turn on the spot
-    std::thread::sleep(Duration::from_millis(1800));
+    wait_said("cannot see behind me");
     writeln!(stdin, "yes").expect("yes");
-    std::thread::sleep(Duration::from_secs(2));
-    let turning = chip
-        .log()
-        .velocity
-        .iter()
-        .filter(|v| (v.vx, v.vy) == (-20, 0))
-        .count();
+    let turning_packets = || {
+        chip.log()
+            .velocity
+            .iter()
+            .filter(|v| (v.vx, v.vy) == (-20, 0))
+            .count()
+    };
+    let until = Instant::now() + Duration::from_secs(20);
+    while turning_packets() <= 20 && Instant::now() < until {
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let turning = turning_packets();
     writeln!(stdin, "stop").expect("stop");
     std::thread::sleep(Duration::from_millis(300));
     let stopped_at = Instant::now();
@@ -143,7 +177,7 @@ fn runs_on_emulated_devices_turns_to_search_and_stops_on_the_word() {
     let out = child.wait_with_output().expect("exits");
     stop.store(true, Ordering::SeqCst);
     let _ = board.join();
-    let stderr = String::from_utf8_lossy(&out.stderr);
+    let stderr = stderr_reader.join().expect("stderr");
     assert!(out.status.success(), "{stderr}");
     let r: Value = serde_json::from_str(
         String::from_utf8_lossy(&out.stdout)

@@ -406,6 +406,79 @@ fn notifies_systemd_ready_after_first_readings_and_feeds_the_watchdog() {
     assert_eq!(msgs.last().map(|s| s.as_str()), Some("STOPPING=1"));
 }
 
+/// A recording as Foxglove reads it (the `mcap` crate, not our reader):
+/// every channel has a schema and every message decodes by it; the live
+/// view's topics are there; the metadata names the version and the clock
+/// offset; log times are wall-clock.
+fn foxglove_recording_checks(file: &std::path::Path) {
+    use foxglove::messages as fg;
+    use foxglove::Decode;
+    let bytes = std::fs::read(file).expect("read");
+    let mut topics = std::collections::BTreeMap::<String, usize>::new();
+    let mut first_log_time = None;
+    for m in mcap::MessageStream::new(&bytes).expect("mcap") {
+        let m = m.expect("message");
+        let c = &m.channel;
+        let schema = c
+            .schema
+            .as_ref()
+            .unwrap_or_else(|| panic!("{}: no schema", c.topic));
+        first_log_time.get_or_insert(m.log_time);
+        let d = &m.data[..];
+        let ok = match (c.message_encoding.as_str(), schema.name.as_str()) {
+            ("json", _) => {
+                assert_eq!(schema.encoding, "jsonschema", "{}", c.topic);
+                serde_json::from_slice::<Value>(&schema.data).expect("schema JSON");
+                serde_json::from_slice::<Value>(d).is_ok()
+            }
+            ("protobuf", "foxglove.LaserScan") => fg::LaserScan::decode(d).is_ok(),
+            ("protobuf", "foxglove.RawImage") => fg::RawImage::decode(d).is_ok(),
+            ("protobuf", "foxglove.ImageAnnotations") => fg::ImageAnnotations::decode(d).is_ok(),
+            ("protobuf", "foxglove.SceneUpdate") => fg::SceneUpdate::decode(d).is_ok(),
+            ("protobuf", "foxglove.FrameTransforms") => fg::FrameTransforms::decode(d).is_ok(),
+            ("protobuf", "foxglove.PosesInFrame") => fg::PosesInFrame::decode(d).is_ok(),
+            ("protobuf", "foxglove.PointCloud") => fg::PointCloud::decode(d).is_ok(),
+            ("protobuf", "foxglove.Log") => fg::Log::decode(d).is_ok(),
+            (e, n) => panic!("{}: {e} / {n}", c.topic),
+        };
+        assert!(
+            ok,
+            "{}: a message does not decode as {}",
+            c.topic, schema.name
+        );
+        *topics.entry(c.topic.clone()).or_default() += 1;
+    }
+    for t in opennav::live::TOPICS.iter().chain(&[
+        "/camera/calibration",
+        "/odometry/ticks",
+        "/laser/left/codes",
+    ]) {
+        assert!(topics.contains_key(*t), "no {t} in {:?}", topics.keys());
+    }
+    let t = first_log_time.expect("messages");
+    assert!(
+        t > 1_704_067_200_000_000_000,
+        "log time {t}: not wall-clock"
+    );
+    let mut meta = None;
+    for r in mcap::read::LinearReader::new(&bytes).expect("records") {
+        if let mcap::records::Record::Metadata(m) = r.expect("record") {
+            meta = Some(m);
+        }
+    }
+    let meta = meta.expect("a metadata record");
+    assert_eq!(meta.name, "opennav");
+    assert!(meta.metadata["version"].contains("git"), "{meta:?}");
+    let offset: u64 = meta.metadata["wall_minus_monotonic_ns"]
+        .parse()
+        .expect("offset");
+    assert!(offset > 1_704_067_200_000_000_000 / 2, "{offset}");
+    assert!(
+        meta.metadata["config"].contains("built-in defaults"),
+        "{meta:?}"
+    );
+}
+
 #[test]
 fn records_a_run_that_replays_through_the_pipeline_to_the_same_objects() {
     use opennav::perception::pipeline::lift_detections;
@@ -440,6 +513,11 @@ fn records_a_run_that_replays_through_the_pipeline_to_the_same_objects() {
         .filter(|m| matches!(m, Recorded::Scan { .. }))
         .count();
     assert!(ticks > 200 && scans > 40, "{ticks} ticks, {scans} scans");
+    assert!(
+        all.iter().any(|m| matches!(m, Recorded::Calibration(_))),
+        "no calibration recorded"
+    );
+    foxglove_recording_checks(&file);
     // the recorded views through the geometry again: the same objects
     let settings = Settings::load(None).expect("defaults");
     let base_from_camera = settings

@@ -111,6 +111,13 @@ fn a_recording_reads_back_exactly_and_replays_to_the_same_objects() {
             Recorded::Rgbd(f) => frames.push(f),
             Recorded::Detections(_, d) => dets.push(d),
             Recorded::Objects(_, o) => objects.push(o),
+            // what only shows in Foxglove: the boxes on the image, the 3D boxes
+            Recorded::Other { topic, .. } => {
+                assert!(
+                    topic == "/camera/detections" || topic == "/objects",
+                    "unexpected {topic}"
+                )
+            }
             other => panic!("unexpected {other:?}"),
         }
     }
@@ -187,6 +194,48 @@ fn bad_recordings_are_errors_naming_the_file_and_message() {
         "{msg}"
     );
     assert!(msg.contains("expected 124"), "{msg}");
+    // the Foxglove format: a depth image with no colour image before it
+    let lone = dir.path().join("lone.mcap");
+    {
+        use foxglove::Encode;
+        let f = std::io::BufWriter::new(std::fs::File::create(&lone).expect("create"));
+        let mut w = mcap::Writer::new(f).expect("writer");
+        let schema = <foxglove::messages::RawImage as Encode>::get_schema().expect("schema");
+        let sid = w
+            .add_schema(&schema.name, &schema.encoding, &schema.data)
+            .expect("schema");
+        let ch = w
+            .add_channel(sid, "/camera/depth", "protobuf", &BTreeMap::new())
+            .expect("channel");
+        for (seq, (w_px, len)) in [(2u32, 16usize)].into_iter().enumerate() {
+            let im = foxglove::messages::RawImage {
+                width: w_px,
+                height: 2,
+                encoding: "32FC1".into(),
+                step: w_px * 4,
+                data: vec![0u8; len].into(),
+                ..Default::default()
+            };
+            let mut buf = Vec::new();
+            im.encode(&mut buf).expect("encode");
+            w.write_to_known_channel(
+                &mcap::records::MessageHeader {
+                    channel_id: ch,
+                    sequence: seq as u32,
+                    log_time: 5,
+                    publish_time: 5,
+                },
+                &buf,
+            )
+            .expect("message");
+        }
+        w.finish().expect("finish");
+    }
+    let e = read_all(&lone).expect_err("depth alone").to_string();
+    assert!(
+        e.contains("lone.mcap") && e.contains("/camera/depth") && e.contains("without its colour"),
+        "{e}"
+    );
 }
 
 #[test]

@@ -84,6 +84,27 @@ pub struct RunArgs {
     pub inject_panic: Option<String>,
 }
 
+/// The configuration as given, for a recording's metadata: the file's
+/// text (or that the built-in defaults apply) and the `OPENNAV_`
+/// environment overrides.
+fn config_as_given(config: Option<&std::path::Path>) -> String {
+    let mut out = match config {
+        Some(p) => match std::fs::read_to_string(p) {
+            Ok(t) => format!("# {}\n{t}", p.display()),
+            Err(e) => format!("# {}: {e}", p.display()),
+        },
+        None => "# the built-in defaults (config/opennav.toml)\n".to_string(),
+    };
+    let mut env: Vec<(String, String)> = std::env::vars()
+        .filter(|(k, _)| k.starts_with("OPENNAV_") && k.contains("__"))
+        .collect();
+    env.sort();
+    for (k, v) in env {
+        out.push_str(&format!("# env {k}={v}\n"));
+    }
+    out
+}
+
 /// The report printed at the end.
 #[derive(Serialize)]
 struct Printed<'a> {
@@ -182,6 +203,7 @@ pub fn run(config: Option<&std::path::Path>, args: RunArgs) -> Result<(), Failur
             tx
         }),
         live_wait: None,
+        config_text: Some(config_as_given(config)),
     };
     let input_rx = receivers.words;
     for p in &args.prompt {

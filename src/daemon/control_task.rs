@@ -59,6 +59,8 @@ pub struct ControlTaskIo {
     pub status: Option<watch::Sender<crate::input::DaemonStatus>>,
     /// The live view (Foxglove), when it is on.
     pub live: Option<crate::live::LiveSink>,
+    /// The recording, when there is one.
+    pub record: Option<super::recorder::RecordSink>,
 }
 
 /// How the control task ended.
@@ -205,10 +207,10 @@ pub async fn run(mut control: Control, mut io: ControlTaskIo) -> ControlEnd {
                 said: last_said.iter().cloned().collect(),
             });
         }
-        crate::live::show(&io.live, || {
+        if io.live.is_some() || io.record.is_some() {
             let goal = control.goal_state();
             let tracks = io.tracks.borrow();
-            crate::live::LiveItem::Step(Box::new(crate::live::StepView {
+            let step = Box::new(crate::live::StepView {
                 stamp: now,
                 pose: odometry.map(|o| o.value.pose),
                 state: out.cmd.state,
@@ -236,8 +238,13 @@ pub async fn run(mut control: Control, mut io: ControlTaskIo) -> ControlEnd {
                 plan_odom: control.planned_path.clone(),
                 camera: camera.as_ref().map(|c| c.value.clone()),
                 said: out.said.clone(),
-            }))
-        });
+            });
+            drop(tracks);
+            if let Some(r) = &io.record {
+                r.put(super::recorder::RecordItem::Step(step.clone()));
+            }
+            crate::live::show(&io.live, || crate::live::LiveItem::Step(step));
+        }
         for s in out.said {
             tracing::info!(say = %s, "opennav");
             if let Some(tx) = &io.speech {

@@ -99,6 +99,9 @@ pub struct RunOptions {
     /// Start only once a viewer subscribed to every topic (at most this
     /// long): a trip on the virtual clock is over in seconds.
     pub live_wait: Option<Duration>,
+    /// The configuration as given (file text and overrides), kept in a
+    /// recording's metadata.
+    pub config_text: Option<String>,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -269,13 +272,6 @@ pub async fn run(
     shutdown: CancellationToken,
 ) -> Result<RunReport, DaemonError> {
     let start = clock.now();
-    let (recorder, sink) = match &opts.record {
-        Some(p) => {
-            let (r, s) = Recorder::start(p).map_err(DaemonError::Setup)?;
-            (Some(r), Some(s))
-        }
-        None => (None, None),
-    };
     let Devices {
         lasers,
         wheels,
@@ -291,18 +287,30 @@ pub async fn run(
         .base_from_camera
         .to_isometry("camera.base_from_camera")
         .map_err(|e| DaemonError::Setup(e.to_string()))?;
+    let mounting = crate::live::Mounting {
+        laser_left: lasers[0].1,
+        laser_right: lasers[1].1,
+        camera: base_from_camera,
+    };
+    // stamps are the run's clock: wall time = stamp + offset
+    let offset = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap_or_default()
+        .saturating_sub(start.0);
+    let (recorder, sink) = match &opts.record {
+        Some(p) => {
+            let info = crate::record::RecordingInfo {
+                wall_minus_monotonic_ns: offset.as_nanos() as u64,
+                config: opts.config_text.clone().unwrap_or_default(),
+                mounting: Some(mounting),
+            };
+            let (r, s) = Recorder::start(p, &info).map_err(DaemonError::Setup)?;
+            (Some(r), Some(s))
+        }
+        None => (None, None),
+    };
     let (live, live_sink) = match opts.live {
         Some(address) => {
-            let mounting = crate::live::Mounting {
-                laser_left: lasers[0].1,
-                laser_right: lasers[1].1,
-                camera: base_from_camera,
-            };
-            // stamps are the run's clock: wall time = stamp + offset
-            let wall = std::time::SystemTime::now()
-                .duration_since(std::time::UNIX_EPOCH)
-                .unwrap_or_default();
-            let offset = wall.saturating_sub(start.0);
             let (started, wait) = (opts.live_started.clone(), opts.live_wait);
             let (l, s) = tokio::task::spawn_blocking(move || {
                 crate::live::Live::start(address, mounting, offset, started.as_ref(), wait)
@@ -444,6 +452,15 @@ pub async fn run(
             let source = source.map_err(|e| DaemonError::Setup(format!("camera: {e}")))?;
             let mut calibration = source.calibration().clone();
             calibration.base_from_camera = base_from_camera;
+            recorder::record(&sink, || {
+                RecordItem::Calibration(
+                    clock.now(),
+                    Box::new(crate::msg::calibration::CalibrationFile::of(
+                        &calibration,
+                        Some("the camera, as the run used it".into()),
+                    )),
+                )
+            });
             let view = CameraView::from_calibration(&calibration);
             let cam = perception::CameraLoop {
                 open: open_back,
@@ -487,7 +504,6 @@ pub async fn run(
     };
     // obstacles from the depth camera: only with a camera and when enabled
     let depth_map = depth_obstacles.filter(|_| view.is_some());
-    drop(sink);
     let (odo_tx, odo_rx) = watch::channel::<Option<Stamped<Odometry>>>(None);
     let (camera_obst_tx, camera_obst_rx) = watch::channel::<Option<Stamped<MapObstacles>>>(None);
     let odo_report = odo_rx.clone();
@@ -575,6 +591,7 @@ pub async fn run(
                 stops: opts.stops.clone(),
                 status: opts.status.clone(),
                 live: live_sink,
+                record: sink,
             },
         ),
     ));

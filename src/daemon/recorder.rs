@@ -7,7 +7,7 @@ use std::sync::Arc;
 
 use serde::Serialize;
 
-use crate::msg::{LaserScan, Object3D, RgbdFrame, Stamped, WheelTicks};
+use crate::msg::{LaserScan, Object3D, RgbdFrame, Stamp, Stamped, WheelTicks};
 use crate::perception::detector::Detection;
 
 /// What the recorder writes.
@@ -20,6 +20,10 @@ pub enum RecordItem {
         detections: Vec<Detection>,
         objects: Vec<Object3D>,
     },
+    /// The camera's calibration, once it is open.
+    Calibration(Stamp, Box<crate::msg::calibration::CalibrationFile>),
+    /// A control step (pose, tracks, plan, sentences, supervisor).
+    Step(Box<crate::live::StepView>),
 }
 
 /// The tasks' handle on the recording (cheap to clone).
@@ -67,8 +71,12 @@ pub struct Recorder {
 
 impl Recorder {
     /// Creates the file and starts the writer thread.
-    pub fn start(path: &std::path::Path) -> Result<(Recorder, RecordSink), String> {
-        let mut rec = crate::record::Recorder::create(path).map_err(|e| e.to_string())?;
+    pub fn start(
+        path: &std::path::Path,
+        info: &crate::record::RecordingInfo,
+    ) -> Result<(Recorder, RecordSink), String> {
+        let mut rec =
+            crate::record::Recorder::create_with(path, info).map_err(|e| e.to_string())?;
         let (tx, rx) = std::sync::mpsc::sync_channel::<RecordItem>(512);
         let handle = std::thread::Builder::new()
             .name("recorder".into())
@@ -87,6 +95,8 @@ impl Recorder {
                             .rgbd(&frame)
                             .and_then(|_| rec.detections(frame.stamp, &detections))
                             .and_then(|_| rec.objects(frame.stamp, &objects)),
+                        RecordItem::Calibration(stamp, c) => rec.calibration(stamp, &c),
+                        RecordItem::Step(s) => rec.step(&s),
                     };
                     match r {
                         Ok(()) => written += 1,

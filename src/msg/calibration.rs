@@ -184,6 +184,21 @@ pub struct CalibrationFile {
 
 pub const CALIBRATION_FORMAT: &str = "opennav-calibration/1";
 
+impl CalibrationFile {
+    /// The file of a validated rig (what a recording keeps).
+    pub fn of(c: &RgbdCalibration, source: Option<String>) -> CalibrationFile {
+        CalibrationFile {
+            format: CALIBRATION_FORMAT.into(),
+            color: c.color,
+            depth: c.depth.map(|(k, _)| k),
+            depth_scale_m: c.depth_scale_m,
+            color_from_depth: c.depth.map(|(_, t)| TransformSpec::from_isometry(&t)),
+            base_from_camera: TransformSpec::from_isometry(&c.base_from_camera),
+            source,
+        }
+    }
+}
+
 /// A validated RGB-D rig: colour intrinsics, optional separate depth camera,
 /// and the camera's pose on the chair.
 #[derive(Debug, Clone, PartialEq)]
