@@ -550,6 +550,8 @@ pub enum Recorded {
     Calibration(Box<crate::msg::calibration::CalibrationFile>),
     Detections(Stamp, Vec<Detection>),
     Objects(Stamp, Vec<ObjectRecord>),
+    /// The chair's pose in `odom` (`/tf`, `odom`→`base_link`).
+    Pose(Stamped<crate::msg::Pose2>),
     /// A topic this version does not know (kept, not dropped silently).
     Other {
         topic: String,
@@ -812,6 +814,41 @@ fn decode(
                     depth_stamp: m.stamp,
                 },
             ))))
+        }
+        (crate::live::TOPIC_TF, "protobuf") => {
+            use foxglove::Decode;
+            let tf = foxglove::messages::FrameTransforms::decode(data)
+                .map_err(|e| bad(e.to_string()))?;
+            let pose = tf.transforms.iter().find(|t| {
+                t.parent_frame_id == crate::live::FRAME_ODOM
+                    && t.child_frame_id == crate::live::FRAME_BASE
+            });
+            Ok(match pose {
+                Some(t) => {
+                    let (v, q) = (
+                        t.translation.unwrap_or_default(),
+                        t.rotation.unwrap_or_default(),
+                    );
+                    let yaw =
+                        (2.0 * (q.w * q.z + q.x * q.y)).atan2(1.0 - 2.0 * (q.y * q.y + q.z * q.z));
+                    if !(v.x.is_finite() && v.y.is_finite() && yaw.is_finite()) {
+                        return Err(bad(format!("odom→base_link not finite: {v:?} {q:?}")));
+                    }
+                    Some(Recorded::Pose(Stamped::new(
+                        m.stamp,
+                        crate::msg::Pose2 {
+                            x_m: v.x,
+                            y_m: v.y,
+                            theta_rad: yaw,
+                        },
+                    )))
+                }
+                // the sensors' mounting
+                None => Some(Recorded::Other {
+                    topic: m.topic.clone(),
+                    stamp: m.stamp,
+                }),
+            })
         }
         // the scans as Foxglove shows them: the codes beside them are
         // what replays exactly

@@ -518,6 +518,30 @@ fn records_a_run_that_replays_through_the_pipeline_to_the_same_objects() {
         "no calibration recorded"
     );
     foxglove_recording_checks(&file);
+    // played back: every view gives the recorded objects again, and the
+    // tracker (placed with the recorded pose) holds the chair
+    let out = Command::new(env!("CARGO_BIN_EXE_opennav"))
+        .arg("replay")
+        .arg(&file)
+        .output()
+        .expect("replays");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let lines: Vec<Value> = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("JSON line"))
+        .collect();
+    let (summary, views) = lines.split_last().expect("lines");
+    assert!(views.len() >= 3, "{lines:?}");
+    assert!(
+        views.iter().all(|v| v["same_as_recorded"] == true),
+        "{views:?}"
+    );
+    let tracks = summary["summary"]["tracks"].as_array().expect("tracks");
+    assert!(tracks.iter().any(|t| t["label"] == "chair"), "{summary}");
     // the recorded views through the geometry again: the same objects
     let settings = Settings::load(None).expect("defaults");
     let base_from_camera = settings

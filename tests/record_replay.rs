@@ -153,6 +153,48 @@ fn a_recording_reads_back_exactly_and_replays_to_the_same_objects() {
         assert_eq!(&again, o);
     }
     let _ = Arc::new(());
+
+    // `opennav replay`: this recording has no calibration — it asks for one
+    let replay = |extra: &[&std::ffi::OsStr]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_opennav"))
+            .arg("replay")
+            .arg(&path)
+            .args(extra)
+            .output()
+            .expect("runs")
+    };
+    let out = replay(&[]);
+    assert_eq!(out.status.code(), Some(2), "{out:?}");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("--calibration") && err.contains("run.mcap"),
+        "{err}"
+    );
+    // given the camera's, every view replays to the recorded objects
+    let cal = dir.path().join("calibration.json");
+    let file = opennav::msg::calibration::CalibrationFile::of(
+        &opennav::msg::calibration::RgbdCalibration::registered(k, base_from_camera),
+        None,
+    );
+    std::fs::write(&cal, serde_json::to_string(&file).expect("json")).expect("write");
+    let out = replay(&["--calibration".as_ref(), cal.as_os_str()]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let lines: Vec<serde_json::Value> = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("JSON line"))
+        .collect();
+    let (summary, views) = lines.split_last().expect("lines");
+    assert_eq!(views.len(), 3, "{lines:?}");
+    assert!(
+        views.iter().all(|v| v["same_as_recorded"] == true),
+        "{views:?}"
+    );
+    assert_eq!(summary["summary"]["views"], 3);
+    assert_eq!(summary["summary"]["same_as_recorded"], 3);
 }
 
 #[test]

@@ -5,6 +5,7 @@ pub mod check;
 pub mod client;
 pub mod detect;
 pub mod eval;
+pub mod replay;
 pub mod run;
 pub mod sim;
 
@@ -32,6 +33,10 @@ pub enum Command {
     Run(run::RunArgs),
     /// Detect prompted objects in one RGB(-D) image: 2D boxes, and 3D objects with depth.
     Detect(detect::DetectArgs),
+    /// Play a recording back through perception and the tracker: one JSON
+    /// line per view (its objects, the same as recorded?), then the tracks;
+    /// `--live` streams it to Foxglove at the recording's pace.
+    Replay(replay::ReplayArgs),
     /// A person checked the chair after a latched fault (CAN bus, motor
     /// link, overspeed, another writer): clears it — in the running daemon
     /// (its control socket) and on disk — so the chair may drive again.
@@ -197,6 +202,7 @@ fn dispatch(cli: Cli) -> Result<(), Failure> {
         Command::Check(cmd) => check::run(config, cmd),
         Command::Run(args) => run::run(config, args),
         Command::Detect(args) => detect::run(Settings::load(config).map_err(bad_input)?, args),
+        Command::Replay(args) => replay::run(config, args),
         Command::AckFault(socket) => {
             ack_fault(&Settings::load(config).map_err(bad_input)?, &socket)
         }

@@ -178,30 +178,7 @@ impl Pipeline {
         color: &RgbImage,
         depth: &DepthImage,
     ) -> Result<DepthImage, PipelineError> {
-        let (dw, dh) = self.calibration.depth_size();
-        if (depth.width(), depth.height()) != (dw, dh) {
-            return Err(PipelineError::Input(format!(
-                "depth image is {}x{}, calibration expects {dw}x{dh}",
-                depth.width(),
-                depth.height()
-            )));
-        }
-        let c = &self.calibration.color;
-        if (color.width(), color.height()) != (c.width, c.height) {
-            return Err(PipelineError::Input(format!(
-                "colour image is {}x{}, calibration expects {}x{}",
-                color.width(),
-                color.height(),
-                c.width,
-                c.height
-            )));
-        }
-        Ok(match &self.calibration.depth {
-            Some((dk, color_from_depth)) => {
-                register_depth_to_color(depth, dk, color_from_depth, c)?
-            }
-            None => depth.clone(),
-        })
+        depth_in_color(&self.calibration, color, depth)
     }
 
     /// Runs one view. Without depth only the 2D detections are returned.
@@ -236,6 +213,38 @@ impl Pipeline {
         result.timing_ms.total = ms(t0);
         Ok(result)
     }
+}
+
+/// Depth in the colour camera: registered when the rig has a separate
+/// depth camera, checked for size otherwise.
+pub fn depth_in_color(
+    calibration: &RgbdCalibration,
+    color: &RgbImage,
+    depth: &DepthImage,
+) -> Result<DepthImage, PipelineError> {
+    let (dw, dh) = calibration.depth_size();
+
+    if (depth.width(), depth.height()) != (dw, dh) {
+        return Err(PipelineError::Input(format!(
+            "depth image is {}x{}, calibration expects {dw}x{dh}",
+            depth.width(),
+            depth.height()
+        )));
+    }
+    let c = &calibration.color;
+    if (color.width(), color.height()) != (c.width, c.height) {
+        return Err(PipelineError::Input(format!(
+            "colour image is {}x{}, calibration expects {}x{}",
+            color.width(),
+            color.height(),
+            c.width,
+            c.height
+        )));
+    }
+    Ok(match &calibration.depth {
+        Some((dk, color_from_depth)) => register_depth_to_color(depth, dk, color_from_depth, c)?,
+        None => depth.clone(),
+    })
 }
 
 /// Steps 2–6 for detections already made: a mask per box, then objects in
