@@ -40,6 +40,92 @@ pub fn isolate_depth(mask: &Mask, depth: &DepthImage) -> Vec<DepthSample> {
     out
 }
 
+/// Steps 3–4 fused for one 3×3 erosion: the valid depths within
+/// `[min_m, max_m]` under the eroded mask, appended to `out` in the order
+/// [`isolate_depth`] gives them (row-major) without making the eroded mask;
+/// returns the eroded mask's pixel count.
+pub fn isolate_eroded_depth(
+    mask: &Mask,
+    depth: &DepthImage,
+    min_m: f32,
+    max_m: f32,
+    out: &mut Vec<DepthSample>,
+) -> usize {
+    let (x0, y0, w, _) = mask.region();
+    let dw = depth.width();
+    let dh = depth.height();
+    let data = depth.data();
+    let cols = w.min(dw.saturating_sub(x0));
+    // a positive finite range holds only finite positive depths (a NaN
+    // fails every comparison): one test per pixel instead of four
+    let (lo, hi) = if min_m > 0.0 && max_m.is_finite() {
+        (min_m, max_m)
+    } else {
+        (min_m.max(f32::from_bits(1)), max_m.min(f32::MAX))
+    };
+    let mut eroded = 0usize;
+    mask.for_each_eroded_row(|y, bits| {
+        let v = y0 + y;
+        let zs: &[f32] = if v < dh {
+            &data[v * dw + x0..v * dw + x0 + cols]
+        } else {
+            &[]
+        };
+        for (x, &on) in bits.iter().enumerate() {
+            eroded += usize::from(on);
+            if !on {
+                continue;
+            }
+            if let Some(&z) = zs.get(x) {
+                if z >= lo && z <= hi {
+                    out.push(DepthSample {
+                        u: (x0 + x) as u32,
+                        v: v as u32,
+                        z_m: z,
+                    });
+                }
+            }
+        }
+    });
+    eroded
+}
+
+/// Steps 4 (z-score, τ) and 5 fused: the points of the samples whose
+/// depth is within τσ of the mean, back-projected and moved by
+/// `target_from_camera` — exactly [`zscore_filter`] then [`back_project`].
+pub fn zscore_back_project(
+    samples: &[DepthSample],
+    tau: f64,
+    intrinsics: &Intrinsics,
+    target_from_camera: &Isometry3<f64>,
+) -> Vec<Point3<f32>> {
+    // no spread (or no samples): all kept, as `zscore_filter`
+    let (all, mean, limit) = match depth_stats(samples) {
+        Some((mean, std)) if std > 1e-9 * mean.abs().max(1.0) => (false, mean, tau * std),
+        _ => (true, 0.0, 0.0),
+    };
+    let keep = |z: f32| all || (z as f64 - mean).abs() < limit;
+    let r = target_from_camera.rotation.to_rotation_matrix();
+    let m = r.matrix();
+    let col = |j: usize| nalgebra::Vector3::new(m[(0, j)], m[(1, j)], m[(2, j)]);
+    let b = col(0) / intrinsics.fx;
+    let c = col(1) / intrinsics.fy;
+    let a = col(2) - b * intrinsics.cx - c * intrinsics.cy;
+    let t = target_from_camera.translation.vector;
+    let (a, b, c, t) = (
+        a.cast::<f32>(),
+        b.cast::<f32>(),
+        c.cast::<f32>(),
+        t.cast::<f32>(),
+    );
+    let mut out = Vec::with_capacity(samples.len());
+    out.extend(samples.iter().filter(|s| keep(s.z_m)).map(|s| {
+        let ray = a + b * s.u as f32 + c * s.v as f32;
+        Point3::from(ray * s.z_m + t)
+    }));
+    out
+}
+
 /// Mean and population standard deviation (as `scipy.stats.zscore`, ddof 0)
 /// of the depths, computed in f64.
 pub fn depth_stats(samples: &[DepthSample]) -> Option<(f64, f64)> {
@@ -199,5 +285,39 @@ mod tests {
         // base: x = 2, y = −0.4, z = 1 + 0.5
         let want = Point3::new(2.0f32, -0.4, 1.5);
         assert!((p[0] - want).norm() < 1e-6, "{:?}", p[0]);
+    }
+
+    /// The fused z-score and back-projection give exactly the points of
+    /// the two steps one after the other.
+    #[test]
+    fn fused_zscore_and_back_projection_are_the_two_steps() {
+        let k = Intrinsics {
+            width: 64,
+            height: 48,
+            fx: 60.0,
+            fy: 61.0,
+            cx: 31.5,
+            cy: 23.5,
+        };
+        let t = Isometry3::new(
+            nalgebra::Vector3::new(0.3, -0.1, 0.9),
+            nalgebra::Vector3::new(-1.2, 0.1, -1.5),
+        );
+        let mut s = Vec::new();
+        for i in 0..500u32 {
+            let z = 2.0 + ((i * 37) % 101) as f32 * 0.01 + if i % 50 == 0 { 3.0 } else { 0.0 };
+            s.push(DepthSample {
+                u: i % 64,
+                v: i / 64,
+                z_m: z,
+            });
+        }
+        for samples in [s.clone(), vec![s[0]; 7], Vec::new()] {
+            let two = back_project(&zscore_filter(samples.clone(), 2.0), &k, &t);
+            let fused = zscore_back_project(&samples, 2.0, &k, &t);
+            assert_eq!(two, fused);
+        }
+        // the outliers went
+        assert!(zscore_back_project(&s, 2.0, &k, &t).len() < s.len());
     }
 }

@@ -176,6 +176,49 @@ impl Mask {
         }
     }
 
+    /// One 3×3 erosion, row by row without the eroded mask: `f(y, row)`
+    /// for each row `y` of the region, its eroded bits — exactly
+    /// [`eroded`](Self::eroded)`(1)`'s rows (same edge rules), from three
+    /// rolling rows of the horizontal pass.
+    pub fn for_each_eroded_row(&self, mut f: impl FnMut(usize, &[bool])) {
+        let (w, h) = (self.w, self.h);
+        if w == 0 || h == 0 {
+            return;
+        }
+        let left_out = self.x0 == 0;
+        let right_out = self.x0 + w >= self.image_width;
+        let top_out = self.y0 == 0;
+        let bottom_out = self.y0 + h >= self.image_height;
+        let horiz = |y: usize, out: &mut [bool]| {
+            let row = &self.bits[y * w..(y + 1) * w];
+            for x in 0..w {
+                let l = if x == 0 { left_out } else { row[x - 1] };
+                let r = if x + 1 == w { right_out } else { row[x + 1] };
+                out[x] = l & row[x] & r;
+            }
+        };
+        // rows y−1, y, y+1 of the horizontal pass (beyond the image: set;
+        // beyond the region inside it: unset)
+        let mut up = vec![top_out; w];
+        let mut mid = vec![false; w];
+        let mut down = vec![false; w];
+        let mut out = vec![false; w];
+        horiz(0, &mut mid);
+        for y in 0..h {
+            if y + 1 < h {
+                horiz(y + 1, &mut down);
+            } else {
+                down.fill(bottom_out);
+            }
+            for x in 0..w {
+                out[x] = up[x] & mid[x] & down[x];
+            }
+            f(y, &out);
+            std::mem::swap(&mut up, &mut mid);
+            std::mem::swap(&mut mid, &mut down);
+        }
+    }
+
     fn clone_header(&self) -> Mask {
         Mask {
             image_width: self.image_width,
@@ -253,5 +296,40 @@ mod tests {
         assert!(!m.set(0, 0, true));
         let e = m.eroded(1);
         assert_eq!(e.pixels().collect::<Vec<_>>(), vec![(3, 3)]);
+    }
+
+    /// The fused row-by-row erosion is the erosion: random regions
+    /// anywhere in the image (touching its edges or not), random bits.
+    #[test]
+    fn eroded_rows_are_the_eroded_mask() {
+        let mut seed = 12345u64;
+        let mut next = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 33) as usize
+        };
+        for _ in 0..300 {
+            let (iw, ih) = (1 + next() % 12, 1 + next() % 12);
+            let (x0, y0) = (next() % iw, next() % ih);
+            let (x1, y1) = (x0 + next() % (iw - x0 + 1), y0 + next() % (ih - y0 + 1));
+            let mut m = Mask::empty_in(iw, ih, x0, y0, x1, y1);
+            for v in y0..y1 {
+                for u in x0..x1 {
+                    m.set(u, v, next() % 4 != 0);
+                }
+            }
+            let e = m.eroded(1);
+            let (ex0, ey0, ew, _) = e.region();
+            let mut rows = 0;
+            m.for_each_eroded_row(|y, bits| {
+                rows += 1;
+                for (x, &b) in bits.iter().enumerate() {
+                    assert_eq!(b, e.get(ex0 + x, ey0 + y), "{:?}", to_rows(&m));
+                }
+                assert_eq!(bits.len(), ew);
+            });
+            assert_eq!(rows, if x1 > x0 { y1 - y0 } else { 0 });
+        }
     }
 }

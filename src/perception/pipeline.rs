@@ -8,7 +8,7 @@ use serde::Serialize;
 use thiserror::Error;
 
 use super::boxes::Object3D;
-use super::cloud::{back_project, isolate_depth, zscore_filter};
+use super::cloud::{isolate_depth, isolate_eroded_depth, zscore_back_project};
 use super::detector::{Detection, Detector, DetectorError, PromptReport};
 use super::masks::Mask;
 use super::registration::register_depth_to_color;
@@ -64,6 +64,12 @@ pub struct Dropped {
     pub reason: String,
 }
 
+thread_local! {
+    /// Depth samples under the current mask (reused: see `objects_from_masks`).
+    static SAMPLES: std::cell::RefCell<Vec<super::cloud::DepthSample>> =
+        const { std::cell::RefCell::new(Vec::new()) };
+}
+
 /// Steps 3–6 for one view: each (detection, mask) pair → an object in the
 /// frame of `target_from_camera`, or a reason it was dropped. `depth` is
 /// registered to the colour image and `intrinsics` are the colour camera's.
@@ -85,22 +91,44 @@ pub fn objects_from_masks(
             box_xyxy: det.box_xyxy,
             reason,
         };
-        let eroded = mask.eroded(settings.erosion_iterations);
-        let mut samples = isolate_depth(&eroded, depth);
-        samples.retain(|s| s.z_m >= settings.min_depth_m && s.z_m <= settings.max_depth_m);
-        let n_depth = samples.len();
-        let kept = zscore_filter(samples, settings.zscore_tau);
-        if kept.len() < settings.min_points.max(1) {
+        // the samples' buffer is kept between masks (and views): a fresh
+        // one per mask costs more in page faults than the work itself
+        let (points, eroded_px, n_depth) = SAMPLES.with(|buf| {
+            let mut samples = buf.borrow_mut();
+            samples.clear();
+            let eroded_px =
+                if settings.erosion_iterations == 1 {
+                    isolate_eroded_depth(
+                        mask,
+                        depth,
+                        settings.min_depth_m,
+                        settings.max_depth_m,
+                        &mut samples,
+                    )
+                } else {
+                    let eroded = mask.eroded(settings.erosion_iterations);
+                    samples.extend(isolate_depth(&eroded, depth).into_iter().filter(|s| {
+                        s.z_m >= settings.min_depth_m && s.z_m <= settings.max_depth_m
+                    }));
+                    eroded.count()
+                };
+            let points = zscore_back_project(
+                &samples,
+                settings.zscore_tau,
+                intrinsics,
+                target_from_camera,
+            );
+            (points, eroded_px, samples.len())
+        });
+        if points.len() < settings.min_points.max(1) {
             dropped.push(drop(format!(
-                "{} points after filtering (< {}): mask {} px, eroded {} px, valid depth {n_depth}",
-                kept.len(),
+                "{} points after filtering (< {}): mask {} px, eroded {eroded_px} px, valid depth {n_depth}",
+                points.len(),
                 settings.min_points,
                 mask.count(),
-                eroded.count()
             )));
             continue;
         }
-        let points = back_project(&kept, intrinsics, target_from_camera);
         match Object3D::from_points(
             det.label.clone(),
             det.score,
