@@ -17,6 +17,8 @@ pub mod navigation;
 pub mod output;
 pub mod perception;
 pub mod record;
+#[cfg(feature = "ros2")]
+pub mod ros2;
 pub mod safety;
 pub mod sensors;
 pub mod setup;

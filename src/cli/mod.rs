@@ -162,7 +162,7 @@ fn init_logs() {
         Some(Ok(j)) => {
             // the sentences are info events: kept by default
             tracing_subscriber::registry()
-                .with(filter("info"))
+                .with(filter("info,rustdds=error"))
                 .with(j.with_syslog_identifier("opennav".into()))
                 .init();
             TO_JOURNAL.store(true, std::sync::atomic::Ordering::SeqCst);
@@ -172,7 +172,8 @@ fn init_logs() {
         None => None,
     };
     tracing_subscriber::fmt()
-        .with_env_filter(filter("warn"))
+        // RustDDS (the ROS 2 bridge) warns of every unreachable address
+        .with_env_filter(filter("warn,rustdds=error"))
         .with_writer(std::io::stderr)
         .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .init();

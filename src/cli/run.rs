@@ -74,6 +74,11 @@ pub struct RunArgs {
     /// without the flag.
     #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "")]
     pub live: Option<String>,
+    /// Bridge to ROS 2 (the `ros2` feature; no ROS install): sentences on
+    /// /opennav/said, status on /opennav/state, words from /opennav/prompt,
+    /// stops from /opennav/stop.
+    #[arg(long)]
+    pub ros2: bool,
     /// With --sim: speak the sentences too (espeak-ng, `[speech]`); on
     /// the chair they are spoken unless speech.enabled = false.
     #[arg(long)]
@@ -136,10 +141,17 @@ pub fn run(config: Option<&std::path::Path>, args: RunArgs) -> Result<(), Failur
         None
     };
     let (speech_tx, mut speech_rx) = mpsc::unbounded_channel::<String>();
+    // the sentences for the ROS 2 bridge too
+    let (ros2_said_tx, ros2_said_rx) = std::sync::mpsc::channel::<String>();
+    let ros2_said_tx = args.ros2.then_some(ros2_said_tx);
     let speech = std::thread::Builder::new()
         .name("sentences".into())
         .spawn(move || {
             while let Some(s) = speech_rx.blocking_recv() {
+                if let Some(tx) = &ros2_said_tx {
+                    // the bridge gone: it said why when it started
+                    tx.send(s.clone()).ok();
+                }
                 // in the journal the control task's event says it already
                 if !super::TO_JOURNAL.load(std::sync::atomic::Ordering::SeqCst) {
                     eprintln!("opennav says: {s}");
@@ -294,6 +306,9 @@ pub fn run(config: Option<&std::path::Path>, args: RunArgs) -> Result<(), Failur
             tracing::info!(path = %s.path().display(), "control socket open");
             tokio::spawn(s.serve(hub.clone(), status_rx.clone(), socket_stop.clone()));
         }
+        if args.ros2 {
+            start_ros2(hub.clone(), ros2_said_rx, status_rx.clone())?;
+        }
         // the person's switch: configured means required
         let switch_settings = &settings.input.switch;
         let switch_stop = Arc::new(std::sync::atomic::AtomicBool::new(false));
@@ -428,6 +443,30 @@ fn read_words(mut input: impl std::io::BufRead, tx: &InputHub) {
             return;
         }
     }
+}
+
+#[cfg(feature = "ros2")]
+fn start_ros2(
+    hub: opennav::input::InputHub,
+    said: std::sync::mpsc::Receiver<String>,
+    status: watch::Receiver<DaemonStatus>,
+) -> Result<(), Failure> {
+    opennav::ros2::start(hub, said, status).map_err(|e| failed(anyhow::anyhow!(e)))?;
+    eprintln!(
+        "opennav: ROS 2 bridge on /opennav/said, /opennav/state, /opennav/prompt, /opennav/stop"
+    );
+    Ok(())
+}
+
+#[cfg(not(feature = "ros2"))]
+fn start_ros2(
+    _: opennav::input::InputHub,
+    _: std::sync::mpsc::Receiver<String>,
+    _: watch::Receiver<DaemonStatus>,
+) -> Result<(), Failure> {
+    Err(bad_input(anyhow::anyhow!(
+        "--ros2: this build has no ROS 2 bridge: build with --features ros2"
+    )))
 }
 
 #[cfg(test)]
