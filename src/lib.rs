@@ -23,5 +23,6 @@ pub mod safety;
 pub mod sensors;
 pub mod setup;
 pub mod sim;
+pub mod sink;
 pub mod speech;
 pub mod voice;

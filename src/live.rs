@@ -26,7 +26,7 @@
 //! taken at the start), so Foxglove shows the real date.
 //!
 //! It never blocks the tasks that feed it: they hand items to a bounded
-//! queue ([`LiveSink::put`]); what it cannot take is dropped, counted and
+//! queue ([`crate::sink::DropSink`]); what it cannot take is dropped, counted and
 //! logged. The server's own queue per client drops the oldest messages of
 //! a slow client.
 
@@ -94,6 +94,23 @@ pub struct TrackView {
     pub size_m: [f64; 3],
 }
 
+impl TrackView {
+    /// The tracker's confirmed tracks.
+    pub fn confirmed(tracker: &crate::estimation::tracker::Tracker) -> Vec<TrackView> {
+        tracker
+            .tracks()
+            .iter()
+            .filter(|t| t.confirmed)
+            .map(|t| TrackView {
+                id: t.id,
+                label: t.label.clone(),
+                center_m: t.center_m,
+                size_m: t.size_m,
+            })
+            .collect()
+    }
+}
+
 /// One control step, as the live view shows it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct StepView {
@@ -137,21 +154,17 @@ pub struct Mounting {
     pub camera: Isometry3<f64>,
 }
 
-/// The tasks' handle on the live view (cheap to clone).
-#[derive(Clone)]
-pub struct LiveSink {
-    tx: std::sync::mpsc::SyncSender<LiveItem>,
-    dropped: Arc<AtomicU64>,
-}
+/// The tasks' handle on the live view (cheap to clone; never waits).
+pub type LiveSink = crate::sink::DropSink<LiveItem>;
 
-impl LiveSink {
-    /// Hands an item over; never waits.
-    pub fn put(&self, item: LiveItem) {
-        if self.tx.try_send(item).is_err() {
-            let n = self.dropped.fetch_add(1, Ordering::SeqCst) + 1;
-            if n.is_power_of_two() {
-                tracing::warn!(dropped = n, "live view: falls behind; items dropped");
-            }
+/// Wall-clock time minus the run's clock at `now`: a stamp plus this is
+/// the wall-clock time. A system clock before 1970 is said and taken as 0.
+pub fn wall_offset(now: Stamp) -> Duration {
+    match std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH) {
+        Ok(wall) => wall.saturating_sub(now.0),
+        Err(e) => {
+            tracing::warn!(error = %e, "the system clock is before 1970: wall-clock times start at 0");
+            Duration::ZERO
         }
     }
 }
@@ -191,7 +204,7 @@ impl Live {
         started: Option<&std::sync::mpsc::Sender<SocketAddr>>,
         wait: Option<Duration>,
     ) -> Result<(Live, LiveSink), String> {
-        let (tx, rx) = std::sync::mpsc::sync_channel::<LiveItem>(QUEUE);
+        let (sink, rx, dropped) = LiveSink::channel(QUEUE, "live view");
         let (ready_tx, ready_rx) = std::sync::mpsc::channel::<Result<u16, String>>();
         let subscribed = Arc::new(Subscribed::default());
         let listener = subscribed.clone();
@@ -255,14 +268,13 @@ impl Live {
                     .0;
             }
         }
-        let dropped = Arc::new(AtomicU64::new(0));
         Ok((
             Live {
                 address: SocketAddr::new(address.ip(), port),
-                dropped: dropped.clone(),
+                dropped,
                 handle,
             },
-            LiveSink { tx, dropped },
+            sink,
         ))
     }
 

@@ -618,6 +618,12 @@ impl RecordReader {
         })
     }
 
+    /// The recording's wall-clock offset (its `opennav` metadata), once
+    /// read; None for a recording without it (the first format).
+    pub fn wall_minus_monotonic(&self) -> Option<std::time::Duration> {
+        (self.offset_ns > 0).then(|| std::time::Duration::from_nanos(self.offset_ns))
+    }
+
     fn file_error(&mut self, reason: String) -> RecordError {
         self.done = true;
         RecordError::File {
@@ -825,10 +831,9 @@ fn decode(
             });
             Ok(match pose {
                 Some(t) => {
-                    let (v, q) = (
-                        t.translation.unwrap_or_default(),
-                        t.rotation.unwrap_or_default(),
-                    );
+                    let (Some(v), Some(q)) = (t.translation, t.rotation) else {
+                        return Err(bad("odom→base_link without translation or rotation".into()));
+                    };
                     let yaw =
                         (2.0 * (q.w * q.z + q.x * q.y)).atan2(1.0 - 2.0 * (q.y * q.y + q.z * q.z));
                     if !(v.x.is_finite() && v.y.is_finite() && yaw.is_finite()) {

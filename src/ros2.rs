@@ -27,7 +27,8 @@ pub const NAMESPACE: &str = "/opennav";
 
 /// Starts the bridge: sentences come on `said`, the status on `status`
 /// (read when it changes); prompts and stops go to `hub`. An error names
-/// what could not be made.
+/// what could not be made. Should the bridge's thread die, that is logged
+/// and the chair stops (its stops would no longer arrive).
 pub fn start(
     hub: InputHub,
     said: Receiver<String>,
@@ -62,7 +63,8 @@ pub fn start(
     let stops = node
         .create_subscription::<String>(&stop_topic, None)
         .map_err(|e| format!("ROS 2 subscription /opennav/stop: {e:?}"))?;
-    std::thread::Builder::new()
+    let watch_hub = hub.clone();
+    let bridge = std::thread::Builder::new()
         .name("ros2".into())
         .spawn(move || {
             // the node and context live as long as the bridge
@@ -70,15 +72,36 @@ pub fn start(
             let mut said_open = true;
             loop {
                 // stops first: always taken
-                while let Ok(Some(_)) = stops.take() {
-                    tracing::info!("ROS 2: stop");
-                    hub.stop();
+                loop {
+                    match stops.take() {
+                        Ok(Some(_)) => {
+                            tracing::info!("ROS 2: stop");
+                            hub.stop();
+                        }
+                        Ok(None) => break,
+                        Err(e) => {
+                            // a message that did not decode on the stop
+                            // topic is still a stop
+                            tracing::warn!(error = ?e, "ROS 2: /opennav/stop unreadable: stopping");
+                            hub.stop();
+                            break;
+                        }
+                    }
                 }
-                while let Ok(Some((word, _))) = prompts.take() {
-                    let input = UserInput::parse(&word);
-                    tracing::info!(word = %word, ?input, "ROS 2: prompt");
-                    if let Err(e) = hub.send(input) {
-                        tracing::warn!(word = %word, error = %e, "ROS 2: prompt not taken");
+                loop {
+                    match prompts.take() {
+                        Ok(Some((word, _))) => {
+                            let input = UserInput::parse(&word);
+                            tracing::info!(word = %word, ?input, "ROS 2: prompt");
+                            if let Err(e) = hub.send(input) {
+                                tracing::warn!(word = %word, error = %e, "ROS 2: prompt not taken");
+                            }
+                        }
+                        Ok(None) => break,
+                        Err(e) => {
+                            tracing::warn!(error = ?e, "ROS 2: /opennav/prompt unreadable: dropped");
+                            break;
+                        }
                     }
                 }
                 if status.has_changed().unwrap_or(false) {
@@ -108,5 +131,17 @@ pub fn start(
                 }
             }
         })
-        .map_err(|e| format!("ROS 2 thread: {e}"))
+        .map_err(|e| format!("ROS 2 thread: {e}"))?;
+    std::thread::Builder::new()
+        .name("ros2-watch".into())
+        .spawn(move || {
+            // the bridge only ends by dying (its loop has no way out)
+            let why = match bridge.join() {
+                Ok(()) => "ended".to_string(),
+                Err(_) => "panicked".to_string(),
+            };
+            tracing::error!(why = %why, "ROS 2 bridge died: its stops cannot arrive; stopping the chair");
+            watch_hub.stop();
+        })
+        .map_err(|e| format!("ROS 2 watch thread: {e}"))
 }

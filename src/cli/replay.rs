@@ -51,7 +51,9 @@ pub fn run(config: Option<&std::path::Path>, args: ReplayArgs) -> Result<(), Fai
     let mut segmenter = DepthBoxSegmenter::new(settings.depth_segmenter_settings());
     let geometry = settings.geometry_settings();
     let mut tracker = Tracker::new(settings.tracker);
-    let live = match args.live.as_deref() {
+    // where to stream, started at the first message: the recording's clock
+    // offset is known then (its metadata record comes first)
+    let mut live_to = match args.live.as_deref() {
         None => None,
         Some(a) => {
             let address = if a.is_empty() {
@@ -72,27 +74,36 @@ pub fn run(config: Option<&std::path::Path>, args: ReplayArgs) -> Result<(), Fai
                     .to_isometry("camera.base_from_camera")
                     .map_err(bad_input)?,
             };
-            let (started_tx, started_rx) = std::sync::mpsc::channel();
-            let wall = std::time::SystemTime::now()
-                .duration_since(std::time::UNIX_EPOCH)
-                .unwrap_or_default();
-            let (l, sink) =
-                opennav::live::Live::start(address, mounting, wall, Some(&started_tx), None)
-                    .map_err(|e| failed(anyhow::anyhow!(e)))?;
-            if let Ok(a) = started_rx.try_recv() {
-                eprintln!("opennav: live view on ws://{a} (Foxglove: Open connection → Foxglove WebSocket)");
-            }
-            Some((l, sink))
+            Some((address, mounting))
         }
     };
-    let live_sink = live.as_ref().map(|(_, s)| s.clone());
+    let mut live: Option<opennav::live::Live> = None;
+    let mut live_sink: Option<opennav::live::LiveSink> = None;
     let mut pose: Option<Pose2> = None;
     let mut view: Option<PendingView> = None;
     let (mut views, mut same) = (0u64, 0u64);
     // the pace of a live replay: the first stamp against the wall clock
     let mut pace: Option<(Stamp, std::time::Instant)> = None;
-    for item in reader {
+    let mut reader = reader;
+    while let Some(item) = reader.next() {
         let item = item.map_err(failed)?;
+        if let Some((address, mounting)) = live_to.take() {
+            let (started_tx, started_rx) = std::sync::mpsc::channel();
+            // the recorded wall-clock times; a first-format recording has
+            // none: its stamps shown from now
+            let offset = match reader.wall_minus_monotonic() {
+                Some(o) => o,
+                None => opennav::live::wall_offset(Stamp::ZERO),
+            };
+            let (l, sink) =
+                opennav::live::Live::start(address, mounting, offset, Some(&started_tx), None)
+                    .map_err(|e| failed(anyhow::anyhow!(e)))?;
+            if let Ok(a) = started_rx.try_recv() {
+                eprintln!("opennav: live view on ws://{a} (Foxglove: Open connection → Foxglove WebSocket)");
+            }
+            live = Some(l);
+            live_sink = Some(sink);
+        }
         match item {
             // the one given on the command line wins
             Recorded::Calibration(c) if calibration.is_none() => {
@@ -177,8 +188,15 @@ pub fn run(config: Option<&std::path::Path>, args: ReplayArgs) -> Result<(), Fai
         }
     }
     drop(live_sink);
-    if let Some((l, _)) = live {
-        l.finish();
+    if let Some(l) = live {
+        let r = l.finish();
+        if r.dropped > 0 {
+            eprintln!(
+                "opennav: live view: {} of {} items dropped",
+                r.dropped,
+                r.dropped + r.shown
+            );
+        }
     }
     let tracks: Vec<_> = tracker
         .tracks()
@@ -201,18 +219,7 @@ pub fn run(config: Option<&std::path::Path>, args: ReplayArgs) -> Result<(), Fai
 
 /// Objects seen from `pose` into the tracker, in `odom`.
 fn place(tracker: &mut Tracker, stamp: Stamp, pose: Pose2, objects: &[Object3D]) {
-    let odom_from_base = pose.to_isometry3();
-    let placed: Vec<Object3D> = objects
-        .iter()
-        .filter_map(|o| {
-            let pts = o
-                .points
-                .iter()
-                .map(|p| (odom_from_base * p.cast::<f64>()).cast::<f32>())
-                .collect();
-            Object3D::from_points(o.label.clone(), o.score, Frame::Odom, pts, o.box_xyxy)
-        })
-        .collect();
+    let placed = opennav::perception::boxes::objects_in_odom(pose, objects.to_vec());
     tracker.update(stamp, &placed, |_| true);
 }
 
@@ -226,17 +233,7 @@ fn step_view(stamp: Stamp, pose: Option<Pose2>, tracker: &Tracker) -> opennav::l
         phase: Some("replay".into()),
         goal_track: None,
         approach: None,
-        tracks: tracker
-            .tracks()
-            .iter()
-            .filter(|t| t.confirmed)
-            .map(|t| opennav::live::TrackView {
-                id: t.id,
-                label: t.label.clone(),
-                center_m: t.center_m,
-                size_m: t.size_m,
-            })
-            .collect(),
+        tracks: opennav::live::TrackView::confirmed(tracker),
         plan_odom: Vec::new(),
         camera: None,
         said: Vec::new(),

@@ -224,17 +224,7 @@ pub async fn run(mut control: Control, mut io: ControlTaskIo) -> ControlEnd {
                     _ => None,
                 },
                 approach: control.goal.approach(),
-                tracks: tracks
-                    .tracks()
-                    .iter()
-                    .filter(|t| t.confirmed)
-                    .map(|t| crate::live::TrackView {
-                        id: t.id,
-                        label: t.label.clone(),
-                        center_m: t.center_m,
-                        size_m: t.size_m,
-                    })
-                    .collect(),
+                tracks: crate::live::TrackView::confirmed(&tracks),
                 plan_odom: control.planned_path.clone(),
                 camera: camera.as_ref().map(|c| c.value.clone()),
                 said: out.said.clone(),

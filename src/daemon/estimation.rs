@@ -16,7 +16,7 @@ use crate::estimation::fusion::Estimator;
 use crate::estimation::obstacle_map::{CellKind, FootprintM, ObstacleMap};
 use crate::estimation::tracker::Tracker;
 use crate::estimation::view::CameraView;
-use crate::msg::{Frame, MapObstacles, Object3D, Obstacles, Odometry, Stamp, Stamped, WheelTicks};
+use crate::msg::{MapObstacles, Object3D, Obstacles, Odometry, Stamp, Stamped, WheelTicks};
 use crate::perception::depth_obstacles::DepthScan;
 
 /// Counters for the report.
@@ -208,18 +208,7 @@ impl Estimation {
     }
 
     fn place(&mut self, stamp: Stamp, pose: crate::msg::Pose2, objects: Vec<Object3D>) {
-        let odom_from_base = pose.to_isometry3();
-        let objects: Vec<Object3D> = objects
-            .into_iter()
-            .filter_map(|o| {
-                let pts = o
-                    .points
-                    .iter()
-                    .map(|p| (odom_from_base * p.cast::<f64>()).cast::<f32>())
-                    .collect();
-                Object3D::from_points(o.label, o.score, Frame::Odom, pts, o.box_xyxy)
-            })
-            .collect();
+        let objects = crate::perception::boxes::objects_in_odom(pose, objects);
         let view = self.view;
         self.tracker
             .update(stamp, &objects, |p| view.is_some_and(|v| v.sees(&pose, p)));

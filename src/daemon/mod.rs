@@ -293,10 +293,7 @@ pub async fn run(
         camera: base_from_camera,
     };
     // stamps are the run's clock: wall time = stamp + offset
-    let offset = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .unwrap_or_default()
-        .saturating_sub(start.0);
+    let offset = crate::live::wall_offset(start);
     let (recorder, sink) = match &opts.record {
         Some(p) => {
             let info = crate::record::RecordingInfo {

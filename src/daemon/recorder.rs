@@ -26,26 +26,8 @@ pub enum RecordItem {
     Step(Box<crate::live::StepView>),
 }
 
-/// The tasks' handle on the recording (cheap to clone).
-#[derive(Clone)]
-pub struct RecordSink {
-    tx: std::sync::mpsc::SyncSender<RecordItem>,
-    dropped: Arc<AtomicU64>,
-}
-
-impl RecordSink {
-    pub fn put(&self, item: RecordItem) {
-        if self.tx.try_send(item).is_err() {
-            let n = self.dropped.fetch_add(1, Ordering::SeqCst) + 1;
-            if n.is_power_of_two() {
-                tracing::warn!(
-                    dropped = n,
-                    "recording: the writer falls behind; items dropped"
-                );
-            }
-        }
-    }
-}
+/// The tasks' handle on the recording (cheap to clone; never waits).
+pub type RecordSink = crate::sink::DropSink<RecordItem>;
 
 /// Records when a sink is given.
 pub fn record(sink: &Option<RecordSink>, item: impl FnOnce() -> RecordItem) {
@@ -77,7 +59,7 @@ impl Recorder {
     ) -> Result<(Recorder, RecordSink), String> {
         let mut rec =
             crate::record::Recorder::create_with(path, info).map_err(|e| e.to_string())?;
-        let (tx, rx) = std::sync::mpsc::sync_channel::<RecordItem>(512);
+        let (sink, rx, dropped) = RecordSink::channel(512, "recording: the writer");
         let handle = std::thread::Builder::new()
             .name("recorder".into())
             .spawn(move || {
@@ -113,14 +95,13 @@ impl Recorder {
                 (written, error)
             })
             .map_err(|e| format!("recorder thread: {e}"))?;
-        let dropped = Arc::new(AtomicU64::new(0));
         Ok((
             Recorder {
                 path: path.display().to_string(),
-                dropped: dropped.clone(),
+                dropped,
                 handle,
             },
-            RecordSink { tx, dropped },
+            sink,
         ))
     }
 

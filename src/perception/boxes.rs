@@ -302,6 +302,23 @@ impl Object3D {
     }
 }
 
+/// Objects seen from the chair at `pose` (in `base_link`), placed in
+/// `odom`; an object with no points is left out.
+pub fn objects_in_odom(pose: crate::msg::Pose2, objects: Vec<Object3D>) -> Vec<Object3D> {
+    let odom_from_base = pose.to_isometry3();
+    objects
+        .into_iter()
+        .filter_map(|o| {
+            let pts = o
+                .points
+                .iter()
+                .map(|p| (odom_from_base * p.cast::<f64>()).cast::<f32>())
+                .collect();
+            Object3D::from_points(o.label, o.score, Frame::Odom, pts, o.box_xyxy)
+        })
+        .collect()
+}
+
 /// When two same-label objects are one.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MergeRule {

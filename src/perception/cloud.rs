@@ -105,24 +105,9 @@ pub fn zscore_back_project(
         _ => (true, 0.0, 0.0),
     };
     let keep = |z: f32| all || (z as f64 - mean).abs() < limit;
-    let r = target_from_camera.rotation.to_rotation_matrix();
-    let m = r.matrix();
-    let col = |j: usize| nalgebra::Vector3::new(m[(0, j)], m[(1, j)], m[(2, j)]);
-    let b = col(0) / intrinsics.fx;
-    let c = col(1) / intrinsics.fy;
-    let a = col(2) - b * intrinsics.cx - c * intrinsics.cy;
-    let t = target_from_camera.translation.vector;
-    let (a, b, c, t) = (
-        a.cast::<f32>(),
-        b.cast::<f32>(),
-        c.cast::<f32>(),
-        t.cast::<f32>(),
-    );
+    let project = projector(intrinsics, target_from_camera);
     let mut out = Vec::with_capacity(samples.len());
-    out.extend(samples.iter().filter(|s| keep(s.z_m)).map(|s| {
-        let ray = a + b * s.u as f32 + c * s.v as f32;
-        Point3::from(ray * s.z_m + t)
-    }));
+    out.extend(samples.iter().filter(|s| keep(s.z_m)).map(project));
     out
 }
 
@@ -162,17 +147,13 @@ pub fn zscore_filter(mut samples: Vec<DepthSample>, tau: f64) -> Vec<DepthSample
     samples
 }
 
-/// Back-projects samples with the intrinsics of the image they index
-/// (`X = (u−cx)·Z/fx, Y = (v−cy)·Z/fy, Z`), then applies `target_from_camera`
-/// (step 5). Pixel centres are at integer coordinates, as in the paper and
-/// the RealSense SDK.
-pub fn back_project(
-    samples: &[DepthSample],
+/// A sample's point in the target frame: p = R·(z·ray(u, v)) + t with
+/// ray(u, v) = ((u−cx)/fx, (v−cy)/fy, 1), linear in u and v, so
+/// p = z·(a + u·b + v·c) + t with a, b, c, t made once.
+fn projector(
     intrinsics: &Intrinsics,
     target_from_camera: &Isometry3<f64>,
-) -> Vec<Point3<f32>> {
-    // p = R·(z·ray(u, v)) + t with ray(u, v) = ((u−cx)/fx, (v−cy)/fy, 1),
-    // linear in u and v: p = z·(a + u·b + v·c) + t
+) -> impl Fn(&DepthSample) -> Point3<f32> {
     let r = target_from_camera.rotation.to_rotation_matrix();
     let m = r.matrix();
     let col = |j: usize| nalgebra::Vector3::new(m[(0, j)], m[(1, j)], m[(2, j)]);
@@ -186,12 +167,24 @@ pub fn back_project(
         c.cast::<f32>(),
         t.cast::<f32>(),
     );
+    move |s: &DepthSample| {
+        let ray = a + b * s.u as f32 + c * s.v as f32;
+        Point3::from(ray * s.z_m + t)
+    }
+}
+
+/// Back-projects samples with the intrinsics of the image they index
+/// (`X = (u−cx)·Z/fx, Y = (v−cy)·Z/fy, Z`), then applies `target_from_camera`
+/// (step 5). Pixel centres are at integer coordinates, as in the paper and
+/// the RealSense SDK.
+pub fn back_project(
+    samples: &[DepthSample],
+    intrinsics: &Intrinsics,
+    target_from_camera: &Isometry3<f64>,
+) -> Vec<Point3<f32>> {
     samples
         .iter()
-        .map(|s| {
-            let ray = a + b * s.u as f32 + c * s.v as f32;
-            Point3::from(ray * s.z_m + t)
-        })
+        .map(projector(intrinsics, target_from_camera))
         .collect()
 }
 
