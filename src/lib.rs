@@ -17,7 +17,6 @@ pub mod navigation;
 pub mod output;
 pub mod perception;
 pub mod record;
-#[cfg(feature = "ros2")]
 pub mod ros2;
 pub mod safety;
 pub mod sensors;

@@ -82,6 +82,7 @@ fn trip(asked: impl Fn(f64, f64) -> VelocityCmd) -> Trip {
                     pose: world.truth,
                     v_mps: world.v_mps,
                     omega_radps: world.omega_radps,
+                    ..Default::default()
                 },
             );
             let cmd = Stamped::new(t, asked(t.as_secs_f64(), gap));

@@ -226,7 +226,11 @@ fn place(tracker: &mut Tracker, stamp: Stamp, pose: Pose2, objects: &[Object3D])
 fn step_view(stamp: Stamp, pose: Option<Pose2>, tracker: &Tracker) -> opennav::live::StepView {
     opennav::live::StepView {
         stamp,
-        pose,
+        // a recording has the pose only
+        odometry: pose.map(|pose| opennav::msg::Odometry {
+            pose,
+            ..Default::default()
+        }),
         state: opennav::msg::SupervisorState::Idle,
         cmd: Default::default(),
         goal: None,

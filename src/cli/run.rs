@@ -116,6 +116,9 @@ struct Printed<'a> {
     #[serde(flatten)]
     report: &'a RunReport,
     sim: Option<SimSummary>,
+    /// The ROS 2 bridge's drops (None: no bridge).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    ros2: Option<opennav::ros2::BridgeCounts>,
 }
 
 pub fn run(config: Option<&std::path::Path>, args: RunArgs) -> Result<(), Failure> {
@@ -143,7 +146,8 @@ pub fn run(config: Option<&std::path::Path>, args: RunArgs) -> Result<(), Failur
     let (speech_tx, mut speech_rx) = mpsc::unbounded_channel::<String>();
     // the sentences for the ROS 2 bridge too
     let (ros2_said_tx, ros2_said_rx) = std::sync::mpsc::channel::<String>();
-    let ros2_said_tx = args.ros2.then_some(ros2_said_tx);
+    let ros2 = args.ros2 || settings.ros2.enabled;
+    let ros2_said_tx = ros2.then_some(ros2_said_tx);
     let speech = std::thread::Builder::new()
         .name("sentences".into())
         .spawn(move || {
@@ -180,7 +184,7 @@ pub fn run(config: Option<&std::path::Path>, args: RunArgs) -> Result<(), Failur
         None if settings.live.enabled => Some(settings.live.socket_addr().map_err(bad_input)?),
         None => None,
     };
-    let opts = RunOptions {
+    let mut opts = RunOptions {
         exit_on_arrival: args.exit_on_arrival,
         max_duration: args.max_duration,
         record: args.record.clone(),
@@ -216,6 +220,8 @@ pub fn run(config: Option<&std::path::Path>, args: RunArgs) -> Result<(), Failur
         }),
         live_wait: None,
         config_text: Some(config_as_given(config)),
+        // the ROS 2 bridge, once it runs
+        viewers: None,
     };
     let input_rx = receivers.words;
     for p in &args.prompt {
@@ -266,7 +272,7 @@ pub fn run(config: Option<&std::path::Path>, args: RunArgs) -> Result<(), Failur
     } else {
         Some(opennav::daemon::lock::InstanceLock::acquire(&settings.lock_path()).map_err(failed)?)
     };
-    let (report, summary) = rt.block_on(async move {
+    let (report, summary, ros2) = rt.block_on(async move {
         let cancel = CancellationToken::new();
         let c = cancel.clone();
         let mut term = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate())
@@ -306,9 +312,13 @@ pub fn run(config: Option<&std::path::Path>, args: RunArgs) -> Result<(), Failur
             tracing::info!(path = %s.path().display(), "control socket open");
             tokio::spawn(s.serve(hub.clone(), status_rx.clone(), socket_stop.clone()));
         }
-        if args.ros2 {
-            start_ros2(hub.clone(), ros2_said_rx, status_rx.clone())?;
-        }
+        let bridge = if ros2 {
+            let b = start_ros2(&settings, hub.clone(), ros2_said_rx, status_rx.clone())?;
+            opts.viewers = Some(b.sink.clone());
+            Some(b)
+        } else {
+            None
+        };
         // the person's switch: configured means required
         let switch_settings = &settings.input.switch;
         let switch_stop = Arc::new(std::sync::atomic::AtomicBool::new(false));
@@ -357,7 +367,7 @@ pub fn run(config: Option<&std::path::Path>, args: RunArgs) -> Result<(), Failur
         let report = report?;
         let label = report.goal.label().map(str::to_string);
         let summary = world.and_then(|w| w.summary(label.as_deref()));
-        Ok::<_, Failure>((report, summary))
+        Ok::<_, Failure>((report, summary, bridge.map(|b| b.counts())))
     })?;
     // every sentence printed before the report (the daemon's senders are gone)
     if speech.join().is_err() {
@@ -366,6 +376,7 @@ pub fn run(config: Option<&std::path::Path>, args: RunArgs) -> Result<(), Failur
     let line = serde_json::to_string(&Printed {
         report: &report,
         sim: summary,
+        ros2,
     })
     .map_err(failed)?;
     println!("{line}");
@@ -445,27 +456,49 @@ fn read_words(mut input: impl std::io::BufRead, tx: &InputHub) {
     }
 }
 
+/// The running bridge, as the daemon needs it.
+#[cfg(feature = "ros2")]
+type Bridge = opennav::ros2::Bridge;
+#[cfg(not(feature = "ros2"))]
+struct Bridge {
+    sink: opennav::live::LiveSink,
+}
+#[cfg(not(feature = "ros2"))]
+impl Bridge {
+    fn counts(&self) -> opennav::ros2::BridgeCounts {
+        Default::default()
+    }
+}
+
 #[cfg(feature = "ros2")]
 fn start_ros2(
+    settings: &Settings,
     hub: opennav::input::InputHub,
     said: std::sync::mpsc::Receiver<String>,
     status: watch::Receiver<DaemonStatus>,
-) -> Result<(), Failure> {
-    opennav::ros2::start(hub, said, status).map_err(|e| failed(anyhow::anyhow!(e)))?;
+) -> Result<Bridge, Failure> {
+    let env = std::env::var("ROS_DOMAIN_ID").ok();
+    let domain = settings.ros2.domain(env.as_deref()).map_err(bad_input)?;
+    let bridge = opennav::ros2::start(&settings.ros2, domain, hub, said, status)
+        .map_err(|e| failed(anyhow::anyhow!(e)))?;
+    let t = &settings.ros2.topics;
     eprintln!(
-        "opennav: ROS 2 bridge on /opennav/said, /opennav/state, /opennav/prompt, /opennav/stop"
+        "opennav: ROS 2 bridge in domain {domain}: out {}, {}, {}, {}, {}, {}, {}, {}, {}; in {}, {}",
+        t.said, t.state, t.scan_left, t.scan_right, t.odom, t.tf, t.tf_static, t.objects, t.tracks,
+        t.prompt, t.stop
     );
-    Ok(())
+    Ok(bridge)
 }
 
 #[cfg(not(feature = "ros2"))]
 fn start_ros2(
+    _: &Settings,
     _: opennav::input::InputHub,
     _: std::sync::mpsc::Receiver<String>,
     _: watch::Receiver<DaemonStatus>,
-) -> Result<(), Failure> {
+) -> Result<Bridge, Failure> {
     Err(bad_input(anyhow::anyhow!(
-        "--ros2: this build has no ROS 2 bridge: build with --features ros2"
+        "ROS 2 (--ros2 or ros2.enabled): this build has no ROS 2 bridge: build with --features ros2"
     )))
 }
 

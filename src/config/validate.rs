@@ -339,6 +339,24 @@ impl Settings {
         }
         finite_range("voice.min_confidence", self.voice.min_confidence, 0.0, 1.0)?;
         self.live.socket_addr()?;
+        let r = &self.ros2;
+        range("ros2.depth", r.depth, 1, 1000)?;
+        range("ros2.domain_id", r.domain_id, 0, super::MAX_DOMAIN_ID)?;
+        let mut seen = std::collections::BTreeMap::new();
+        for (key, topic) in r.topics.all() {
+            super::check_ros_topic(topic).map_err(|reason| ConfigError::Range {
+                key: format!("ros2.topics.{key}"),
+                value: format!("{topic:?}"),
+                reason,
+            })?;
+            if let Some(other) = seen.insert(topic, key) {
+                return Err(ConfigError::Range {
+                    key: format!("ros2.topics.{key}"),
+                    value: format!("{topic:?}"),
+                    reason: format!("also ros2.topics.{other}: each topic has one type"),
+                });
+            }
+        }
         let sp = &self.speech;
         range("speech.rate_wpm", sp.rate_wpm, 80, 450)?;
         range("speech.volume", sp.volume, 0, 200)?;

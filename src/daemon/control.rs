@@ -519,6 +519,7 @@ impl Control {
             pose,
             v_mps,
             omega_radps,
+            ..
         } = odo.value;
         let obstacles_odom: Vec<[f64; 2]> = o
             .points_base

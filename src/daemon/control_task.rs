@@ -212,7 +212,7 @@ pub async fn run(mut control: Control, mut io: ControlTaskIo) -> ControlEnd {
             let tracks = io.tracks.borrow();
             let step = Box::new(crate::live::StepView {
                 stamp: now,
-                pose: odometry.map(|o| o.value.pose),
+                odometry: odometry.map(|o| o.value),
                 state: out.cmd.state,
                 cmd: out.cmd.cmd,
                 goal: goal.label().map(str::to_string),

@@ -66,6 +66,7 @@ fn fresh(now: Stamp) -> (Stamped<Obstacles>, Stamped<Odometry>) {
                 pose: Pose2::default(),
                 v_mps: 0.0,
                 omega_radps: 0.0,
+                ..Default::default()
             },
         ),
     )

@@ -102,6 +102,8 @@ pub struct RunOptions {
     /// The configuration as given (file text and overrides), kept in a
     /// recording's metadata.
     pub config_text: Option<String>,
+    /// Other consumers of the live items (the ROS 2 bridge).
+    pub viewers: Option<crate::live::LiveSink>,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -319,6 +321,14 @@ pub async fn run(
         }
         None => (None, None),
     };
+    let live_sink = match (live_sink, opts.viewers.clone()) {
+        (Some(a), Some(b)) => Some(a.and(b)),
+        (a, b) => a.or(b),
+    };
+    crate::live::show(&live_sink, || crate::live::LiveItem::Start {
+        mounting,
+        wall_offset: offset,
+    });
     let sources = CancellationToken::new();
     let mut tasks = Tasks::new(opts.inject_panic.clone());
     let (first_tx, first_rx) = mpsc::unbounded_channel::<&'static str>();

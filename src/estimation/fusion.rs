@@ -68,6 +68,7 @@ impl Estimator {
                 .gyro
                 .filter(|g| g.stamp.age_at(t.stamp) <= self.gyro_max_age)
                 .map_or(u.omega_radps, |g| g.value),
+            pose_cov: self.ekf.cov.transpose().into(),
         }
     }
 

@@ -49,7 +49,7 @@ pub enum StepMessage {
 /// the MPC's path, the camera's obstacles, each sentence, the supervisor.
 pub fn step_messages(s: &StepView, ts: fg::Timestamp) -> Vec<(&'static str, StepMessage)> {
     let mut out = Vec::new();
-    if let Some(p) = s.pose {
+    if let Some(p) = s.odometry.map(|o| o.pose) {
         out.push((
             TOPIC_TF,
             StepMessage::Tf(fg::FrameTransforms {

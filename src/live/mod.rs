@@ -41,7 +41,7 @@ use nalgebra::Isometry3;
 use serde::Serialize;
 
 use crate::estimation::tracker::ApproachPose;
-use crate::msg::{LaserScan, MapObstacles, Pose2, RgbdFrame, Stamp, Stamped, SupervisorState};
+use crate::msg::{LaserScan, MapObstacles, Odometry, RgbdFrame, Stamp, Stamped, SupervisorState};
 use crate::msg::{Object3D, VelocityCmd};
 use crate::perception::detector::Detection;
 
@@ -119,8 +119,9 @@ impl TrackView {
 #[derive(Debug, Clone, PartialEq)]
 pub struct StepView {
     pub stamp: Stamp,
-    /// odom→base_link.
-    pub pose: Option<Pose2>,
+    /// odom→base_link, the speed and yaw rate (None: the wheels never
+    /// reported).
+    pub odometry: Option<Odometry>,
     pub state: SupervisorState,
     /// What the supervisor let through.
     pub cmd: VelocityCmd,
@@ -136,8 +137,14 @@ pub struct StepView {
     pub said: Vec<String>,
 }
 
-/// What the live view is fed.
+/// What the live view (and the ROS 2 bridge) is fed.
 pub enum LiveItem {
+    /// Once, when the run starts: where the sensors sit, and the offset
+    /// that turns a stamp into wall-clock time.
+    Start {
+        mounting: Mounting,
+        wall_offset: Duration,
+    },
     Scans {
         left: Stamped<LaserScan>,
         right: Stamped<LaserScan>,
@@ -158,8 +165,46 @@ pub struct Mounting {
     pub camera: Isometry3<f64>,
 }
 
-/// The tasks' handle on the live view (cheap to clone; never waits).
-pub type LiveSink = crate::sink::DropSink<LiveItem>;
+/// One consumer's queue of items (shared: every consumer gets each).
+pub type ItemQueue = crate::sink::DropSink<Arc<LiveItem>>;
+
+/// The tasks' handle on the consumers of the live items (the Foxglove
+/// view, the ROS 2 bridge): cheap to clone; never waits. Each consumer has
+/// its own bounded queue: one that falls behind loses items, counted, and
+/// does not hold back the others.
+#[derive(Clone, Default)]
+pub struct LiveSink {
+    queues: Vec<ItemQueue>,
+}
+
+impl std::fmt::Debug for LiveSink {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "LiveSink({} consumers)", self.queues.len())
+    }
+}
+
+impl LiveSink {
+    /// A sink feeding one consumer.
+    pub fn one(queue: ItemQueue) -> LiveSink {
+        LiveSink {
+            queues: vec![queue],
+        }
+    }
+
+    /// This sink and `other`'s consumers together.
+    pub fn and(mut self, other: LiveSink) -> LiveSink {
+        self.queues.extend(other.queues);
+        self
+    }
+
+    /// Hands the item to every consumer; never waits.
+    pub fn put(&self, item: LiveItem) {
+        let item = Arc::new(item);
+        for q in &self.queues {
+            q.put(item.clone());
+        }
+    }
+}
 
 /// Wall-clock time minus the run's clock at `now`: a stamp plus this is
 /// the wall-clock time. A system clock before 1970 is said and taken as 0.
@@ -208,7 +253,8 @@ impl Live {
         started: Option<&std::sync::mpsc::Sender<SocketAddr>>,
         wait: Option<Duration>,
     ) -> Result<(Live, LiveSink), String> {
-        let (sink, rx, dropped) = LiveSink::channel(QUEUE, "live view");
+        let (queue, rx, dropped) = ItemQueue::channel(QUEUE, "live view");
+        let sink = LiveSink::one(queue);
         let (ready_tx, ready_rx) = std::sync::mpsc::channel::<Result<u16, String>>();
         let subscribed = Arc::new(Subscribed::default());
         let listener = subscribed.clone();
@@ -238,7 +284,7 @@ impl Live {
                 };
                 let mut shown = 0u64;
                 for item in rx {
-                    channels.show(item);
+                    channels.show(&item);
                     shown += 1;
                 }
                 server.stop().wait_blocking();
@@ -382,8 +428,16 @@ impl Channels {
         (self.wall_offset + stamp.0).as_nanos() as u64
     }
 
-    fn show(&mut self, item: LiveItem) {
+    fn show(&mut self, item: &LiveItem) {
         match item {
+            LiveItem::Start {
+                mounting,
+                wall_offset,
+            } => {
+                self.mounting = *mounting;
+                self.wall_offset = *wall_offset;
+                self.static_sent = None;
+            }
             LiveItem::Scans { left, right } => {
                 let t = self.ns(left.stamp);
                 self.laser_left
@@ -404,11 +458,11 @@ impl Channels {
                 self.color.log_with_time(&color, t);
                 self.depth.log_with_time(&depth, t);
                 self.detections
-                    .log_with_time(&image_annotations(&detections, timestamp(t)), t);
+                    .log_with_time(&image_annotations(detections, timestamp(t)), t);
                 self.objects
-                    .log_with_time(&objects_scene(&objects, timestamp(t)), t);
+                    .log_with_time(&objects_scene(objects, timestamp(t)), t);
             }
-            LiveItem::Step(step) => self.step(&step),
+            LiveItem::Step(step) => self.step(step),
         }
     }
 
@@ -436,5 +490,31 @@ impl Channels {
             }
             debug_assert!(TOPICS.contains(&topic));
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_consumer_gets_each_item_and_a_full_one_loses_only_its_own() {
+        let (slow, slow_rx, slow_dropped) = ItemQueue::channel(1, "slow");
+        let (fast, fast_rx, fast_dropped) = ItemQueue::channel(4, "fast");
+        let sink = LiveSink::one(slow).and(LiveSink::one(fast));
+        for _ in 0..3 {
+            sink.put(LiveItem::Start {
+                mounting: Mounting {
+                    laser_left: Isometry3::identity(),
+                    laser_right: Isometry3::identity(),
+                    camera: Isometry3::identity(),
+                },
+                wall_offset: Duration::ZERO,
+            });
+        }
+        assert_eq!(slow_rx.try_iter().count(), 1);
+        assert_eq!(slow_dropped.load(Ordering::SeqCst), 2);
+        assert_eq!(fast_rx.try_iter().count(), 3);
+        assert_eq!(fast_dropped.load(Ordering::SeqCst), 0);
     }
 }

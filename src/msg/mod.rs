@@ -37,6 +37,8 @@ pub struct Odometry {
     pub pose: Pose2,
     pub v_mps: f64,
     pub omega_radps: f64,
+    /// The pose's covariance over (x m, y m, θ rad), row-major.
+    pub pose_cov: [[f64; 3]; 3],
 }
 
 /// What a user can say or press.
