@@ -18,7 +18,9 @@
 //!   `/perception/objects` (`opennav.Detections`, `opennav.Objects`): the
 //!   2D detections of a frame and the 3D objects made of them;
 //! - from each control step, as the live view (`crate::live`): `/tf`,
-//!   `/tracks`, `/plan`, `/camera/obstacles`, `/said`, `/supervisor`.
+//!   `/tracks`, `/plan`, `/camera/obstacles`, `/said`, `/input` (the
+//!   person's words and presses), `/supervisor` (with the motor
+//!   interface's state and last joystick output).
 //!
 //! Log time = the data's stamp plus the wall-clock offset kept in the
 //! metadata record `opennav` (`wall_minus_monotonic_ns`, with `version`

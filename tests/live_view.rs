@@ -137,6 +137,7 @@ async fn a_viewer_receives_every_topic_of_a_trip_in_foxglove_schemas() {
         ("/plan", "foxglove.PosesInFrame"),
         ("/tf", "foxglove.FrameTransforms"),
         ("/said", "foxglove.Log"),
+        ("/input", "foxglove.Log"),
         ("/supervisor", "opennav.Supervisor"),
     ];
     assert_eq!(expect_schema.len(), opennav::live::TOPICS.len());
@@ -229,6 +230,12 @@ async fn a_viewer_receives_every_topic_of_a_trip_in_foxglove_schemas() {
         said.iter().any(|s| s == "Arrived at the chair."),
         "{said:?}"
     );
+    // the person's word, as the daemon took it
+    let inputs: Vec<String> = m["/input"]
+        .iter()
+        .map(|(_, b)| fg::Log::decode(&b[..]).expect("Log").message)
+        .collect();
+    assert_eq!(inputs, vec![r#"Goto("chair")"#.to_string()], "{inputs:?}");
     let states: Vec<Value> = m["/supervisor"]
         .iter()
         .map(|(_, b)| serde_json::from_slice(b).expect("JSON"))
@@ -239,6 +246,15 @@ async fn a_viewer_receives_every_topic_of_a_trip_in_foxglove_schemas() {
     assert!(states
         .iter()
         .any(|s| s["v_mps"].as_f64().is_some_and(|v| v > 0.1)));
+    // and what the motor interface sent: forward on the joystick
+    assert!(
+        states
+            .iter()
+            .any(|s| s["actuator"].is_string()
+                && s["joystick_forward"].as_i64().is_some_and(|f| f > 0)),
+        "{:?}",
+        states.last()
+    );
 }
 
 #[test]

@@ -241,5 +241,7 @@ fn step_view(stamp: Stamp, pose: Option<Pose2>, tracker: &Tracker) -> opennav::l
         plan_odom: Vec::new(),
         camera: None,
         said: Vec::new(),
+        inputs: Vec::new(),
+        actuator: None,
     }
 }

@@ -61,6 +61,9 @@ pub struct ControlTaskIo {
     pub live: Option<crate::live::LiveSink>,
     /// The recording, when there is one.
     pub record: Option<super::recorder::RecordSink>,
+    /// The motor interface's status (what it sent last), for the live view
+    /// and the recording.
+    pub actuator_status: Option<watch::Receiver<crate::actuation::ActuatorStatus>>,
 }
 
 /// How the control task ended.
@@ -90,6 +93,10 @@ pub async fn run(mut control: Control, mut io: ControlTaskIo) -> ControlEnd {
     let mut stops = io.stops.take();
     let mut last_said: std::collections::VecDeque<String> = Default::default();
     let mut ending: Option<(Outcome, Stamp)> = None;
+    // what the person said or pressed since the last step (for the live
+    // view and the recording)
+    let mut taken: Vec<String> = Vec::new();
+    let keep_inputs = io.live.is_some() || io.record.is_some();
     let outcome = loop {
         tokio::select! {
             biased;
@@ -106,6 +113,9 @@ pub async fn run(mut control: Control, mut io: ControlTaskIo) -> ControlEnd {
                         if let Some(s) = stops.as_mut() {
                             s.borrow_and_update();
                         }
+                        if keep_inputs {
+                            taken.push(format!("{:?}", UserInput::Stop));
+                        }
                         control.on_input(UserInput::Stop);
                     }
                     // every sender gone (the daemon ending): no more stops
@@ -114,7 +124,12 @@ pub async fn run(mut control: Control, mut io: ControlTaskIo) -> ControlEnd {
                 }
             }
             i = io.inputs.recv(), if inputs_open => match i {
-                Some(i) => control.on_input(i),
+                Some(i) => {
+                    if keep_inputs {
+                        taken.push(format!("{i:?}"));
+                    }
+                    control.on_input(i)
+                }
                 None => inputs_open = false,
             },
             Some(ev) = io.actuator_events.recv() => {
@@ -228,6 +243,8 @@ pub async fn run(mut control: Control, mut io: ControlTaskIo) -> ControlEnd {
                 plan_odom: control.planned_path.clone(),
                 camera: camera.as_ref().map(|c| c.value.clone()),
                 said: out.said.clone(),
+                inputs: std::mem::take(&mut taken),
+                actuator: io.actuator_status.as_ref().map(|a| a.borrow().clone()),
             });
             drop(tracks);
             if let Some(r) = &io.record {

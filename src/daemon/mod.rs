@@ -599,6 +599,7 @@ pub async fn run(
                 status: opts.status.clone(),
                 live: live_sink,
                 record: sink,
+                actuator_status: Some(status_rx.clone()),
             },
         ),
     ));

@@ -19,7 +19,10 @@ pub const SUPERVISOR_SCHEMA: &str = r#"{
     "v_mps": {"type": "number"},
     "omega_radps": {"type": "number"},
     "goal": {"type": ["string", "null"]},
-    "phase": {"type": ["string", "null"]}
+    "phase": {"type": ["string", "null"]},
+    "actuator": {"type": ["string", "null"]},
+    "joystick_turn": {"type": ["integer", "null"]},
+    "joystick_forward": {"type": ["integer", "null"]}
   }
 }"#;
 
@@ -31,6 +34,10 @@ struct SupervisorMsg<'a> {
     omega_radps: f64,
     goal: Option<&'a str>,
     phase: Option<&'a str>,
+    /// The motor interface's state and its last output (turn, forward).
+    actuator: Option<&'a str>,
+    joystick_turn: Option<i8>,
+    joystick_forward: Option<i8>,
 }
 
 /// One message of a control step, by its schema.
@@ -76,18 +83,21 @@ pub fn step_messages(s: &StepView, ts: fg::Timestamp) -> Vec<(&'static str, Step
             StepMessage::Cloud(camera_cloud(c, ts)),
         ));
     }
+    let log = |message: &String, name: &str| {
+        StepMessage::Log(fg::Log {
+            timestamp: Some(ts),
+            level: fg::log::Level::Info as i32,
+            message: message.clone(),
+            name: name.into(),
+            file: String::new(),
+            line: 0,
+        })
+    };
     for line in &s.said {
-        out.push((
-            TOPIC_SAID,
-            StepMessage::Log(fg::Log {
-                timestamp: Some(ts),
-                level: fg::log::Level::Info as i32,
-                message: line.clone(),
-                name: "opennav".into(),
-                file: String::new(),
-                line: 0,
-            }),
-        ));
+        out.push((TOPIC_SAID, log(line, "opennav")));
+    }
+    for input in &s.inputs {
+        out.push((TOPIC_INPUT, log(input, "person")));
     }
     let (state, reason) = state_words(&s.state);
     let msg = SupervisorMsg {
@@ -97,6 +107,9 @@ pub fn step_messages(s: &StepView, ts: fg::Timestamp) -> Vec<(&'static str, Step
         omega_radps: s.cmd.omega_radps,
         goal: s.goal.as_deref(),
         phase: s.phase.as_deref(),
+        actuator: s.actuator.as_ref().map(|a| a.state.as_str()),
+        joystick_turn: s.actuator.as_ref().map(|a| a.last_output.0),
+        joystick_forward: s.actuator.as_ref().map(|a| a.last_output.1),
     };
     match serde_json::to_vec(&msg) {
         Ok(bytes) => out.push((TOPIC_SUPERVISOR, StepMessage::Supervisor(bytes))),

@@ -19,8 +19,11 @@
 //!   step; `base_link`→`laser_left`, `laser_right`, `camera_optical` once a
 //!   second (a client that joins late gets them);
 //! - `/said` (`foxglove.Log`): every sentence the chair says;
+//! - `/input` (`foxglove.Log`): every word or press the daemon took from
+//!   the person (voice, switch, socket, stdin, ROS 2), as it took it;
 //! - `/supervisor` (JSON, schema `opennav.Supervisor`): state, stop reason,
-//!   the command, the goal and its phase.
+//!   the command, the goal and its phase, and the motor interface's state
+//!   and last joystick output.
 //!
 //! Message times are wall-clock (the run's monotonic stamp plus the offset
 //! taken at the start), so Foxglove shows the real date.
@@ -60,10 +63,11 @@ pub const TOPIC_TRACKS: &str = "/tracks";
 pub const TOPIC_PLAN: &str = "/plan";
 pub const TOPIC_TF: &str = "/tf";
 pub const TOPIC_SAID: &str = "/said";
+pub const TOPIC_INPUT: &str = "/input";
 pub const TOPIC_SUPERVISOR: &str = "/supervisor";
 
 /// Every topic the live view streams.
-pub const TOPICS: [&str; 12] = [
+pub const TOPICS: [&str; 13] = [
     TOPIC_LASER_LEFT,
     TOPIC_LASER_RIGHT,
     TOPIC_COLOR,
@@ -75,6 +79,7 @@ pub const TOPICS: [&str; 12] = [
     TOPIC_PLAN,
     TOPIC_TF,
     TOPIC_SAID,
+    TOPIC_INPUT,
     TOPIC_SUPERVISOR,
 ];
 
@@ -135,6 +140,11 @@ pub struct StepView {
     /// The depth camera's remembered obstacles (odom).
     pub camera: Option<MapObstacles>,
     pub said: Vec<String>,
+    /// What the person said or pressed since the last step, as the daemon
+    /// took it (`Goto("chair")`, `Stop`).
+    pub inputs: Vec<String>,
+    /// The motor interface: its state and what it sent last.
+    pub actuator: Option<crate::actuation::ActuatorStatus>,
 }
 
 /// What the live view (and the ROS 2 bridge) is fed.
@@ -380,6 +390,7 @@ struct Channels {
     plan: Channel<fg::PosesInFrame>,
     tf: Channel<fg::FrameTransforms>,
     said: Channel<fg::Log>,
+    input: Channel<fg::Log>,
     supervisor: Arc<foxglove::RawChannel>,
     mounting: Mounting,
     wall_offset: Duration,
@@ -417,6 +428,7 @@ impl Channels {
             plan: typed(ctx, TOPIC_PLAN),
             tf: typed(ctx, TOPIC_TF),
             said: typed(ctx, TOPIC_SAID),
+            input: typed(ctx, TOPIC_INPUT),
             supervisor,
             mounting,
             wall_offset,
@@ -483,6 +495,7 @@ impl Channels {
                 StepMessage::Scene(m) => self.tracks.log_with_time(&m, t),
                 StepMessage::Path(m) => self.plan.log_with_time(&m, t),
                 StepMessage::Cloud(m) => self.camera_obstacles.log_with_time(&m, t),
+                StepMessage::Log(m) if topic == TOPIC_INPUT => self.input.log_with_time(&m, t),
                 StepMessage::Log(m) => self.said.log_with_time(&m, t),
                 StepMessage::Supervisor(json) => self
                     .supervisor
