@@ -149,6 +149,9 @@ fn stderr_is_journal() -> bool {
 fn init_logs() {
     use tracing_subscriber::layer::SubscriberExt;
     use tracing_subscriber::util::SubscriberInitExt;
+    // a live-view client too slow for its queue loses messages: the
+    // foxglove crate says so at info ("outbox for client … full"); kept
+    const LIVE_DROPS: &str = "foxglove::websocket::connected_client=info";
     let filter = |default: &str| {
         tracing_subscriber::EnvFilter::try_from_default_env()
             .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(default))
@@ -162,7 +165,7 @@ fn init_logs() {
         Some(Ok(j)) => {
             // the sentences are info events: kept by default
             tracing_subscriber::registry()
-                .with(filter("info,rustdds=error"))
+                .with(filter(&format!("info,rustdds=error,{LIVE_DROPS}")))
                 .with(j.with_syslog_identifier("opennav".into()))
                 .init();
             TO_JOURNAL.store(true, std::sync::atomic::Ordering::SeqCst);
@@ -173,7 +176,7 @@ fn init_logs() {
     };
     tracing_subscriber::fmt()
         // RustDDS (the ROS 2 bridge) warns of every unreachable address
-        .with_env_filter(filter("warn,rustdds=error"))
+        .with_env_filter(filter(&format!("warn,rustdds=error,{LIVE_DROPS}")))
         .with_writer(std::io::stderr)
         .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .init();
