@@ -76,6 +76,8 @@ pub fn open_configured_detector(
         (None, p) => PathBuf::from(p),
     };
     let text = text_embedder(&store, settings)?;
+    // a tokenizer the manifest lists is checked (its checksum) before use
+    store.find(Role::Tokenizer)?;
     Ok(open_detector(&path, &settings.detector_settings(), text)?)
 }
 

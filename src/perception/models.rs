@@ -53,6 +53,8 @@ pub enum Role {
     TextEmbeddings,
     SamEncoder,
     SamDecoder,
+    /// A detector's tokenizer (Grounding DINO's `tokenizer.json`).
+    Tokenizer,
 }
 
 impl Role {
@@ -63,6 +65,7 @@ impl Role {
             Role::TextEmbeddings => "text_embeddings",
             Role::SamEncoder => "sam_encoder",
             Role::SamDecoder => "sam_decoder",
+            Role::Tokenizer => "tokenizer",
         }
     }
 }

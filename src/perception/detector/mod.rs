@@ -1,7 +1,9 @@
-//! Step 1: 2D detectors. A trait with two ONNX backends (closed-vocabulary
-//! YOLO v8/11 and open-vocabulary YOLO-World with text embeddings), the
-//! shared decoding of the `[1, 4+C, N]` head and class-wise NMS.
+//! Step 1: 2D detectors. A trait with ONNX backends (closed-vocabulary
+//! YOLO v8/11, open-vocabulary YOLO-World with text embeddings, and
+//! Grounding DINO with its BERT caption), the shared decoding of the
+//! `[1, 4+C, N]` head and class-wise NMS.
 
+pub mod grounding_dino;
 pub mod text;
 pub mod vocab;
 pub mod yolo;
@@ -16,6 +18,7 @@ use super::image::Letterbox;
 use super::runtime::{Model, RuntimeError, SessionSettings};
 use crate::msg::RgbImage;
 
+pub use grounding_dino::GroundingDino;
 pub use text::{TextEmbedder, TextEmbeddingError};
 pub use yolo::ClosedVocabularyYolo;
 pub use yolo_world::YoloWorld;
@@ -105,16 +108,28 @@ pub fn parse_prompts(line: &str) -> Vec<String> {
     out
 }
 
+/// The tokenizer Grounding DINO's caption needs: shipped beside the model.
+pub const GROUNDING_DINO_TOKENIZER: &str = "tokenizer.json";
+
 /// Opens a detector model, recognising its backend from its I/O signature:
-/// an input named `txt_feats` → YOLO-World (needs `text`); otherwise one
-/// image input `[1,3,H,W]` with a `names` metadata entry → closed-vocabulary
-/// YOLO.
+/// an input named `txt_feats` → YOLO-World (needs `text`); `input_ids` with
+/// a text self-attention mask → Grounding DINO (its `tokenizer.json`
+/// beside it); otherwise one image input `[1,3,H,W]` with a `names`
+/// metadata entry → closed-vocabulary YOLO.
 pub fn open_detector(
     path: &Path,
     settings: &DetectorSettings,
     text: Option<TextEmbedder>,
 ) -> Result<Box<dyn Detector>, DetectorError> {
     let model = Model::load(path, &settings.session)?;
+    if grounding_dino::is_grounding_dino(&model) {
+        let tokenizer = path.with_file_name(GROUNDING_DINO_TOKENIZER);
+        return Ok(Box::new(GroundingDino::from_model(
+            model,
+            settings.clone(),
+            &tokenizer,
+        )?));
+    }
     if model.signature.input("txt_feats").is_some() {
         let text = text.ok_or_else(|| {
             DetectorError::Prompt(format!(
