@@ -133,3 +133,52 @@ fn opennav_detect_runs_grounding_dino_end_to_end() {
         .collect();
     assert_eq!(labels, vec!["chair", "door handle"], "{report}");
 }
+
+/// The paper's second stack end to end on the stand-ins: Grounding DINO
+/// boxes, RepViT-SAM masks (a folder with its manifest's file names; its
+/// export has SAM's I/O), the depth of the RGB-D fixture → 3D objects.
+#[test]
+fn grounding_dino_with_repvit_sam_makes_3d_objects() {
+    common::init_ort();
+    let run = |segmenter: &std::path::Path| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_opennav"))
+            .args(["detect", "--detector"])
+            .arg(common::generated("grounding_dino.onnx"))
+            .arg("--segmenter")
+            .arg(segmenter)
+            .arg("--rgb")
+            .arg(common::mrpt("rgb.png"))
+            .arg("--depth")
+            .arg(common::mrpt("depth_mm.png"))
+            .arg("--calibration")
+            .arg(common::mrpt("calibration.json"))
+            .args(["--prompt", "chair, door handle"])
+            .current_dir(common::repo())
+            .env_remove("RUST_LOG")
+            .output()
+            .expect("runs")
+    };
+    let out = run(&common::generated("repvit_sam"));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON");
+    let objects = report["objects"].as_array().expect("objects");
+    let chair = objects
+        .iter()
+        .find(|o| o["label"] == "chair")
+        .unwrap_or_else(|| panic!("no chair: {report}"));
+    assert_eq!(chair["frame"], "base_link");
+    assert!(
+        chair["points"].as_u64().is_some_and(|n| n > 1000),
+        "{chair}"
+    );
+    // a folder without the models is an error naming what it needs
+    let empty = tempfile::tempdir().expect("dir");
+    let out = run(empty.path());
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("repvit_sam_encoder.onnx"), "{err}");
+}
