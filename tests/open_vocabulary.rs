@@ -203,3 +203,39 @@ fn sam_masks_follow_the_box_prompt() {
         assert_eq!(m.count(), want);
     }
 }
+
+/// EdgeSAM's decoder export (low-resolution masks with scores): the
+/// best-scored mask brought to the image as SAM's `postprocess_masks` does,
+/// against the fixture step's OpenCV reference of the same.
+#[test]
+fn edge_sam_masks_match_the_opencv_reference() {
+    common::init_ort();
+    let dir = common::generated("edge_sam");
+    let enc =
+        Model::load(&dir.join("edge_sam_encoder.onnx"), &Default::default()).expect("encoder");
+    let dec =
+        Model::load(&dir.join("edge_sam_decoder.onnx"), &Default::default()).expect("decoder");
+    let mut sam = SamSegmenter::new(enc, dec).expect("edge sam");
+    assert_eq!(sam.backend(), "edge-sam");
+    let r = common::read_json(&common::generated("edge_sam_reference.json"));
+    let b: [f32; 4] = serde_json::from_value(r["box_xyxy"].clone()).expect("box");
+    let (w, h) = (
+        r["width"].as_u64().expect("width") as usize,
+        r["height"].as_u64().expect("height") as usize,
+    );
+    let img = RgbImage::filled(w, h, [128, 128, 128]).expect("image");
+    let masks = sam.segment(&img, None, &[b]).expect("segment");
+    let reference = RgbImage::load(&common::generated(r["mask"].as_str().expect("mask file")))
+        .expect("reference mask");
+    let (mut area, mut differ) = (0usize, 0usize);
+    for v in 0..h {
+        for u in 0..w {
+            let want = reference.pixel(u, v)[0] > 127;
+            area += want as usize;
+            differ += (masks[0].get(u, v) != want) as usize;
+        }
+    }
+    assert!(area > 20_000, "reference area {area}");
+    // the same arithmetic in f32 on both sides: at most a few edge pixels
+    assert!(differ * 1000 <= area, "{differ} of {area} pixels differ");
+}

@@ -6,9 +6,15 @@
 //! Encoder: `[1,3,1024,1024]` float (RGB resized so the longest side is
 //! 1024, normalised with ImageNet mean/std in 0..255 units, zero-padded
 //! right/bottom) → `image_embeddings` `[1,256,64,64]`.
-//! Decoder: `image_embeddings`, `point_coords` `[1,N,2]`, `point_labels`
-//! `[1,N]`, `mask_input` `[1,1,256,256]`, `has_mask_input` `[1]`,
-//! `orig_im_size` `[2]` → `masks` `[1,M,H,W]`, `iou_predictions` `[1,M]`.
+//! Decoder, SAM's export (SAM, MobileSAM, RepViT-SAM): `image_embeddings`,
+//! `point_coords` `[1,N,2]`, `point_labels` `[1,N]`, `mask_input`
+//! `[1,1,256,256]`, `has_mask_input` `[1]`, `orig_im_size` `[2]` → `masks`
+//! `[1,M,H,W]`, `iou_predictions` `[1,M]`.
+//! Decoder, EdgeSAM's export: `image_embeddings`, `point_coords`,
+//! `point_labels` → `scores` `[1,M]`, `masks` `[1,M,256,256]`: low-resolution
+//! logits over the padded encoder frame, brought to the image as SAM's
+//! `postprocess_masks` does (bilinear up to the encoder frame, the padding
+//! cropped, bilinear to the image; half-pixel centres).
 
 use ort::value::Tensor;
 
@@ -29,12 +35,71 @@ const DECODER_INPUTS: [&str; 6] = [
     "orig_im_size",
 ];
 
+/// Which decoder export.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum DecoderKind {
+    /// SAM's: masks at the image's size.
+    Sam,
+    /// EdgeSAM's: low-resolution masks and their scores.
+    EdgeSam,
+}
+
 pub struct SamSegmenter {
     encoder: Model,
     decoder: Model,
     encoder_input: String,
     size: usize,
     embedding_shape: Vec<usize>,
+    kind: DecoderKind,
+}
+
+/// Source index pair and weight of destination `dst` when `src_len`
+/// samples are resized to `dst_len` (bilinear, half-pixel centres, edges
+/// clamped: OpenCV's INTER_LINEAR and PyTorch's `align_corners=False`).
+fn linear_taps(dst: usize, src_len: usize, dst_len: usize) -> (usize, usize, f32) {
+    let x = ((dst as f32 + 0.5) * src_len as f32 / dst_len as f32 - 0.5).max(0.0);
+    let i0 = (x.floor() as usize).min(src_len - 1);
+    let i1 = (i0 + 1).min(src_len - 1);
+    (i0, i1, x - i0 as f32)
+}
+
+/// Low-resolution mask logits (`low_h`×`low_w`, covering the padded
+/// `size`×`size` encoder frame) at the image's `width`×`height`: bilinear
+/// up to the frame, the `resized_w`×`resized_h` image part kept, bilinear
+/// to the image — SAM's `postprocess_masks`, evaluated per output pixel.
+#[allow(clippy::too_many_arguments)]
+pub fn upscale_low_res(
+    low: &[f32],
+    low_w: usize,
+    low_h: usize,
+    size: usize,
+    resized_w: usize,
+    resized_h: usize,
+    width: usize,
+    height: usize,
+) -> Vec<f32> {
+    // the frame's value at (fx, fy), itself bilinear from the low-res grid
+    let frame = |fx: usize, fy: usize| -> f32 {
+        let (y0, y1, wy) = linear_taps(fy, low_h, size);
+        let (x0, x1, wx) = linear_taps(fx, low_w, size);
+        let at = |x: usize, y: usize| low[y * low_w + x];
+        let top = at(x0, y0) * (1.0 - wx) + at(x1, y0) * wx;
+        let bottom = at(x0, y1) * (1.0 - wx) + at(x1, y1) * wx;
+        top * (1.0 - wy) + bottom * wy
+    };
+    let cols: Vec<(usize, usize, f32)> = (0..width)
+        .map(|u| linear_taps(u, resized_w, width))
+        .collect();
+    let mut out = Vec::with_capacity(width * height);
+    for v in 0..height {
+        let (y0, y1, wy) = linear_taps(v, resized_h, height);
+        for &(x0, x1, wx) in &cols {
+            let top = frame(x0, y0) * (1.0 - wx) + frame(x1, y0) * wx;
+            let bottom = frame(x0, y1) * (1.0 - wx) + frame(x1, y1) * wx;
+            out.push(top * (1.0 - wy) + bottom * wy);
+        }
+    }
+    out
 }
 
 impl SamSegmenter {
@@ -60,7 +125,19 @@ impl SamSegmenter {
             }
             _ => return Err(encoder.signature_error("encoder output must be [1,C,H,W]")),
         };
-        for name in DECODER_INPUTS {
+        // EdgeSAM's export: no mask prompt, low-resolution masks with scores
+        let kind = if decoder.signature.input("mask_input").is_none()
+            && decoder.signature.output("scores").is_some()
+        {
+            DecoderKind::EdgeSam
+        } else {
+            DecoderKind::Sam
+        };
+        let needed: &[&str] = match kind {
+            DecoderKind::Sam => &DECODER_INPUTS,
+            DecoderKind::EdgeSam => &DECODER_INPUTS[..3],
+        };
+        for name in needed {
             if decoder.signature.input(name).is_none() {
                 return Err(decoder.signature_error(format!("decoder input `{name}` missing")));
             }
@@ -74,7 +151,94 @@ impl SamSegmenter {
             encoder_input,
             size,
             embedding_shape,
+            kind,
         })
+    }
+
+    /// SAM's decoder: the chosen mask's logits at the image's size.
+    fn decode_sam(
+        &mut self,
+        embedding: &[f32],
+        coords: Vec<f32>,
+        w: usize,
+        h: usize,
+    ) -> Result<Vec<f32>, SegmenterError> {
+        let dec_name = self.decoder.name();
+        let e = rt(&dec_name);
+        let inputs = ort::inputs![
+            "image_embeddings" => Tensor::from_array((self.embedding_shape.clone(), embedding.to_vec())).map_err(&e)?,
+            "point_coords" => Tensor::from_array((vec![1usize, 2, 2], coords)).map_err(&e)?,
+            "point_labels" => Tensor::from_array((vec![1usize, 2], vec![2.0f32, 3.0])).map_err(&e)?,
+            "mask_input" => Tensor::from_array((vec![1usize, 1, 256, 256], vec![0.0f32; 256 * 256])).map_err(&e)?,
+            "has_mask_input" => Tensor::from_array((vec![1usize], vec![0.0f32])).map_err(&e)?,
+            "orig_im_size" => Tensor::from_array((vec![2usize], vec![h as f32, w as f32])).map_err(&e)?,
+        ];
+        let out = self.decoder.session.run(inputs).map_err(&e)?;
+        let (mshape, mdata) = out["masks"].try_extract_tensor::<f32>().map_err(&e)?;
+        let dims = mshape.to_vec();
+        let m_count = match dims.as_slice() {
+            [1, m, hh, ww] if *hh as usize == h && *ww as usize == w && *m >= 1 => *m as usize,
+            _ => {
+                return Err(SegmenterError::Output {
+                    model: dec_name.clone(),
+                    output: "masks".into(),
+                    shape: dims,
+                    expected: format!("[1, M, {h}, {w}]"),
+                })
+            }
+        };
+        // several masks: the one with the highest predicted IoU
+        let mut pick = 0usize;
+        if m_count > 1 {
+            if let Some(iou) = out.get("iou_predictions") {
+                let (_, ious) = iou.try_extract_tensor::<f32>().map_err(&e)?;
+                pick = best(ious, m_count);
+            }
+        }
+        Ok(mdata[pick * w * h..(pick + 1) * w * h].to_vec())
+    }
+
+    /// EdgeSAM's decoder: the best-scored low-resolution mask (width,
+    /// height, logits).
+    fn decode_edge_sam(
+        &mut self,
+        embedding: &[f32],
+        coords: Vec<f32>,
+    ) -> Result<(usize, usize, Vec<f32>), SegmenterError> {
+        let dec_name = self.decoder.name();
+        let e = rt(&dec_name);
+        let inputs = ort::inputs![
+            "image_embeddings" => Tensor::from_array((self.embedding_shape.clone(), embedding.to_vec())).map_err(&e)?,
+            "point_coords" => Tensor::from_array((vec![1usize, 2, 2], coords)).map_err(&e)?,
+            "point_labels" => Tensor::from_array((vec![1usize, 2], vec![2.0f32, 3.0])).map_err(&e)?,
+        ];
+        let out = self.decoder.session.run(inputs).map_err(&e)?;
+        let (mshape, mdata) = out["masks"].try_extract_tensor::<f32>().map_err(&e)?;
+        let dims = mshape.to_vec();
+        let (m_count, lh, lw) = match dims.as_slice() {
+            [1, m, lh, lw] if *m >= 1 && *lh > 0 && *lw > 0 => {
+                (*m as usize, *lh as usize, *lw as usize)
+            }
+            _ => {
+                return Err(SegmenterError::Output {
+                    model: dec_name.clone(),
+                    output: "masks".into(),
+                    shape: dims,
+                    expected: "[1, M, 256, 256]".into(),
+                })
+            }
+        };
+        let (sshape, scores) = out["scores"].try_extract_tensor::<f32>().map_err(&e)?;
+        if scores.len() < m_count {
+            return Err(SegmenterError::Output {
+                model: dec_name.clone(),
+                output: "scores".into(),
+                shape: sshape.to_vec(),
+                expected: format!("[1, {m_count}]"),
+            });
+        }
+        let pick = best(scores, m_count);
+        Ok((lw, lh, mdata[pick * lw * lh..(pick + 1) * lw * lh].to_vec()))
     }
 
     /// The encoder's input tensor and the resize scale.
@@ -99,6 +263,16 @@ impl SamSegmenter {
     }
 }
 
+/// The index of the highest of the first `n` values.
+fn best(values: &[f32], n: usize) -> usize {
+    values
+        .iter()
+        .take(n)
+        .enumerate()
+        .max_by(|a, b| a.1.total_cmp(b.1))
+        .map_or(0, |(i, _)| i)
+}
+
 fn rt(model: &str) -> impl Fn(ort::Error) -> RuntimeError + '_ {
     move |e| RuntimeError::Inference {
         model: model.to_string(),
@@ -108,7 +282,10 @@ fn rt(model: &str) -> impl Fn(ort::Error) -> RuntimeError + '_ {
 
 impl Segmenter for SamSegmenter {
     fn backend(&self) -> &'static str {
-        "sam"
+        match self.kind {
+            DecoderKind::Sam => "sam",
+            DecoderKind::EdgeSam => "edge-sam",
+        }
     }
 
     fn segment(
@@ -148,49 +325,17 @@ impl Segmenter for SamSegmenter {
         let nw = ((w as f32 * scale + 0.5) as usize).clamp(1, s) as f32;
         let nh = ((h as f32 * scale + 0.5) as usize).clamp(1, s) as f32;
         let (sx, sy) = (nw / w as f32, nh / h as f32);
-        let dec_name = self.decoder.name();
         let mut masks = Vec::with_capacity(boxes.len());
         for b in boxes {
             let coords = vec![b[0] * sx, b[1] * sy, b[2] * sx, b[3] * sy];
-            let e = rt(&dec_name);
-            let inputs = ort::inputs![
-                "image_embeddings" => Tensor::from_array((self.embedding_shape.clone(), embedding.clone())).map_err(&e)?,
-                "point_coords" => Tensor::from_array((vec![1usize, 2, 2], coords)).map_err(&e)?,
-                "point_labels" => Tensor::from_array((vec![1usize, 2], vec![2.0f32, 3.0])).map_err(&e)?,
-                "mask_input" => Tensor::from_array((vec![1usize, 1, 256, 256], vec![0.0f32; 256 * 256])).map_err(&e)?,
-                "has_mask_input" => Tensor::from_array((vec![1usize], vec![0.0f32])).map_err(&e)?,
-                "orig_im_size" => Tensor::from_array((vec![2usize], vec![h as f32, w as f32])).map_err(&e)?,
-            ];
-            let out = self.decoder.session.run(inputs).map_err(&e)?;
-            let (mshape, mdata) = out["masks"].try_extract_tensor::<f32>().map_err(&e)?;
-            let dims = mshape.to_vec();
-            let m_count = match dims.as_slice() {
-                [1, m, hh, ww] if *hh as usize == h && *ww as usize == w && *m >= 1 => *m as usize,
-                _ => {
-                    return Err(SegmenterError::Output {
-                        model: dec_name.clone(),
-                        output: "masks".into(),
-                        shape: dims,
-                        expected: format!("[1, M, {h}, {w}]"),
-                    })
+            let logits = match self.kind {
+                DecoderKind::Sam => self.decode_sam(&embedding, coords, w, h)?,
+                DecoderKind::EdgeSam => {
+                    let (lw, lh, low) = self.decode_edge_sam(&embedding, coords)?;
+                    upscale_low_res(&low, lw, lh, s, nw as usize, nh as usize, w, h)
                 }
             };
-            // several masks: the one with the highest predicted IoU
-            let mut pick = 0usize;
-            if m_count > 1 {
-                if let Some(iou) = out.get("iou_predictions") {
-                    let (_, ious) = iou.try_extract_tensor::<f32>().map_err(&e)?;
-                    pick = ious
-                        .iter()
-                        .take(m_count)
-                        .enumerate()
-                        .max_by(|a, b| a.1.total_cmp(b.1))
-                        .map(|(i, _)| i)
-                        .unwrap_or(0);
-                }
-            }
-            let plane = &mdata[pick * w * h..(pick + 1) * w * h];
-            let bits: Vec<bool> = plane.iter().map(|&l| l > 0.0).collect();
+            let bits: Vec<bool> = logits.iter().map(|&l| l > 0.0).collect();
             // keep only the box's region, as the other backends do
             let full = Mask::from_full(w, h, bits)
                 .ok_or_else(|| SegmenterError::Input("mask size".into()))?;
@@ -206,5 +351,22 @@ impl Segmenter for SamSegmenter {
             masks.push(m);
         }
         Ok(masks)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn low_resolution_masks_resize_with_half_pixel_centres() {
+        // [0, 1] over a 4-wide frame: 0, 0.25, 0.75, 1 (edges clamped)
+        let out = upscale_low_res(&[0.0, 1.0], 2, 1, 4, 4, 4, 4, 4);
+        for row in out.chunks(4) {
+            assert_eq!(row, &[0.0, 0.25, 0.75, 1.0]);
+        }
+        // only the image part of the frame (its left half) reaches the image
+        let out = upscale_low_res(&[0.0, 1.0], 2, 1, 4, 2, 4, 2, 4);
+        assert_eq!(&out[..2], &[0.0, 0.25]);
     }
 }
