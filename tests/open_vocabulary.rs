@@ -239,3 +239,32 @@ fn edge_sam_masks_match_the_opencv_reference() {
     // the same arithmetic in f32 on both sides: at most a few edge pixels
     assert!(differ * 1000 <= area, "{differ} of {area} pixels differ");
 }
+
+/// YOLOE-seg exported with its text prompts set (`set_classes`): the
+/// classes in `names`, 32 mask coefficients after them and the prototypes
+/// as a second output; the boxes are read past the coefficients (which
+/// would otherwise score 0.5 everywhere).
+#[test]
+fn yoloe_seg_with_prompts_set_at_export() {
+    common::init_ort();
+    let mut det = open_detector(
+        &common::generated("yoloe_seg.onnx"),
+        &DetectorSettings::default(),
+        None,
+    )
+    .expect("open");
+    assert_eq!(det.backend(), "yoloe-closed-vocabulary");
+    let prompts: Vec<String> = ["chair", "door handle", "sofa"]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+    let report = det.set_prompts(&prompts).expect("prompts");
+    assert_eq!(report.unmatched, vec!["sofa".to_string()]);
+    let img = RgbImage::filled(1280, 960, [10, 20, 30]).expect("image");
+    let d = det.detect(&img).expect("detect");
+    assert_eq!(d.len(), 2, "{d:#?}");
+    assert_eq!((d[0].label.as_str(), d[0].score), ("chair", 0.8));
+    assert_box(&d[0], to_image(200.0, 300.0, 100.0, 160.0));
+    assert_eq!((d[1].label.as_str(), d[1].score), ("door handle", 0.6));
+    assert_box(&d[1], to_image(450.0, 250.0, 30.0, 20.0));
+}

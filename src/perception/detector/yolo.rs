@@ -1,6 +1,10 @@
 //! Closed-vocabulary YOLO (Ultralytics v8/11 export): `images`
 //! `[1,3,S,S]` → `output0` `[1, 4+C, N]`, class names in the `names`
-//! metadata, no NMS inside.
+//! metadata, no NMS inside. The segmentation exports (YOLO11-seg, and
+//! YOLOE-seg with its text prompts set before export: `set_classes`) carry
+//! M mask coefficients after the classes, `output0` `[1, 4+C+M, N]`, and
+//! the prototypes `output1` `[1, M, H, W]`: their boxes are read the same
+//! way (the masks come from the segmenter, as for every detector).
 
 use ort::value::Tensor;
 
@@ -19,6 +23,10 @@ pub struct ClosedVocabularyYolo {
     input_name: String,
     input_size: usize,
     names: Vec<String>,
+    /// Mask coefficients after the classes (a segmentation export), M.
+    mask_channels: usize,
+    /// A YOLOE export (its metadata says so).
+    yoloe: bool,
     /// (class index, prompt, class name) for the active prompts.
     active: Vec<(usize, String, String)>,
 }
@@ -63,25 +71,40 @@ impl ClosedVocabularyYolo {
             .outputs
             .first()
             .ok_or_else(|| model.signature_error("no output"))?;
+        // a segmentation export: prototypes [1, M, H, W] as the second output
+        let mask_channels = match model.signature.outputs.get(1).map(|o| o.shape.as_slice()) {
+            Some([_, m, _, _]) if *m > 0 => *m as usize,
+            _ => 0,
+        };
         match out.shape.as_slice() {
-            [_, c, _] if *c == -1 || *c as usize == 4 + names.len() => {}
+            [_, c, _] if *c == -1 || *c as usize == 4 + names.len() + mask_channels => {}
             _ => {
                 return Err(model
                     .signature_error(format!(
-                        "output `{}` must be [1, 4+{}, N] for the {} classes in `names`",
+                        "output `{}` must be [1, 4+{}{}, N] for the {} classes in `names`",
                         out.name,
                         names.len(),
+                        if mask_channels > 0 {
+                            format!("+{mask_channels}")
+                        } else {
+                            String::new()
+                        },
                         names.len()
                     ))
                     .into())
             }
         }
+        let yoloe = model
+            .metadata("description")
+            .is_some_and(|d| d.to_ascii_lowercase().contains("yoloe"));
         Ok(ClosedVocabularyYolo {
             model,
             settings,
             input_name,
             input_size,
             names,
+            mask_channels,
+            yoloe,
             active: Vec::new(),
         })
     }
@@ -93,7 +116,12 @@ impl ClosedVocabularyYolo {
 
 impl Detector for ClosedVocabularyYolo {
     fn backend(&self) -> &'static str {
-        "yolo-closed-vocabulary"
+        if self.yoloe {
+            // its prompts were set at export: a closed vocabulary here
+            "yoloe-closed-vocabulary"
+        } else {
+            "yolo-closed-vocabulary"
+        }
     }
 
     fn set_prompts(&mut self, prompts: &[String]) -> Result<PromptReport, DetectorError> {
@@ -139,13 +167,15 @@ impl Detector for ClosedVocabularyYolo {
         let (shape, data) = outputs[0].try_extract_tensor::<f32>().map_err(err)?;
         let dims: Vec<i64> = shape.to_vec();
         let (channels, anchors) = match dims.as_slice() {
-            [1, c, n] if *c as usize == 4 + self.names.len() => (*c as usize, *n as usize),
+            [1, c, n] if *c as usize == 4 + self.names.len() + self.mask_channels => {
+                (*c as usize, *n as usize)
+            }
             _ => {
                 return Err(DetectorError::Output {
                     model: name.clone(),
                     output: out_name,
                     shape: dims,
-                    expected: format!("[1, {}, N]", 4 + self.names.len()),
+                    expected: format!("[1, {}, N]", 4 + self.names.len() + self.mask_channels),
                 })
             }
         };
