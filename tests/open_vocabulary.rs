@@ -268,3 +268,33 @@ fn yoloe_seg_with_prompts_set_at_export() {
     assert_eq!((d[1].label.as_str(), d[1].score), ("door handle", 0.6));
     assert_box(&d[1], to_image(450.0, 250.0, 30.0, 20.0));
 }
+
+/// EfficientSAM's split export (the image in at its own size, batched
+/// prompts in image pixels, masks at the image's size): the mask with the
+/// highest predicted IoU is the ellipse inscribed in the box.
+#[test]
+fn efficient_sam_masks_follow_the_box_prompt() {
+    common::init_ort();
+    let dir = common::generated("efficient_sam");
+    let enc =
+        Model::load(&dir.join("efficient_sam_encoder.onnx"), &Default::default()).expect("encoder");
+    let dec =
+        Model::load(&dir.join("efficient_sam_decoder.onnx"), &Default::default()).expect("decoder");
+    let mut sam = SamSegmenter::new(enc, dec).expect("efficient sam");
+    assert_eq!(sam.backend(), "efficient-sam");
+    let img = RgbImage::filled(640, 480, [128, 128, 128]).expect("image");
+    let b = [100.0f32, 50.0, 300.0, 250.0];
+    let masks = sam.segment(&img, None, &[b]).expect("segment");
+    let (cx, cy) = ((b[0] + b[2]) / 2.0, (b[1] + b[3]) / 2.0);
+    let (rx, ry) = ((b[2] - b[0]) / 2.0, (b[3] - b[1]) / 2.0);
+    let mut inside_count = 0;
+    for v in 0..480 {
+        for u in 0..640 {
+            let r2 = ((u as f32 - cx) / rx).powi(2) + ((v as f32 - cy) / ry).powi(2);
+            let inside = 1.0 - r2 > 0.0;
+            assert_eq!(masks[0].get(u, v), inside, "pixel ({u},{v})");
+            inside_count += inside as usize;
+        }
+    }
+    assert!(inside_count > 30_000, "{inside_count}");
+}

@@ -10,6 +10,12 @@
 //! `point_coords` `[1,N,2]`, `point_labels` `[1,N]`, `mask_input`
 //! `[1,1,256,256]`, `has_mask_input` `[1]`, `orig_im_size` `[2]` → `masks`
 //! `[1,M,H,W]`, `iou_predictions` `[1,M]`.
+//! EfficientSAM's split export: encoder `batched_images` `[1,3,H,W]` (the
+//! image at its own size, 0..1: it resizes and normalises inside) →
+//! `image_embeddings`; decoder `image_embeddings`, `batched_point_coords`
+//! `[1,1,N,2]`, `batched_point_labels` `[1,1,N]` (image pixels),
+//! `orig_im_size` int64 `[2]` → `output_masks` `[1,1,M,H,W]`,
+//! `iou_predictions` `[1,1,M]`.
 //! Decoder, EdgeSAM's export: `image_embeddings`, `point_coords`,
 //! `point_labels` → `scores` `[1,M]`, `masks` `[1,M,256,256]`: low-resolution
 //! logits over the padded encoder frame, brought to the image as SAM's
@@ -26,6 +32,12 @@ use crate::perception::runtime::{Model, RuntimeError};
 
 const MEAN: [f32; 3] = [123.675, 116.28, 103.53];
 const STD: [f32; 3] = [58.395, 57.12, 57.375];
+const EFFICIENT_DECODER_INPUTS: [&str; 4] = [
+    "image_embeddings",
+    "batched_point_coords",
+    "batched_point_labels",
+    "orig_im_size",
+];
 const DECODER_INPUTS: [&str; 6] = [
     "image_embeddings",
     "point_coords",
@@ -42,6 +54,9 @@ enum DecoderKind {
     Sam,
     /// EdgeSAM's: low-resolution masks and their scores.
     EdgeSam,
+    /// EfficientSAM's: the image as it is in, batched prompts, masks at
+    /// the image's size.
+    EfficientSam,
 }
 
 pub struct SamSegmenter {
@@ -109,8 +124,17 @@ impl SamSegmenter {
             .inputs
             .first()
             .ok_or_else(|| encoder.signature_error("no input"))?;
-        let size = match input.shape.as_slice() {
-            [1, 3, h, w] if h == w && *h > 0 => *h as usize,
+        let efficient = input.name == "batched_images"
+            || decoder.signature.input("batched_point_coords").is_some();
+        let size = match (efficient, input.shape.as_slice()) {
+            // EfficientSAM takes the image at its own size
+            (true, [_, 3, _, _]) => 0,
+            (false, [1, 3, h, w]) if h == w && *h > 0 => *h as usize,
+            (true, _) => {
+                return Err(
+                    encoder.signature_error("EfficientSAM's encoder input must be [1,3,H,W]")
+                )
+            }
             _ => return Err(encoder.signature_error("encoder input must be [1,3,S,S] (S = 1024)")),
         };
         let encoder_input = input.name.clone();
@@ -126,7 +150,9 @@ impl SamSegmenter {
             _ => return Err(encoder.signature_error("encoder output must be [1,C,H,W]")),
         };
         // EdgeSAM's export: no mask prompt, low-resolution masks with scores
-        let kind = if decoder.signature.input("mask_input").is_none()
+        let kind = if efficient {
+            DecoderKind::EfficientSam
+        } else if decoder.signature.input("mask_input").is_none()
             && decoder.signature.output("scores").is_some()
         {
             DecoderKind::EdgeSam
@@ -136,14 +162,19 @@ impl SamSegmenter {
         let needed: &[&str] = match kind {
             DecoderKind::Sam => &DECODER_INPUTS,
             DecoderKind::EdgeSam => &DECODER_INPUTS[..3],
+            DecoderKind::EfficientSam => &EFFICIENT_DECODER_INPUTS,
         };
         for name in needed {
             if decoder.signature.input(name).is_none() {
                 return Err(decoder.signature_error(format!("decoder input `{name}` missing")));
             }
         }
-        if decoder.signature.output("masks").is_none() {
-            return Err(decoder.signature_error("decoder output `masks` missing"));
+        let masks_out = match kind {
+            DecoderKind::EfficientSam => "output_masks",
+            _ => "masks",
+        };
+        if decoder.signature.output(masks_out).is_none() {
+            return Err(decoder.signature_error(format!("decoder output `{masks_out}` missing")));
         }
         Ok(SamSegmenter {
             encoder,
@@ -194,6 +225,47 @@ impl SamSegmenter {
                 let (_, ious) = iou.try_extract_tensor::<f32>().map_err(&e)?;
                 pick = best(ious, m_count);
             }
+        }
+        Ok(mdata[pick * w * h..(pick + 1) * w * h].to_vec())
+    }
+
+    /// EfficientSAM's decoder: the box's corners in image pixels; the mask
+    /// with the highest predicted IoU, at the image's size.
+    fn decode_efficient_sam(
+        &mut self,
+        embedding: &[f32],
+        b: [f32; 4],
+        w: usize,
+        h: usize,
+    ) -> Result<Vec<f32>, SegmenterError> {
+        let dec_name = self.decoder.name();
+        let e = rt(&dec_name);
+        let inputs = ort::inputs![
+            "image_embeddings" => Tensor::from_array((self.embedding_shape.clone(), embedding.to_vec())).map_err(&e)?,
+            "batched_point_coords" => Tensor::from_array((vec![1usize, 1, 2, 2], b.to_vec())).map_err(&e)?,
+            "batched_point_labels" => Tensor::from_array((vec![1usize, 1, 2], vec![2.0f32, 3.0])).map_err(&e)?,
+            "orig_im_size" => Tensor::from_array((vec![2usize], vec![h as i64, w as i64])).map_err(&e)?,
+        ];
+        let out = self.decoder.session.run(inputs).map_err(&e)?;
+        let (mshape, mdata) = out["output_masks"]
+            .try_extract_tensor::<f32>()
+            .map_err(&e)?;
+        let dims = mshape.to_vec();
+        let m_count = match dims.as_slice() {
+            [1, 1, m, hh, ww] if *hh as usize == h && *ww as usize == w && *m >= 1 => *m as usize,
+            _ => {
+                return Err(SegmenterError::Output {
+                    model: dec_name.clone(),
+                    output: "output_masks".into(),
+                    shape: dims,
+                    expected: format!("[1, 1, M, {h}, {w}]"),
+                })
+            }
+        };
+        let mut pick = 0usize;
+        if let Some(iou) = out.get("iou_predictions") {
+            let (_, ious) = iou.try_extract_tensor::<f32>().map_err(&e)?;
+            pick = best(ious, m_count);
         }
         Ok(mdata[pick * w * h..(pick + 1) * w * h].to_vec())
     }
@@ -263,6 +335,18 @@ impl SamSegmenter {
     }
 }
 
+/// EfficientSAM's encoder input: the image as it is, CHW, 0..1.
+fn efficient_input(image: &RgbImage) -> Vec<f32> {
+    let plane = image.width() * image.height();
+    let mut chw = vec![0.0f32; 3 * plane];
+    for (i, px) in image.data().chunks_exact(3).enumerate() {
+        for c in 0..3 {
+            chw[c * plane + i] = f32::from(px[c]) / 255.0;
+        }
+    }
+    chw
+}
+
 /// The index of the highest of the first `n` values.
 fn best(values: &[f32], n: usize) -> usize {
     values
@@ -285,6 +369,7 @@ impl Segmenter for SamSegmenter {
         match self.kind {
             DecoderKind::Sam => "sam",
             DecoderKind::EdgeSam => "edge-sam",
+            DecoderKind::EfficientSam => "efficient-sam",
         }
     }
 
@@ -298,11 +383,17 @@ impl Segmenter for SamSegmenter {
             return Ok(Vec::new());
         }
         let (w, h) = (image.width(), image.height());
-        let (input, _) = self.preprocess(image);
-        let s = self.size;
+        let (input, shape) = match self.kind {
+            DecoderKind::EfficientSam => (efficient_input(image), vec![1usize, 3, h, w]),
+            _ => (
+                self.preprocess(image).0,
+                vec![1usize, 3, self.size, self.size],
+            ),
+        };
+        let s = self.size.max(1);
         let enc_name = self.encoder.name();
         let embedding: Vec<f32> = {
-            let t = Tensor::from_array((vec![1usize, 3, s, s], input)).map_err(rt(&enc_name))?;
+            let t = Tensor::from_array((shape, input)).map_err(rt(&enc_name))?;
             let out = self
                 .encoder
                 .session
@@ -330,6 +421,7 @@ impl Segmenter for SamSegmenter {
             let coords = vec![b[0] * sx, b[1] * sy, b[2] * sx, b[3] * sy];
             let logits = match self.kind {
                 DecoderKind::Sam => self.decode_sam(&embedding, coords, w, h)?,
+                DecoderKind::EfficientSam => self.decode_efficient_sam(&embedding, *b, w, h)?,
                 DecoderKind::EdgeSam => {
                     let (lw, lh, low) = self.decode_edge_sam(&embedding, coords)?;
                     upscale_low_res(&low, lw, lh, s, nw as usize, nh as usize, w, h)
