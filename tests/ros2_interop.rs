@@ -148,4 +148,7 @@ fn a_cyclone_dds_peer_sends_the_chair_and_hears_it_arrive() {
     .expect("JSON report");
     // a stop ends a run that ends on arrival: this one ends on "quit"
     assert_eq!(report["outcome"], "quit", "{report}");
+    // the bridge's own account: what its queue dropped, what DDS refused
+    assert!(report["ros2"]["dropped"].is_u64(), "{report}");
+    assert!(report["ros2"]["not_sent"].is_u64(), "{report}");
 }

@@ -57,12 +57,14 @@ const ANNOUNCE_SPACING: Duration = Duration::from_millis(50);
 pub struct Bridge {
     pub sink: LiveSink,
     pub dropped: Arc<AtomicU64>,
+    not_sent: Arc<AtomicU64>,
 }
 
 impl Bridge {
     pub fn counts(&self) -> BridgeCounts {
         BridgeCounts {
             dropped: self.dropped.load(Ordering::SeqCst),
+            not_sent: self.not_sent.load(Ordering::SeqCst),
         }
     }
 }
@@ -147,12 +149,18 @@ struct Outputs {
     wall_offset: Option<Duration>,
     /// Items before the run's start item (none expected), logged once.
     unplaced: u64,
+    /// Messages a publisher refused.
+    not_sent: Arc<AtomicU64>,
 }
 
-/// Logs a publish that failed (the topic's name from the publisher).
-fn sent<T, E: std::fmt::Debug>(what: &str, r: Result<T, E>) {
+/// Counts a publish that failed and logs it (the first, then at each
+/// power of two: a topic that keeps failing does not flood the log).
+fn sent<T, E: std::fmt::Debug>(not_sent: &AtomicU64, what: &str, r: Result<T, E>) {
     if let Err(e) = r {
-        tracing::warn!(error = ?e, "ROS 2: {what} not sent");
+        let n = not_sent.fetch_add(1, Ordering::SeqCst) + 1;
+        if n.is_power_of_two() {
+            tracing::warn!(error = ?e, not_sent = n, "ROS 2: {what} not sent");
+        }
     }
 }
 
@@ -176,6 +184,7 @@ impl Outputs {
                     .map_or(0, |d| d.as_nanos() as u64),
             );
             sent(
+                &self.not_sent,
                 "/tf_static",
                 self.tf_static.publish(m::static_transforms(mounting, now)),
             );
@@ -193,6 +202,7 @@ impl Outputs {
             LiveItem::Scans { left, right } => {
                 if let Some(t) = self.time(left.stamp) {
                     sent(
+                        &self.not_sent,
                         "scan_left",
                         self.scan_left
                             .publish(m::laser_scan(&left.value, FRAME_LASER_LEFT, t)),
@@ -200,6 +210,7 @@ impl Outputs {
                 }
                 if let Some(t) = self.time(right.stamp) {
                     sent(
+                        &self.not_sent,
                         "scan_right",
                         self.scan_right
                             .publish(m::laser_scan(&right.value, FRAME_LASER_RIGHT, t)),
@@ -208,18 +219,26 @@ impl Outputs {
             }
             LiveItem::View { frame, objects, .. } => {
                 if let Some(t) = self.time(frame.stamp) {
-                    sent("objects", self.objects.publish(m::objects(objects, t)));
+                    sent(
+                        &self.not_sent,
+                        "objects",
+                        self.objects.publish(m::objects(objects, t)),
+                    );
                 }
             }
             LiveItem::Step(s) => {
                 let Some(t) = self.time(s.stamp) else { return };
                 if let Some(o) = &s.odometry {
-                    sent("odom", self.odom.publish(m::odometry(o, t)));
+                    sent(&self.not_sent, "odom", self.odom.publish(m::odometry(o, t)));
                 }
                 if let Some(tf) = m::odom_transform(s, t) {
-                    sent("tf", self.tf.publish(tf));
+                    sent(&self.not_sent, "tf", self.tf.publish(tf));
                 }
-                sent("tracks", self.tracks.publish(m::tracks(&s.tracks, t)));
+                sent(
+                    &self.not_sent,
+                    "tracks",
+                    self.tracks.publish(m::tracks(&s.tracks, t)),
+                );
             }
         }
     }
@@ -285,7 +304,9 @@ pub fn start(
         )?,
         wall_offset: None,
         unplaced: 0,
+        not_sent: Arc::new(AtomicU64::new(0)),
     };
+    let not_sent = outputs.not_sent.clone();
     let (stop_topic, prompt_topic) = (t.stop.clone(), t.prompt.clone());
     let (queue, items, dropped) = ItemQueue::channel(QUEUE, "ROS 2 bridge");
     let watch_hub = hub.clone();
@@ -332,13 +353,13 @@ pub fn start(
                 if status.has_changed().unwrap_or(false) {
                     let json = serde_json::to_string(&*status.borrow_and_update());
                     match json {
-                        Ok(j) => sent("state", outputs.state.publish(j)),
+                        Ok(j) => sent(&outputs.not_sent, "state", outputs.state.publish(j)),
                         Err(e) => tracing::warn!(error = %e, "ROS 2: status as JSON"),
                     }
                 }
                 while said_open {
                     match said.try_recv() {
-                        Ok(line) => sent("said", outputs.said.publish(line)),
+                        Ok(line) => sent(&outputs.not_sent, "said", outputs.said.publish(line)),
                         Err(TryRecvError::Empty) => break,
                         // the daemon is ending: the process exits with it
                         Err(TryRecvError::Disconnected) => said_open = false,
@@ -376,5 +397,6 @@ pub fn start(
     Ok(Bridge {
         sink: LiveSink::one(queue),
         dropped,
+        not_sent,
     })
 }

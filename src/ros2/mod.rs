@@ -13,4 +13,6 @@ pub use bridge::*;
 pub struct BridgeCounts {
     /// Live items the bridge's queue could not take.
     pub dropped: u64,
+    /// Messages a publisher refused (each logged, then at powers of two).
+    pub not_sent: u64,
 }
