@@ -53,38 +53,52 @@ fn the_caption_tokenises_as_the_tokenizers_package_does() {
     }
 }
 
+/// Both exports: the reference's (masks and positions fed in) and Hugging
+/// Face's (made inside; a pixel mask, int64 attention, `pred_boxes`).
 #[test]
 fn detections_match_the_numpy_reference() {
     common::init_ort();
-    let r = reference();
-    let image =
-        opennav::msg::RgbImage::load(&common::generated(r["image"].as_str().expect("image")))
-            .expect("the test image");
-    let mut det = open_detector(
-        &common::generated("grounding_dino.onnx"),
-        &DetectorSettings::default(),
-        None,
-    )
-    .expect("open");
-    assert_eq!(det.backend(), "grounding-dino");
-    for case in r["cases"].as_array().expect("cases") {
-        let prompts = strings(&case["prompts"]);
-        let report = det.set_prompts(&prompts).expect("prompts");
-        assert!(report.unmatched.is_empty(), "{report:?}");
-        let got = det.detect(&image).expect("detect");
-        let want = case["detections"].as_array().expect("detections");
-        assert_eq!(got.len(), want.len(), "{prompts:?}: {got:#?} vs {want:#?}");
-        for (g, w) in got.iter().zip(want) {
-            assert_eq!(g.label, w["label"], "{g:?} vs {w}");
-            let score = w["score"].as_f64().expect("score") as f32;
-            assert!((g.score - score).abs() < 1e-5, "{g:?} vs {w}");
-            for (a, b) in g
-                .box_xyxy
-                .iter()
-                .zip(w["box_xyxy"].as_array().expect("box"))
-            {
-                let b = b.as_f64().expect("coordinate") as f32;
-                assert!((a - b).abs() < 2e-3, "{g:?} vs {w}");
+    for (model, reference) in [
+        ("grounding_dino.onnx", "grounding_dino_reference.json"),
+        (
+            "grounding_dino_hf/grounding_dino.onnx",
+            "grounding_dino_hf_reference.json",
+        ),
+    ] {
+        let r = common::read_json(&common::generated(reference));
+        let image =
+            opennav::msg::RgbImage::load(&common::generated(r["image"].as_str().expect("image")))
+                .expect("the test image");
+        let mut det = open_detector(
+            &common::generated(model),
+            &DetectorSettings::default(),
+            None,
+        )
+        .expect("open");
+        assert_eq!(det.backend(), "grounding-dino");
+        for case in r["cases"].as_array().expect("cases") {
+            let prompts = strings(&case["prompts"]);
+            let report = det.set_prompts(&prompts).expect("prompts");
+            assert!(report.unmatched.is_empty(), "{report:?}");
+            let got = det.detect(&image).expect("detect");
+            let want = case["detections"].as_array().expect("detections");
+            assert_eq!(
+                got.len(),
+                want.len(),
+                "{model} {prompts:?}: {got:#?} vs {want:#?}"
+            );
+            for (g, w) in got.iter().zip(want) {
+                assert_eq!(g.label, w["label"], "{model}: {g:?} vs {w}");
+                let score = w["score"].as_f64().expect("score") as f32;
+                assert!((g.score - score).abs() < 1e-5, "{model}: {g:?} vs {w}");
+                for (a, b) in g
+                    .box_xyxy
+                    .iter()
+                    .zip(w["box_xyxy"].as_array().expect("box"))
+                {
+                    let b = b.as_f64().expect("coordinate") as f32;
+                    assert!((a - b).abs() < 2e-3, "{model}: {g:?} vs {w}");
+                }
             }
         }
     }

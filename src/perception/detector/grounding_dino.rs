@@ -6,6 +6,10 @@
 //! `text_token_mask` or `text_self_attention_masks` `[1,T,T]`) →
 //! `logits` `[1,Q,L]` (Q queries, typically 900, over L = 256 text
 //! positions) and `boxes` `[1,Q,4]` (normalised cx, cy, w, h).
+//! The Hugging Face export (`GroundingDinoForObjectDetection` through
+//! `optimum`) is read too: `pixel_values`, `input_ids`, `token_type_ids`,
+//! `attention_mask`, `pixel_mask` `[1,H,W]` → `logits` `[1,Q,T]`,
+//! `pred_boxes` `[1,Q,4]` (the masks and positions made inside).
 //!
 //! The caption is the prompts joined as the reference does ("chair .
 //! table ."); each prompt's tokens are found from the tokenizer's offsets.
@@ -248,23 +252,38 @@ pub fn image_input(image: &RgbImage, width: usize, height: usize) -> Vec<f32> {
     chw
 }
 
+/// Which export: the reference's I/O (masks and positions fed in, the
+/// mask input's name) or Hugging Face's (made inside, a pixel mask in).
+#[derive(Debug, Clone, PartialEq, Eq)]
+enum Export {
+    Reference { mask_name: String },
+    HuggingFace,
+}
+
 pub struct GroundingDino {
     model: Model,
     settings: DetectorSettings,
     tokenizer: tokenizers::Tokenizer,
     image_name: String,
-    mask_name: String,
+    export: Export,
+    /// `attention_mask` as booleans (else int64).
+    bool_attention: bool,
+    boxes_name: String,
     width: usize,
     height: usize,
     prompts: Vec<String>,
     text: Option<TextInputs>,
 }
 
-/// Whether a model has Grounding DINO's text inputs.
+/// Whether a model has Grounding DINO's inputs: the text and its
+/// sub-sentence mask (the reference's export), or Hugging Face's text with
+/// token types and a pixel mask.
 pub fn is_grounding_dino(model: &Model) -> bool {
-    model.signature.input("input_ids").is_some()
-        && (model.signature.input("text_token_mask").is_some()
-            || model.signature.input("text_self_attention_masks").is_some())
+    let has = |n: &str| model.signature.input(n).is_some();
+    has("input_ids")
+        && (has("text_token_mask")
+            || has("text_self_attention_masks")
+            || (has("token_type_ids") && has("pixel_values") && has("pixel_mask")))
 }
 
 impl GroundingDino {
@@ -299,28 +318,50 @@ impl GroundingDino {
             }
         };
         let image_name = image.name.clone();
-        let mask_name = if model.signature.input("text_token_mask").is_some() {
-            "text_token_mask"
+        let has = |n: &str| model.signature.input(n).is_some();
+        let export = if has("text_token_mask") {
+            Export::Reference {
+                mask_name: "text_token_mask".into(),
+            }
+        } else if has("text_self_attention_masks") {
+            Export::Reference {
+                mask_name: "text_self_attention_masks".into(),
+            }
         } else {
-            "text_self_attention_masks"
-        }
-        .to_string();
-        for needed in ["attention_mask", "token_type_ids", "position_ids"] {
-            if model.signature.input(needed).is_none() {
+            Export::HuggingFace
+        };
+        let (needed, boxes_name): (&[&str], &str) = match export {
+            Export::Reference { .. } => (
+                &["attention_mask", "token_type_ids", "position_ids"],
+                "boxes",
+            ),
+            Export::HuggingFace => (
+                &["attention_mask", "token_type_ids", "pixel_mask"],
+                "pred_boxes",
+            ),
+        };
+        for needed in needed {
+            if !has(needed) {
                 return Err(model.signature_error(format!("no `{needed}` input")).into());
             }
         }
-        for out in ["logits", "boxes"] {
+        for out in ["logits", boxes_name] {
             if model.signature.output(out).is_none() {
                 return Err(model.signature_error(format!("no `{out}` output")).into());
             }
         }
+        let bool_attention = model
+            .signature
+            .input("attention_mask")
+            .is_some_and(|a| a.dtype == "bool");
         Ok(GroundingDino {
             model,
             settings,
             tokenizer,
             image_name,
-            mask_name,
+            export,
+            bool_attention,
+            boxes_name: boxes_name.to_string(),
             width,
             height,
             prompts: Vec::new(),
@@ -372,25 +413,56 @@ impl Detector for GroundingDino {
         let ids = Tensor::from_array((vec![1usize, t], text.input_ids.clone())).map_err(err)?;
         let types =
             Tensor::from_array((vec![1usize, t], text.token_type_ids.clone())).map_err(err)?;
-        let att =
-            Tensor::from_array((vec![1usize, t], text.attention_mask.clone())).map_err(err)?;
-        let pos = Tensor::from_array((vec![1usize, t], text.position_ids.clone())).map_err(err)?;
-        let mask =
-            Tensor::from_array((vec![1usize, t, t], text.self_attention.clone())).map_err(err)?;
-        let outputs = self
-            .model
-            .session
-            .run(ort::inputs![
-                self.image_name.as_str() => img,
-                "input_ids" => ids,
-                "attention_mask" => att,
-                "token_type_ids" => types,
-                "position_ids" => pos,
-                self.mask_name.as_str() => mask,
-            ])
-            .map_err(err)?;
+        let att: ort::value::DynValue = if self.bool_attention {
+            Tensor::from_array((vec![1usize, t], text.attention_mask.clone()))
+                .map_err(err)?
+                .into_dyn()
+        } else {
+            let ints: Vec<i64> = text.attention_mask.iter().map(|&m| i64::from(m)).collect();
+            Tensor::from_array((vec![1usize, t], ints))
+                .map_err(err)?
+                .into_dyn()
+        };
+        let outputs = match &self.export {
+            Export::Reference { mask_name } => {
+                let pos = Tensor::from_array((vec![1usize, t], text.position_ids.clone()))
+                    .map_err(err)?;
+                let mask = Tensor::from_array((vec![1usize, t, t], text.self_attention.clone()))
+                    .map_err(err)?;
+                self.model
+                    .session
+                    .run(ort::inputs![
+                        self.image_name.as_str() => img,
+                        "input_ids" => ids,
+                        "attention_mask" => att,
+                        "token_type_ids" => types,
+                        "position_ids" => pos,
+                        mask_name.as_str() => mask,
+                    ])
+                    .map_err(err)?
+            }
+            Export::HuggingFace => {
+                let pixels = Tensor::from_array((
+                    vec![1usize, self.height, self.width],
+                    vec![1i64; self.height * self.width],
+                ))
+                .map_err(err)?;
+                self.model
+                    .session
+                    .run(ort::inputs![
+                        self.image_name.as_str() => img,
+                        "input_ids" => ids,
+                        "attention_mask" => att,
+                        "token_type_ids" => types,
+                        "pixel_mask" => pixels,
+                    ])
+                    .map_err(err)?
+            }
+        };
         let (lshape, logits) = outputs["logits"].try_extract_tensor::<f32>().map_err(err)?;
-        let (bshape, boxes) = outputs["boxes"].try_extract_tensor::<f32>().map_err(err)?;
+        let (bshape, boxes) = outputs[self.boxes_name.as_str()]
+            .try_extract_tensor::<f32>()
+            .map_err(err)?;
         let (queries, positions) = match (lshape.to_vec().as_slice(), bshape.to_vec().as_slice()) {
             ([1, q, l], [1, q2, 4]) if q == q2 && *l as usize >= t => (*q as usize, *l as usize),
             (l, _) => {
