@@ -423,42 +423,28 @@ impl Detector for GroundingDino {
                 .map_err(err)?
                 .into_dyn()
         };
-        let outputs = match &self.export {
-            Export::Reference { mask_name } => {
-                let pos = Tensor::from_array((vec![1usize, t], text.position_ids.clone()))
-                    .map_err(err)?;
-                let mask = Tensor::from_array((vec![1usize, t, t], text.self_attention.clone()))
-                    .map_err(err)?;
-                self.model
-                    .session
-                    .run(ort::inputs![
-                        self.image_name.as_str() => img,
-                        "input_ids" => ids,
-                        "attention_mask" => att,
-                        "token_type_ids" => types,
-                        "position_ids" => pos,
-                        mask_name.as_str() => mask,
-                    ])
-                    .map_err(err)?
-            }
-            Export::HuggingFace => {
-                let pixels = Tensor::from_array((
+        let mut inputs = ort::inputs![
+            self.image_name.as_str() => img,
+            "input_ids" => ids,
+            "attention_mask" => att,
+            "token_type_ids" => types,
+        ];
+        match &self.export {
+            // the reference's export: the masks and positions fed in
+            Export::Reference { mask_name } => inputs.extend(ort::inputs![
+                "position_ids" => Tensor::from_array((vec![1usize, t], text.position_ids.clone())).map_err(err)?,
+                mask_name.as_str() => Tensor::from_array((vec![1usize, t, t], text.self_attention.clone())).map_err(err)?,
+            ]),
+            // Hugging Face's: made inside; every pixel is image
+            Export::HuggingFace => inputs.extend(ort::inputs![
+                "pixel_mask" => Tensor::from_array((
                     vec![1usize, self.height, self.width],
                     vec![1i64; self.height * self.width],
                 ))
-                .map_err(err)?;
-                self.model
-                    .session
-                    .run(ort::inputs![
-                        self.image_name.as_str() => img,
-                        "input_ids" => ids,
-                        "attention_mask" => att,
-                        "token_type_ids" => types,
-                        "pixel_mask" => pixels,
-                    ])
-                    .map_err(err)?
-            }
-        };
+                .map_err(err)?,
+            ]),
+        }
+        let outputs = self.model.session.run(inputs).map_err(err)?;
         let (lshape, logits) = outputs["logits"].try_extract_tensor::<f32>().map_err(err)?;
         let (bshape, boxes) = outputs[self.boxes_name.as_str()]
             .try_extract_tensor::<f32>()

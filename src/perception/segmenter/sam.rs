@@ -169,12 +169,15 @@ impl SamSegmenter {
                 return Err(decoder.signature_error(format!("decoder input `{name}` missing")));
             }
         }
-        let masks_out = match kind {
-            DecoderKind::EfficientSam => "output_masks",
-            _ => "masks",
+        let (masks_out, rating) = match kind {
+            DecoderKind::EfficientSam => ("output_masks", Some("iou_predictions")),
+            DecoderKind::EdgeSam => ("masks", Some("scores")),
+            DecoderKind::Sam => ("masks", None),
         };
-        if decoder.signature.output(masks_out).is_none() {
-            return Err(decoder.signature_error(format!("decoder output `{masks_out}` missing")));
+        for out in std::iter::once(masks_out).chain(rating) {
+            if decoder.signature.output(out).is_none() {
+                return Err(decoder.signature_error(format!("decoder output `{out}` missing")));
+            }
         }
         Ok(SamSegmenter {
             encoder,
@@ -219,13 +222,7 @@ impl SamSegmenter {
             }
         };
         // several masks: the one with the highest predicted IoU
-        let mut pick = 0usize;
-        if m_count > 1 {
-            if let Some(iou) = out.get("iou_predictions") {
-                let (_, ious) = iou.try_extract_tensor::<f32>().map_err(&e)?;
-                pick = best(ious, m_count);
-            }
-        }
+        let pick = best_output(&out, "iou_predictions", m_count, &e)?;
         Ok(mdata[pick * w * h..(pick + 1) * w * h].to_vec())
     }
 
@@ -262,11 +259,7 @@ impl SamSegmenter {
                 })
             }
         };
-        let mut pick = 0usize;
-        if let Some(iou) = out.get("iou_predictions") {
-            let (_, ious) = iou.try_extract_tensor::<f32>().map_err(&e)?;
-            pick = best(ious, m_count);
-        }
+        let pick = best_output(&out, "iou_predictions", m_count, &e)?;
         Ok(mdata[pick * w * h..(pick + 1) * w * h].to_vec())
     }
 
@@ -345,6 +338,27 @@ fn efficient_input(image: &RgbImage) -> Vec<f32> {
         }
     }
     chw
+}
+
+/// Of `n` masks, the one output `name` rates highest; the first when
+/// there is only one or the model gives no such output (a decoder's
+/// signature is checked when it is opened).
+fn best_output(
+    out: &ort::session::SessionOutputs<'_>,
+    name: &str,
+    n: usize,
+    e: &impl Fn(ort::Error) -> RuntimeError,
+) -> Result<usize, SegmenterError> {
+    if n <= 1 {
+        return Ok(0);
+    }
+    match out.get(name) {
+        Some(v) => {
+            let (_, values) = v.try_extract_tensor::<f32>().map_err(e)?;
+            Ok(best(values, n))
+        }
+        None => Ok(0),
+    }
 }
 
 /// The index of the highest of the first `n` values.
