@@ -123,22 +123,22 @@ fn a_model_without_its_tokenizer_is_an_error_naming_the_file() {
 #[test]
 fn opennav_detect_runs_grounding_dino_end_to_end() {
     common::init_ort();
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_opennav"))
-        .args(["detect", "--detector"])
-        .arg(common::generated("grounding_dino.onnx"))
-        .arg("--rgb")
-        .arg(common::generated("grounding_dino_input.png"))
-        .args(["--prompt", "chair, door handle", "--segmenter", "depth"])
-        .current_dir(common::repo())
-        .env_remove("RUST_LOG")
-        .output()
-        .expect("runs");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    let (model, image) = (
+        common::generated("grounding_dino.onnx"),
+        common::generated("grounding_dino_input.png"),
     );
-    let report: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON");
+    let args: [&std::ffi::OsStr; 9] = [
+        "detect".as_ref(),
+        "--detector".as_ref(),
+        model.as_ref(),
+        "--rgb".as_ref(),
+        image.as_ref(),
+        "--prompt".as_ref(),
+        "chair, door handle".as_ref(),
+        "--segmenter".as_ref(),
+        "depth".as_ref(),
+    ];
+    let report = common::success_json(&common::opennav_in(&common::repo(), &args));
     let labels: Vec<&str> = report["detections"]
         .as_array()
         .expect("detections")
@@ -154,31 +154,31 @@ fn opennav_detect_runs_grounding_dino_end_to_end() {
 #[test]
 fn grounding_dino_with_repvit_sam_makes_3d_objects() {
     common::init_ort();
-    let run = |segmenter: &std::path::Path| {
-        std::process::Command::new(env!("CARGO_BIN_EXE_opennav"))
-            .args(["detect", "--detector"])
-            .arg(common::generated("grounding_dino.onnx"))
-            .arg("--segmenter")
-            .arg(segmenter)
-            .arg("--rgb")
-            .arg(common::mrpt("rgb.png"))
-            .arg("--depth")
-            .arg(common::mrpt("depth_mm.png"))
-            .arg("--calibration")
-            .arg(common::mrpt("calibration.json"))
-            .args(["--prompt", "chair, door handle"])
-            .current_dir(common::repo())
-            .env_remove("RUST_LOG")
-            .output()
-            .expect("runs")
-    };
-    let out = run(&common::generated("repvit_sam"));
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    let (model, rgb, depth, calibration) = (
+        common::generated("grounding_dino.onnx"),
+        common::mrpt("rgb.png"),
+        common::mrpt("depth_mm.png"),
+        common::mrpt("calibration.json"),
     );
-    let report: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON");
+    let run = |segmenter: &std::path::Path| {
+        let args: [&std::ffi::OsStr; 13] = [
+            "detect".as_ref(),
+            "--detector".as_ref(),
+            model.as_ref(),
+            "--segmenter".as_ref(),
+            segmenter.as_ref(),
+            "--rgb".as_ref(),
+            rgb.as_ref(),
+            "--depth".as_ref(),
+            depth.as_ref(),
+            "--calibration".as_ref(),
+            calibration.as_ref(),
+            "--prompt".as_ref(),
+            "chair, door handle".as_ref(),
+        ];
+        common::opennav_in(&common::repo(), &args)
+    };
+    let report = common::success_json(&run(&common::generated("repvit_sam")));
     let objects = report["objects"].as_array().expect("objects");
     let chair = objects
         .iter()

@@ -110,17 +110,21 @@ fn eval_replica_runs_grounding_dino_with_a_sam_family_segmenter() {
     let dir = tempfile::tempdir().expect("tmp");
     write_scene(dir.path(), "office0", &Room::living_room(), &camera(2), 3).expect("written");
     let out_dir = tempfile::tempdir().expect("tmp");
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_opennav"))
-        .args(["eval", "replica", "--root"])
-        .arg(dir.path())
-        .arg("--detector")
-        .arg(common::generated("grounding_dino.onnx"))
-        .arg("--segmenter")
-        .arg(common::generated("efficient_sam"))
-        .current_dir(out_dir.path())
-        .env_remove("RUST_LOG")
-        .output()
-        .expect("runs");
+    let (model, segmenter) = (
+        common::generated("grounding_dino.onnx"),
+        common::generated("efficient_sam"),
+    );
+    let args: [&std::ffi::OsStr; 8] = [
+        "eval".as_ref(),
+        "replica".as_ref(),
+        "--root".as_ref(),
+        dir.path().as_ref(),
+        "--detector".as_ref(),
+        model.as_ref(),
+        "--segmenter".as_ref(),
+        segmenter.as_ref(),
+    ];
+    let out = common::opennav_in(out_dir.path(), &args);
     assert!(
         out.status.success(),
         "{}",

@@ -130,3 +130,23 @@ pub fn report(stdout: &[u8]) -> serde_json::Value {
         .unwrap_or_else(|| panic!("no report in {text}"));
     serde_json::from_str(line).expect("report JSON")
 }
+
+/// `opennav ARGS…` run in `dir`, without the caller's RUST_LOG: its output.
+pub fn opennav_in(dir: &Path, args: &[&std::ffi::OsStr]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_opennav"))
+        .args(args)
+        .current_dir(dir)
+        .env_remove("RUST_LOG")
+        .output()
+        .expect("runs")
+}
+
+/// The stdout of a run that must have succeeded, as one JSON document.
+pub fn success_json(out: &std::process::Output) -> serde_json::Value {
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("one JSON document on stdout")
+}
