@@ -178,11 +178,10 @@ impl Outputs {
         {
             self.wall_offset = Some(*wall_offset);
             // static: stamped now, as tf2's static broadcaster does
-            let now = m::Time::from_unix_ns(
-                std::time::SystemTime::now()
-                    .duration_since(std::time::UNIX_EPOCH)
-                    .map_or(0, |d| d.as_nanos() as u64),
-            );
+            // now, wall-clock (a system clock before 1970 is said there,
+            // not silently taken as 0)
+            let wall_now = crate::live::wall_offset(crate::msg::Stamp(Duration::ZERO));
+            let now = m::Time::from_unix_ns(wall_now.as_nanos() as u64);
             sent(
                 &self.not_sent,
                 "/tf_static",
