@@ -55,6 +55,10 @@ step "vcan HIL VM kernel"
 # Debian's kernel (pinned, cached in ~/.cache/opennav/vm) for the CAN tests
 bash tests/vcan/run-vm.sh --fetch-only
 
+# One build from scratch: incremental state would only add gigabytes
+export CARGO_INCREMENTAL=${CARGO_INCREMENTAL:-0}
+df -h "$repo" | awk 'NR==2 {print "disk before the build: " $4 " free"}'
+
 step "format"
 cargo fmt --all -- --check
 
@@ -78,3 +82,5 @@ elif ip link set lo multicast on 2>/dev/null; then echo "loopback: multicast on 
 else echo "loopback: multicast off and not settable here; DDS discovery uses the other interfaces"
 fi
 cargo test --no-fail-fast --features voice,ros2 2>&1 | tee target/test-output.txt
+du -sh target | awk '{print "build folder: " $1}'
+df -h "$repo" | awk 'NR==2 {print "disk after the tests: " $4 " free"}'
