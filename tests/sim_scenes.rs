@@ -56,7 +56,7 @@ fn the_command_prints_a_line_per_scene_and_a_summary_whatever_the_job_count() {
     // and back-offs
     for l in &one[..3] {
         assert!(l["standoff_error_m"].is_number(), "{l}");
-        for k in ["doorways", "doorways_given_up", "back_offs"] {
+        for k in ["doorways", "doorways_given_up", "back_offs", "detours"] {
             assert!(l["navigation"][k].is_u64(), "{k}: {l}");
         }
         assert!(

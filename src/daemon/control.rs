@@ -81,6 +81,9 @@ pub struct NavigationStats {
     pub doorways_given_up: u64,
     /// Times it backed off, held by something on the way.
     pub back_offs: u64,
+    /// Steps whose planned command the supervisor would have held and
+    /// that drove a detour instead (`navigation::detour`).
+    pub detours: u64,
 }
 
 pub struct Control {
@@ -132,6 +135,10 @@ pub struct Control {
     /// The map of what the chair has seen, and the way through it to the
     /// goal (None: drive straight at the goal, the local planner alone).
     pub route: Option<Router>,
+    /// Where the planner steered this step (odom): a detour aims there
+    /// when the supervisor would hold the planner's command.
+    aim_odom: Option<[f64; 2]>,
+    detours: u64,
 }
 
 /// A turn on the spot refused this long for an unseen rear: the chair asks.
@@ -195,6 +202,8 @@ impl Control {
             asked_goal: None,
             acknowledged: false,
             route: None,
+            aim_odom: None,
+            detours: 0,
         }
     }
 
@@ -421,14 +430,23 @@ impl Control {
         let rear = inputs
             .odometry
             .map(|odo| self.watch_rear(now, inputs.obstacles, odo.value.pose));
+        let planned = self.planner_cmd;
+        let supervisor_inputs = SupervisorInputs {
+            obstacles: inputs.obstacles,
+            odometry: inputs.odometry,
+            command: planned.as_ref(),
+            camera: camera.as_ref(),
+            rear: rear.as_ref(),
+        };
+        if let Some(detour) = self.detour(&supervisor_inputs) {
+            self.detours += 1;
+            self.planner_cmd = Some(Stamped::new(now, detour));
+        }
         let mut cmd = self.supervisor.step(
             now,
             &SupervisorInputs {
-                obstacles: inputs.obstacles,
-                odometry: inputs.odometry,
                 command: self.planner_cmd.as_ref(),
-                camera: camera.as_ref(),
-                rear: rear.as_ref(),
+                ..supervisor_inputs
             },
         );
         self.ask_about_rear(now, cmd.state, inputs.odometry.map(|o| o.value.pose));
@@ -445,6 +463,71 @@ impl Control {
             said: std::mem::take(&mut self.said),
             done: self.done.clone(),
         }
+    }
+
+    /// The planner's command would be held for something in the way (or
+    /// a drop-off): the cheapest detour toward the planner's aim that the
+    /// supervisor would drive, if there is one.
+    fn detour(&self, inputs: &SupervisorInputs) -> Option<VelocityCmd> {
+        let aim = self.aim_odom?;
+        let (cmd, obs, odo) = (inputs.command?, inputs.obstacles?, inputs.odometry?);
+        let l = &self.supervisor.limits;
+        let clamp = |c: &VelocityCmd| {
+            (
+                c.v_mps.clamp(-l.v_reverse_max_mps, l.v_forward_max_mps),
+                c.omega_radps.clamp(-l.omega_max_radps, l.omega_max_radps),
+            )
+        };
+        let (v, w) = clamp(&cmd.value);
+        if !(v.is_finite() && w.is_finite()) {
+            return None;
+        }
+        let held = self.supervisor.hold_reason(inputs, obs, v, w);
+        if !matches!(
+            held,
+            Some(crate::msg::StopReason::Obstacle | crate::msg::StopReason::DropOff)
+        ) {
+            return None;
+        }
+        let pose = odo.value.pose;
+        // within reach of the place beside the object: held there, the
+        // trip ends as near as it safely goes (no manoeuvre for the rest)
+        if self
+            .goal
+            .approach()
+            .is_some_and(|a| (a.x_m - pose.x_m).hypot(a.y_m - pose.y_m) <= NEAR_ENOUGH_M)
+        {
+            return None;
+        }
+        let (dx, dy) = (aim[0] - pose.x_m, aim[1] - pose.y_m);
+        let (c, s) = (pose.theta_rad.cos(), pose.theta_rad.sin());
+        let aim_base = [c * dx + s * dy, -s * dx + c * dy];
+        let limits = crate::navigation::detour::DetourLimits {
+            v_forward_max_mps: l.v_forward_max_mps,
+            omega_max_radps: l.omega_max_radps,
+            crawl_turn_radps: self.supervisor.crawl_turn_radps(),
+        };
+        // everything the chair must not enter, base_link
+        let no_points = &[][..];
+        let points_base: Vec<[f32; 2]> = [
+            &obs.value.points_base[..],
+            &obs.value.drop_offs_base,
+            inputs.camera.map_or(no_points, |c| &c.value.points_base),
+            inputs.camera.map_or(no_points, |c| &c.value.drop_offs_base),
+            inputs.rear.map_or(no_points, |r| &r.points_base),
+        ]
+        .concat();
+        let found = crate::navigation::detour::detour(aim_base, &limits, &points_base, |c| {
+            let (v, w) = clamp(c);
+            self.supervisor.hold_reason(inputs, obs, v, w).is_none()
+        });
+        if found.is_none() {
+            tracing::debug!(?held, planned = ?cmd.value, ?aim_base, "no detour");
+        }
+        if let Some(d) = found {
+            tracing::debug!(?held, planned = ?cmd.value, detour = ?d, ?aim_base, "detour");
+        }
+        found
     }
 
     /// Feeds the rear watch the newest scan (seen from the pose now) and
@@ -504,6 +587,7 @@ impl Control {
         tracker: &Tracker,
     ) {
         self.planned_path.clear();
+        self.aim_odom = None;
         // everything the chair must not enter, in base_link: the lasers'
         // points, the camera's obstacles and its drop-offs
         let mut points_base = lasers.value.points_base.clone();
@@ -651,6 +735,7 @@ impl Control {
                 (_, Some(r)) => r.carrot(now, from, to, within),
                 (_, None) => to,
             };
+            self.aim_odom = Some(aim);
             let bearing = crate::msg::wrap_angle(
                 (aim[1] - pose.y_m).atan2(aim[0] - pose.x_m) - pose.theta_rad,
             );
@@ -742,6 +827,7 @@ impl Control {
             doorways: self.route.as_ref().map_or(0, |r| r.doorways),
             doorways_given_up: self.route.as_ref().map_or(0, |r| r.doorways_given_up),
             back_offs: self.back_off.count,
+            detours: self.detours,
         }
     }
 

@@ -431,3 +431,50 @@ fn held_near_the_place_beside_the_object_it_arrives_as_near_as_it_safely_goes() 
     assert_eq!(done, None, "{said:?}");
     assert!(said.iter().any(|s| s == "Going to the chair."), "{said:?}");
 }
+
+#[test]
+fn held_by_something_beside_the_way_it_drives_a_detour_the_supervisor_admits() {
+    let mut c = control(false);
+    c.on_input(UserInput::Goto("chair".into()));
+    step_empty(&mut c, 0);
+    // a place to search 2 m ahead; a post ahead on the left, inside the
+    // stop corridor of the straight way
+    c.goal.explore(at(0), Some([2.0, 0.0]));
+    let tracker = Tracker::new(crate::config::Settings::defaults().tracker);
+    let mut moved = 0;
+    for k in 1..=40u64 {
+        let now = at(50 * k);
+        let (mut o, odo) = fresh(now);
+        o.value.points_base = vec![[0.84, 0.2], [4.0, 0.0]];
+        let out = c.step(
+            now,
+            ControlInputs {
+                obstacles: Some(&o),
+                odometry: Some(&odo),
+                tracker: &tracker,
+                camera: None,
+            },
+        );
+        if out.cmd.cmd.v_mps > 0.0 || out.cmd.cmd.omega_radps != 0.0 {
+            moved += 1;
+            // away from the post: to the right
+            assert!(out.cmd.cmd.omega_radps <= 0.0, "step {k}: {:?}", out.cmd);
+        }
+    }
+    let stats = c.navigation_stats();
+    assert!(stats.detours > 0, "{stats:?}");
+    assert!(moved >= 30, "moved on {moved} of 40 steps");
+    assert_eq!(c.back_off.count, 0, "no need to back off");
+    // the same post dead ahead of a chair that cannot turn on the spot or
+    // bend round it: no detour is driven, the supervisor holds the chair
+    let mut held = control(false);
+    held.on_input(UserInput::Goto("chair".into()));
+    step_empty(&mut held, 0);
+    held.goal.explore(at(0), Some([2.0, 0.0]));
+    for k in 1..=20u64 {
+        let out = step_with_a_box_ahead(&mut held, 50 * k, &tracker);
+        if k > 2 {
+            assert_eq!(out.cmd.cmd, VelocityCmd::default(), "step {k}");
+        }
+    }
+}

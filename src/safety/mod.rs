@@ -355,6 +355,97 @@ impl Supervisor {
         }
     }
 
+    /// What would hold a request for `(v_mps, omega_radps)` (already
+    /// within the caps) given the inputs: something in the way of it or of
+    /// the chair's motion now, the unseen rear for a turn on the spot or a
+    /// reverse, a drop-off, a blind laser. None: it would be driven (the
+    /// freshness of the inputs and the person's stops aside). The control
+    /// step asks this of candidate commands before it sends one.
+    pub fn hold_reason(
+        &self,
+        inputs: &SupervisorInputs,
+        obs: &Stamped<Obstacles>,
+        v: f64,
+        w: f64,
+    ) -> Option<StopReason> {
+        self.hold_reason_logged(inputs, obs, v, w, false)
+    }
+
+    fn hold_reason_logged(
+        &self,
+        inputs: &SupervisorInputs,
+        obs: &Stamped<Obstacles>,
+        v: f64,
+        w: f64,
+        log: bool,
+    ) -> Option<StopReason> {
+        let l = &self.limits;
+        // the motion now (measured) and the last output are
+        // checked as well as the request: a chair still rolling
+        // forward keeps its front checked while asked to stop or
+        // reverse
+        let (v_now, w_now) = inputs
+            .odometry
+            .map(|o| (o.value.v_mps, o.value.omega_radps))
+            .unwrap_or((0.0, 0.0));
+        let v_last = self.last.map(|(c, _)| c.v_mps).unwrap_or(0.0);
+        let rolling = |x: f64| if x.abs() >= MOVING_MPS { x } else { 0.0 };
+        let blocked_by = |pts: &[&[[f32; 2]]]| {
+            let all = || pts.iter().flat_map(|p| p.iter());
+            [v, rolling(v_now), rolling(v_last)]
+                .into_iter()
+                .any(|d| self.corridor_hits(all(), d))
+                || self.turn_hits(all(), v, w)
+                || (w_now.abs() > TURNING_RADPS && self.turn_hits(all(), v_now, w_now))
+                || self.arc_hits(all(), v, w)
+                || self.arc_hits(all(), v_now, w_now)
+        };
+        let camera = inputs.camera.map(|c| &c.value);
+        let no_points: &[[f32; 2]] = &[];
+        let turns = [(v, w), (v_now, w_now)];
+        let turns = if w_now.abs() > TURNING_RADPS {
+            &turns[..]
+        } else {
+            &turns[..1]
+        };
+        let turning_on_the_spot = turns.iter().any(|(v, w)| v.abs() < 0.05 && w.abs() > 0.05);
+        let rear_seen = inputs.rear.is_some_and(|r| r.seen);
+        if blocked_by(&[
+            &obs.value.points_base,
+            &obs.value.drop_offs_base,
+            camera.map_or(no_points, |c| &c.points_base),
+            inputs.rear.map_or(no_points, |r| &r.points_base),
+        ]) {
+            if log && tracing::enabled!(tracing::Level::DEBUG) {
+                let by = |p: &[[f32; 2]]| blocked_by(&[p]);
+                tracing::debug!(
+                    lasers = by(&obs.value.points_base),
+                    laser_drops = by(&obs.value.drop_offs_base),
+                    camera = by(camera.map_or(no_points, |c| &c.points_base)),
+                    rear = by(inputs.rear.map_or(no_points, |r| &r.points_base)),
+                    v,
+                    w,
+                    "blocked by"
+                );
+            }
+            Some(StopReason::Obstacle)
+        } else if (turning_on_the_spot || v < -MOVING_MPS) && l.turn_needs_seen_rear && !rear_seen {
+            // a turn on the spot sweeps the rear; reversing drives
+            // into it: neither without the rear seen or vouched for
+            Some(StopReason::RearUnseen)
+        } else if blocked_by(&[camera.map_or(no_points, |c| &c.drop_offs_base)]) {
+            Some(StopReason::DropOff)
+        } else if self.way_unseen(
+            &obs.value.rays_base,
+            &[v, rolling(v_now), rolling(v_last)],
+            turns,
+        ) {
+            Some(StopReason::LaserBlind)
+        } else {
+            None
+        }
+    }
+
     /// One control cycle at `now`.
     pub fn step(&mut self, now: Stamp, inputs: &SupervisorInputs) -> SafeCmd {
         self.watch_speed(now, inputs.odometry);
@@ -399,74 +490,7 @@ impl Supervisor {
                 } else {
                     0.0
                 };
-                // the motion now (measured) and the last output are
-                // checked as well as the request: a chair still rolling
-                // forward keeps its front checked while asked to stop or
-                // reverse
-                let (v_now, w_now) = inputs
-                    .odometry
-                    .map(|o| (o.value.v_mps, o.value.omega_radps))
-                    .unwrap_or((0.0, 0.0));
-                let v_last = self.last.map(|(c, _)| c.v_mps).unwrap_or(0.0);
-                let rolling = |x: f64| if x.abs() >= MOVING_MPS { x } else { 0.0 };
-                let blocked_by = |pts: &[&[[f32; 2]]]| {
-                    let all = || pts.iter().flat_map(|p| p.iter());
-                    [v, rolling(v_now), rolling(v_last)]
-                        .into_iter()
-                        .any(|d| self.corridor_hits(all(), d))
-                        || self.turn_hits(all(), v, w)
-                        || (w_now.abs() > TURNING_RADPS && self.turn_hits(all(), v_now, w_now))
-                        || self.arc_hits(all(), v, w)
-                        || self.arc_hits(all(), v_now, w_now)
-                };
-                let camera = inputs.camera.map(|c| &c.value);
-                let no_points: &[[f32; 2]] = &[];
-                let turns = [(v, w), (v_now, w_now)];
-                let turns = if w_now.abs() > TURNING_RADPS {
-                    &turns[..]
-                } else {
-                    &turns[..1]
-                };
-                let turning_on_the_spot =
-                    turns.iter().any(|(v, w)| v.abs() < 0.05 && w.abs() > 0.05);
-                let rear_seen = inputs.rear.is_some_and(|r| r.seen);
-                let blocked = if blocked_by(&[
-                    &obs.value.points_base,
-                    &obs.value.drop_offs_base,
-                    camera.map_or(no_points, |c| &c.points_base),
-                    inputs.rear.map_or(no_points, |r| &r.points_base),
-                ]) {
-                    if tracing::enabled!(tracing::Level::DEBUG) {
-                        let by = |p: &[[f32; 2]]| blocked_by(&[p]);
-                        tracing::debug!(
-                            lasers = by(&obs.value.points_base),
-                            laser_drops = by(&obs.value.drop_offs_base),
-                            camera = by(camera.map_or(no_points, |c| &c.points_base)),
-                            rear = by(inputs.rear.map_or(no_points, |r| &r.points_base)),
-                            v,
-                            w,
-                            "blocked by"
-                        );
-                    }
-                    Some(StopReason::Obstacle)
-                } else if (turning_on_the_spot || v < -MOVING_MPS)
-                    && l.turn_needs_seen_rear
-                    && !rear_seen
-                {
-                    // a turn on the spot sweeps the rear; reversing drives
-                    // into it: neither without the rear seen or vouched for
-                    Some(StopReason::RearUnseen)
-                } else if blocked_by(&[camera.map_or(no_points, |c| &c.drop_offs_base)]) {
-                    Some(StopReason::DropOff)
-                } else if self.way_unseen(
-                    &obs.value.rays_base,
-                    &[v, rolling(v_now), rolling(v_last)],
-                    turns,
-                ) {
-                    Some(StopReason::LaserBlind)
-                } else {
-                    None
-                };
+                let blocked = self.hold_reason_logged(inputs, obs, v, w, true);
                 if let Some(reason) = blocked {
                     state = SupervisorState::Stopped(reason);
                 } else {
