@@ -97,15 +97,34 @@ impl OrientedBox {
     /// calipers over the convex hull), extruded from min z to max z. The yaw
     /// is the direction of the longer side, in (−π/2, π/2].
     pub fn from_points(points: &[Point3<f32>]) -> Option<OrientedBox> {
-        let aabb = Aabb::from_points(points)?;
-        Some(Self::from_points_and_aabb(points, &aabb))
+        let sweep = Sweep::of(points)?;
+        Some(Self::from_sweep(points, &sweep))
     }
 
     /// As [`from_points`](Self::from_points) when the points' axis-aligned
     /// box is known (its z range is the box's height).
     pub fn from_points_and_aabb(points: &[Point3<f32>], aabb: &Aabb) -> OrientedBox {
+        match Sweep::of(points) {
+            Some(sweep) => Self::from_sweep(points, &sweep).with_height(aabb),
+            None => OrientedBox {
+                center_m: [0.0, 0.0, 0.5 * (aabb.min_m[2] + aabb.max_m[2])],
+                size_m: [0.0, 0.0, aabb.max_m[2] - aabb.min_m[2]],
+                yaw_rad: 0.0,
+            },
+        }
+    }
+
+    /// The box's height from `aabb`'s z range.
+    fn with_height(mut self, aabb: &Aabb) -> OrientedBox {
         let (zmin, zmax) = (aabb.min_m[2], aabb.max_m[2]);
-        let hull = convex_hull(hull_candidates(points));
+        self.center_m[2] = 0.5 * (zmin + zmax);
+        self.size_m[2] = zmax - zmin;
+        self
+    }
+
+    fn from_sweep(points: &[Point3<f32>], sweep: &Sweep) -> OrientedBox {
+        let (zmin, zmax) = (sweep.min[2] as f64, sweep.max[2] as f64);
+        let hull = convex_hull(hull_candidates(points, sweep));
         let (cx, cy, len, wid, yaw) = min_area_rect(&hull);
         OrientedBox {
             center_m: [cx, cy, 0.5 * (zmin + zmax)],
@@ -115,32 +134,68 @@ impl OrientedBox {
     }
 }
 
+/// One pass over the points: their axis-aligned bounds and, along each of
+/// eight ground directions (counter-clockwise from +x: +x, +(x+y), +y,
+/// +(y−x), −x, −(x+y), −y, +(x−y)), the first point furthest that way.
+#[derive(Debug, Clone, Copy)]
+struct Sweep {
+    min: [f32; 3],
+    max: [f32; 3],
+    extreme: [[f32; 2]; 8],
+}
+
+impl Sweep {
+    fn of(points: &[Point3<f32>]) -> Option<Sweep> {
+        let first = points.first()?;
+        let mut min = [first.x, first.y, first.z];
+        let mut max = min;
+        let mut best = [f32::MIN; 8];
+        let mut extreme = [[first.x, first.y]; 8];
+        // plain comparisons (not f32::min, whose NaN rules are slow); the
+        // points come from finite depths
+        for p in points {
+            let c = [p.x, p.y, p.z];
+            for k in 0..3 {
+                min[k] = if c[k] < min[k] { c[k] } else { min[k] };
+                max[k] = if c[k] > max[k] { c[k] } else { max[k] };
+            }
+            let (x, y) = (p.x, p.y);
+            let s = [x, x + y, y, y - x, -x, -x - y, -y, x - y];
+            // a new extreme is rare after the first points: one compare
+            // per direction, and a branch that is rarely taken
+            if s.iter().zip(&best).any(|(a, b)| a > b) {
+                for k in 0..8 {
+                    if s[k] > best[k] {
+                        best[k] = s[k];
+                        extreme[k] = [x, y];
+                    }
+                }
+            }
+        }
+        Some(Sweep { min, max, extreme })
+    }
+
+    fn aabb(&self) -> Aabb {
+        Aabb {
+            min_m: self.min.map(f64::from),
+            max_m: self.max.map(f64::from),
+        }
+    }
+}
+
 /// Akl–Toussaint: the ground projections of the points that can be hull
 /// vertices. Points strictly inside the octagon of the extreme points (along
 /// x, y, x+y, x−y), or on its edges between vertices, cannot be; they are
-/// dropped in two passes, leaving few points for the hull's sort. Exact.
-fn hull_candidates(points: &[Point3<f32>]) -> Vec<[f64; 2]> {
+/// dropped in one pass after the sweep, leaving few points for the hull's
+/// sort. Exact.
+fn hull_candidates(points: &[Point3<f32>], sweep: &Sweep) -> Vec<[f64; 2]> {
     let all = || points.iter().map(|p| [p.x as f64, p.y as f64]).collect();
     if points.len() < 64 {
         return all();
     }
-    // extreme point per direction, counter-clockwise from +x:
-    // +x, +(x+y), +y, +(y−x), −x, −(x+y), −y, +(x−y)
-    let mut idx = [0usize; 8];
-    let mut best = [f32::MIN; 8];
-    for (i, p) in points.iter().enumerate() {
-        let (x, y) = (p.x, p.y);
-        let s = [x, x + y, y, y - x, -x, -x - y, -y, x - y];
-        for k in 0..8 {
-            if s[k] > best[k] {
-                best[k] = s[k];
-                idx[k] = i;
-            }
-        }
-    }
     let mut poly: Vec<[f64; 2]> = Vec::with_capacity(8);
-    for &i in &idx {
-        let e = [points[i].x as f64, points[i].y as f64];
+    for e in &sweep.extreme {
+        let e = [e[0] as f64, e[1] as f64];
         if poly.last() != Some(&e) && poly.first() != Some(&e) {
             poly.push(e);
         }
@@ -288,8 +343,10 @@ impl Object3D {
         points: Vec<Point3<f32>>,
         box_xyxy: Option<[f32; 4]>,
     ) -> Option<Object3D> {
-        let aabb = Aabb::from_points(&points)?;
-        let obb = OrientedBox::from_points_and_aabb(&points, &aabb);
+        // one pass for the bounds and the hull's extreme points
+        let sweep = Sweep::of(&points)?;
+        let aabb = sweep.aabb();
+        let obb = OrientedBox::from_sweep(&points, &sweep);
         Some(Object3D {
             label,
             score,

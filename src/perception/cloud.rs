@@ -106,8 +106,17 @@ pub fn zscore_back_project(
     };
     let keep = |z: f32| all || (z as f64 - mean).abs() < limit;
     let project = projector(intrinsics, target_from_camera);
-    let mut out = Vec::with_capacity(samples.len());
-    out.extend(samples.iter().filter(|s| keep(s.z_m)).map(project));
+    // branch-free compaction: every sample is projected into the next
+    // slot, which only a kept one claims
+    let mut out = vec![Point3::origin(); samples.len()];
+    let mut n = 0usize;
+    for s in samples {
+        if let Some(slot) = out.get_mut(n) {
+            *slot = project(s);
+        }
+        n += usize::from(keep(s.z_m));
+    }
+    out.truncate(n);
     out
 }
 
