@@ -139,6 +139,10 @@ pub struct Control {
     /// when the supervisor would hold the planner's command.
     aim_odom: Option<[f64; 2]>,
     detours: u64,
+    /// Since when the way to a goal has been held without a break, and
+    /// whether the person has been told.
+    held_since: Option<Stamp>,
+    said_held: bool,
 }
 
 /// A turn on the spot refused this long for an unseen rear: the chair asks.
@@ -147,6 +151,10 @@ pub struct Control {
 /// goes (before it would back off and try again).
 pub const ARRIVE_HELD_AFTER: std::time::Duration = std::time::Duration::from_secs(2);
 pub const NEAR_ENOUGH_M: f64 = 0.3;
+
+/// Held on the way this long without a break (no detour, no room to back
+/// off): the person is told, once per hold; the chair keeps trying.
+pub const SAY_HELD_AFTER: std::time::Duration = std::time::Duration::from_secs(10);
 
 /// A search turn held this long by an obstacle ends there.
 const TURN_HELD_FOR: std::time::Duration = std::time::Duration::from_secs(3);
@@ -204,6 +212,8 @@ impl Control {
             route: None,
             aim_odom: None,
             detours: 0,
+            held_since: None,
+            said_held: false,
         }
     }
 
@@ -703,6 +713,7 @@ impl Control {
         // the rear seen: it refuses a blind reverse), then the planner tries
         // again from there
         let held = state == SupervisorState::Stopped(crate::msg::StopReason::Obstacle);
+        self.tell_if_held(now, target.is_some() && held);
         let rear = || {
             (
                 !self.supervisor.limits.turn_needs_seen_rear || self.rear.view(now, pose).seen,
@@ -783,6 +794,27 @@ impl Control {
                 .map(|c| Stamped::new(now, self.turn_within_room(c, &o)))
         };
         self.finish_step(event);
+    }
+
+    /// Held on the way for [`SAY_HELD_AFTER`] without a break: said once
+    /// (a carer can move what is in the way; the chair goes on by itself
+    /// when the way clears, or stays on "stop").
+    fn tell_if_held(&mut self, now: Stamp, held: bool) {
+        if !held {
+            self.held_since = None;
+            self.said_held = false;
+            return;
+        }
+        let since = *self.held_since.get_or_insert(now);
+        if since.age_at(now) >= SAY_HELD_AFTER && !self.said_held {
+            self.said_held = true;
+            tracing::warn!("held on the way with no way round");
+            self.say(
+                "Something is in my way and I cannot find a way round it. I will go on when \
+                 it is clear; say stop to stay here."
+                    .into(),
+            );
+        }
     }
 
     /// A turn on the spot with something inside the corners' circle and

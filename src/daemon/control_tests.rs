@@ -478,3 +478,43 @@ fn held_by_something_beside_the_way_it_drives_a_detour_the_supervisor_admits() {
         }
     }
 }
+
+#[test]
+fn held_on_the_way_with_no_way_round_it_says_so_once_and_goes_on_when_clear() {
+    let mut c = control(false);
+    c.on_input(UserInput::Goto("chair".into()));
+    step_empty(&mut c, 0);
+    c.goal.explore(at(0), Some([2.0, 0.0]));
+    let tracker = Tracker::new(crate::config::Settings::defaults().tracker);
+    let told = |said: &[String]| {
+        said.iter()
+            .filter(|s| s.contains("cannot find a way round"))
+            .count()
+    };
+    // a box dead ahead, no floor behind to back onto: held for 15 s
+    let mut said = Vec::new();
+    let mut first_told = None;
+    for k in 1..=300u64 {
+        let out = step_with_a_box_ahead(&mut c, 50 * k, &tracker);
+        assert_eq!(out.cmd.cmd, VelocityCmd::default(), "step {k}");
+        if told(&out.said) > 0 {
+            first_told.get_or_insert(50 * k);
+        }
+        said.extend(out.said);
+    }
+    assert_eq!(told(&said), 1, "{said:?}");
+    let first = first_told.expect("told");
+    assert!(
+        (SAY_HELD_AFTER.as_millis() as u64..=SAY_HELD_AFTER.as_millis() as u64 + 300)
+            .contains(&first),
+        "told at {first} ms"
+    );
+    // the box is taken away: it drives on by itself
+    let moved = (301..=320u64).any(|k| step_empty(&mut c, 50 * k).cmd.cmd.v_mps > 0.0);
+    assert!(moved, "did not go on when the way cleared");
+    // held again: told again, after another full wait
+    let again: usize = (321..=321 + 220u64)
+        .map(|k| told(&step_with_a_box_ahead(&mut c, 50 * k, &tracker).said))
+        .sum();
+    assert_eq!(again, 1);
+}

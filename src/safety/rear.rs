@@ -75,6 +75,10 @@ pub struct RearWatch {
 const CELL_M: f64 = 0.05;
 /// A new view is kept when the chair turned this much (or moved `near_m`/2).
 const VIEW_STEP_RAD: f64 = 0.09;
+/// Remembered points this far inside the edge of the lasers' seen sector
+/// (about base_link; the lasers look from the front corners) are left to
+/// the live scan.
+const IN_SIGHT_MARGIN_RAD: f64 = 0.35;
 /// The blind sector is checked every this many radians.
 const CHECK_STEP_RAD: f64 = 0.05;
 
@@ -199,6 +203,9 @@ impl RearWatch {
         let (c, s) = (pose.theta_rad.cos(), pose.theta_rad.sin());
         RearView {
             seen: self.vouched(now, &pose) || self.remembered(now, &pose),
+            // only what lies out of the lasers' sight now: where they look,
+            // the live scan says what is there (a person who walked past
+            // in front no longer holds the chair)
             points_base: self
                 .points
                 .iter()
@@ -206,6 +213,10 @@ impl RearWatch {
                 .map(|(_, p)| {
                     let (dx, dy) = (p[0] - pose.x_m, p[1] - pose.y_m);
                     [(c * dx + s * dy) as f32, (-s * dx + c * dy) as f32]
+                })
+                .filter(|q| {
+                    (q[1] as f64).atan2(q[0] as f64).abs()
+                        > self.settings.seen_half_angle_rad - IN_SIGHT_MARGIN_RAD
                 })
                 .collect(),
         }
@@ -287,5 +298,21 @@ mod tests {
         assert_eq!(v.points_base.len(), 1);
         assert!((v.points_base[0][0] + 0.8).abs() < 1e-3, "{v:?}");
         assert!(w.view(at(31.0), pose(0.0, 0.0)).points_base.is_empty());
+    }
+
+    #[test]
+    fn what_the_lasers_see_now_is_left_to_the_live_scan() {
+        let mut w = RearWatch::new(RearSettings::default());
+        // a person 0.7 m ahead, then gone from the scan
+        w.on_scan(at(0.0), pose(0.0, 0.0), &[[0.7, 0.0], [0.5, 0.5]]);
+        w.on_scan(at(0.1), pose(0.0, 0.0), &[]);
+        assert!(w.view(at(0.2), pose(0.0, 0.0)).points_base.is_empty());
+        // the same points after a half turn lie behind: remembered
+        let v = w.view(at(0.2), pose(0.0, 180.0));
+        assert_eq!(v.points_base.len(), 2, "{v:?}");
+        // beside the chair, at the edge of the lasers' sight (110° off
+        // ahead, within the margin): kept as well
+        let v = w.view(at(0.2), pose(0.0, 110.0));
+        assert!(v.points_base.iter().any(|q| q[1] < 0.0), "{v:?}");
     }
 }
