@@ -299,9 +299,20 @@ fn stale_inputs_give_zero_and_a_dead_task_latches_a_fault() {
 
 /// One step at `ms_` with a box 0.7 m ahead (and the room's far wall).
 fn step_with_a_box_ahead(c: &mut Control, ms_: u64, tracker: &Tracker) -> ControlOutput {
+    step_with_points(c, ms_, tracker, vec![[0.7, 0.0], [4.0, 0.0]])
+}
+
+/// One step at `ms_`, the chair at rest at the origin, the lasers seeing
+/// `points_base`.
+fn step_with_points(
+    c: &mut Control,
+    ms_: u64,
+    tracker: &Tracker,
+    points_base: Vec<[f32; 2]>,
+) -> ControlOutput {
     let now = at(ms_);
     let (mut o, odo) = fresh(now);
-    o.value.points_base = vec![[0.7, 0.0], [4.0, 0.0]];
+    o.value.points_base = points_base;
     c.step(
         now,
         ControlInputs {
@@ -443,18 +454,7 @@ fn held_by_something_beside_the_way_it_drives_a_detour_the_supervisor_admits() {
     let tracker = Tracker::new(crate::config::Settings::defaults().tracker);
     let mut moved = 0;
     for k in 1..=40u64 {
-        let now = at(50 * k);
-        let (mut o, odo) = fresh(now);
-        o.value.points_base = vec![[0.84, 0.2], [4.0, 0.0]];
-        let out = c.step(
-            now,
-            ControlInputs {
-                obstacles: Some(&o),
-                odometry: Some(&odo),
-                tracker: &tracker,
-                camera: None,
-            },
-        );
+        let out = step_with_points(&mut c, 50 * k, &tracker, vec![[0.84, 0.2], [4.0, 0.0]]);
         if out.cmd.cmd.v_mps > 0.0 || out.cmd.cmd.omega_radps != 0.0 {
             moved += 1;
             // away from the post: to the right

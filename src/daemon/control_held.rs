@@ -1,0 +1,95 @@
+//! What the control step does when the supervisor holds the way to a
+//! goal: a detour the supervisor admits (`navigation::detour`), and
+//! telling the person when there is none for a while.
+
+use super::{Control, NEAR_ENOUGH_M, SAY_HELD_AFTER};
+use crate::msg::{Stamp, VelocityCmd};
+use crate::safety::SupervisorInputs;
+
+impl Control {
+    /// The planner's command would be held for something in the way (or
+    /// a drop-off): the cheapest detour toward the planner's aim that the
+    /// supervisor would drive, if there is one.
+    pub(super) fn detour(&self, inputs: &SupervisorInputs) -> Option<VelocityCmd> {
+        let aim = self.aim_odom?;
+        let (cmd, obs, odo) = (inputs.command?, inputs.obstacles?, inputs.odometry?);
+        let l = &self.supervisor.limits;
+        let clamp = |c: &VelocityCmd| {
+            (
+                c.v_mps.clamp(-l.v_reverse_max_mps, l.v_forward_max_mps),
+                c.omega_radps.clamp(-l.omega_max_radps, l.omega_max_radps),
+            )
+        };
+        let (v, w) = clamp(&cmd.value);
+        if !(v.is_finite() && w.is_finite()) {
+            return None;
+        }
+        let held = self.supervisor.hold_reason(inputs, obs, v, w);
+        if !matches!(
+            held,
+            Some(crate::msg::StopReason::Obstacle | crate::msg::StopReason::DropOff)
+        ) {
+            return None;
+        }
+        let pose = odo.value.pose;
+        // within reach of the place beside the object: held there, the
+        // trip ends as near as it safely goes (no manoeuvre for the rest)
+        if self
+            .goal
+            .approach()
+            .is_some_and(|a| (a.x_m - pose.x_m).hypot(a.y_m - pose.y_m) <= NEAR_ENOUGH_M)
+        {
+            return None;
+        }
+        let (dx, dy) = (aim[0] - pose.x_m, aim[1] - pose.y_m);
+        let (c, s) = (pose.theta_rad.cos(), pose.theta_rad.sin());
+        let aim_base = [c * dx + s * dy, -s * dx + c * dy];
+        let limits = crate::navigation::detour::DetourLimits {
+            v_forward_max_mps: l.v_forward_max_mps,
+            omega_max_radps: l.omega_max_radps,
+            crawl_turn_radps: self.supervisor.crawl_turn_radps(),
+        };
+        // everything the chair must not enter, base_link
+        let no_points = &[][..];
+        let points_base: Vec<[f32; 2]> = [
+            &obs.value.points_base[..],
+            &obs.value.drop_offs_base,
+            inputs.camera.map_or(no_points, |c| &c.value.points_base),
+            inputs.camera.map_or(no_points, |c| &c.value.drop_offs_base),
+            inputs.rear.map_or(no_points, |r| &r.points_base),
+        ]
+        .concat();
+        let found = crate::navigation::detour::detour(aim_base, &limits, &points_base, |c| {
+            let (v, w) = clamp(c);
+            self.supervisor.hold_reason(inputs, obs, v, w).is_none()
+        });
+        if found.is_none() {
+            tracing::debug!(?held, planned = ?cmd.value, ?aim_base, "no detour");
+        }
+        if let Some(d) = found {
+            tracing::debug!(?held, planned = ?cmd.value, detour = ?d, ?aim_base, "detour");
+        }
+        found
+    }
+
+    /// Held on the way for [`SAY_HELD_AFTER`] without a break: said once
+    /// (a carer can move what is in the way; the chair goes on by itself
+    /// when the way clears, or stays on "stop").
+    pub(super) fn tell_if_held(&mut self, now: Stamp, held: bool) {
+        if !held {
+            self.held_since = None;
+            self.said_held = false;
+            return;
+        }
+        let since = *self.held_since.get_or_insert(now);
+        if since.age_at(now) >= SAY_HELD_AFTER && !self.said_held {
+            self.said_held = true;
+            tracing::warn!("held on the way with no way round");
+            self.say(
+                "Something is in my way and I cannot find a way round it. I will go on when \
+                 it is clear; say stop to stay here."
+                    .into(),
+            );
+        }
+    }
+}
