@@ -6,11 +6,22 @@ use super::{Control, NEAR_ENOUGH_M, SAY_HELD_AFTER};
 use crate::msg::{Stamp, VelocityCmd};
 use crate::safety::SupervisorInputs;
 
+/// What a search for a detour came to, when the planner's command is
+/// held for something in the way.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) enum Found {
+    Detour(VelocityCmd),
+    /// Every candidate is held too (or none gains on standing still).
+    NoWay,
+}
+
 impl Control {
     /// The planner's command would be held for something in the way (or
     /// a drop-off): the cheapest detour toward the planner's aim that the
-    /// supervisor would drive, if there is one.
-    pub(super) fn detour(&self, inputs: &SupervisorInputs) -> Option<VelocityCmd> {
+    /// supervisor would drive, if there is one. None: no search was due
+    /// (nothing holds the command, or the chair is within reach of the
+    /// place beside the object).
+    pub(super) fn detour(&self, inputs: &SupervisorInputs) -> Option<Found> {
         let aim = self.aim_odom?;
         let (cmd, obs, odo) = (inputs.command?, inputs.obstacles?, inputs.odometry?);
         let l = &self.supervisor.limits;
@@ -63,13 +74,16 @@ impl Control {
             let (v, w) = clamp(c);
             self.supervisor.hold_reason(inputs, obs, v, w).is_none()
         });
-        if found.is_none() {
-            tracing::debug!(?held, planned = ?cmd.value, ?aim_base, "no detour");
+        match found {
+            Some(d) => {
+                tracing::debug!(?held, planned = ?cmd.value, detour = ?d, ?aim_base, "detour");
+                Some(Found::Detour(d))
+            }
+            None => {
+                tracing::debug!(?held, planned = ?cmd.value, ?aim_base, "no detour");
+                Some(Found::NoWay)
+            }
         }
-        if let Some(d) = found {
-            tracing::debug!(?held, planned = ?cmd.value, detour = ?d, ?aim_base, "detour");
-        }
-        found
     }
 
     /// Held on the way for [`SAY_HELD_AFTER`] without a break: said once

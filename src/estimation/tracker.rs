@@ -241,7 +241,8 @@ const OWN_POINT_M: f64 = 0.1;
 const OWN_FACE_HALF_M: f64 = 0.35;
 
 /// Distance from `p` to the segment `a`–`b`.
-fn segment_distance(a: [f64; 2], b: [f64; 2], p: [f64; 2]) -> f64 {
+/// The squared distance from `p` to the segment `a`–`b`.
+fn segment_distance_sq(a: [f64; 2], b: [f64; 2], p: [f64; 2]) -> f64 {
     let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
     let len2 = dx * dx + dy * dy;
     let t = if len2 > 0.0 {
@@ -249,7 +250,8 @@ fn segment_distance(a: [f64; 2], b: [f64; 2], p: [f64; 2]) -> f64 {
     } else {
         0.0
     };
-    (a[0] + t * dx - p[0]).hypot(a[1] + t * dy - p[1])
+    let (ex, ey) = (a[0] + t * dx - p[0], a[1] + t * dy - p[1]);
+    ex * ex + ey * ey
 }
 
 pub fn approach_pose(
@@ -301,16 +303,22 @@ pub fn approach_pose(
             let a = base + sign * (k as f64) * 15f64.to_radians();
             let r = edge_along(a) + standoff_m;
             let (x, y) = (cx + r * a.cos(), cy + r * a.sin());
-            let free = obstacles
-                .iter()
-                .all(|o| (o[0] - x).hypot(o[1] - y) >= clearance_m);
+            // (squared distances: this runs for every candidate over
+            // every obstacle point, each control step)
+            let clearance_sq = clearance_m.max(0.0).powi(2);
+            let free = obstacles.iter().all(|o| {
+                let (dx, dy) = (o[0] - x, o[1] - y);
+                dx * dx + dy * dy >= clearance_sq
+            });
             // and the chair's body and its view of the object clear of
             // everything else
             let edge = [cx + reach(a) * a.cos(), cy + reach(a) * a.sin()];
-            let in_sight = obstacles
-                .iter()
-                .all(|o| is_own(o) || segment_distance([x, y], edge, *o) >= LINE_OF_SIGHT_M);
-            if free && in_sight {
+            let in_sight = || {
+                obstacles.iter().all(|o| {
+                    is_own(o) || segment_distance_sq([x, y], edge, *o) >= LINE_OF_SIGHT_M.powi(2)
+                })
+            };
+            if free && in_sight() {
                 return Some(ApproachPose {
                     x_m: x,
                     y_m: y,

@@ -75,16 +75,21 @@ fn cost(aim_base: [f64; 2], (x, y, th): (f64, f64, f64)) -> f64 {
 /// (its front point at eight times over the horizon).
 fn nearness(c: &VelocityCmd, crawl_mps: f64, points_base: &[[f32; 2]]) -> f64 {
     const SAMPLES: usize = 8;
-    let mut nearest = f64::INFINITY;
-    for k in 1..=SAMPLES {
-        let (x, y, th) = predicted(c, crawl_mps, HORIZON_S * k as f64 / SAMPLES as f64);
-        let (fx, fy) = (x + FRONT_M * th.cos(), y + FRONT_M * th.sin());
-        for p in points_base {
-            let d = (p[0] as f64 - fx).hypot(p[1] as f64 - fy);
-            nearest = nearest.min(d);
+    // squared distances in the loop (one root at the end): this runs for
+    // every candidate over every point, each control step the chair is held
+    let fronts: [(f64, f64); SAMPLES] = std::array::from_fn(|i| {
+        let (x, y, th) = predicted(c, crawl_mps, HORIZON_S * (i + 1) as f64 / SAMPLES as f64);
+        (x + FRONT_M * th.cos(), y + FRONT_M * th.sin())
+    });
+    let mut nearest_sq = f64::INFINITY;
+    for p in points_base {
+        let (px, py) = (p[0] as f64, p[1] as f64);
+        for &(fx, fy) in &fronts {
+            let (dx, dy) = (px - fx, py - fy);
+            nearest_sq = nearest_sq.min(dx * dx + dy * dy);
         }
     }
-    NEAR_COST_PER_M * (NEAR_M - nearest).max(0.0)
+    NEAR_COST_PER_M * (NEAR_M - nearest_sq.sqrt()).max(0.0)
 }
 
 /// The candidates, cheapest first, each with its cost; only those better

@@ -133,6 +133,12 @@ fn push_bound(
 }
 
 /// Solves one cycle.
+/// The squared distance between two points (for comparisons: no root).
+fn dist_sq(a: &[f64; 2], b: &[f64]) -> f64 {
+    let (dx, dy) = (a[0] - b[0], a[1] - b[1]);
+    dx * dx + dy * dy
+}
+
 pub fn solve(problem: &MpcProblem, p: &MpcParams) -> Result<MpcPlan, MpcError> {
     let n = p.horizon.max(1);
     let dt = p.dt_s;
@@ -288,13 +294,9 @@ pub fn solve(problem: &MpcProblem, p: &MpcParams) -> Result<MpcPlan, MpcError> {
         .iter()
         .copied()
         .filter(|o| o[0].is_finite() && o[1].is_finite())
-        .filter(|o| (o[0] - s0[0]).hypot(o[1] - s0[1]) <= p.obstacle_range_m)
+        .filter(|o| dist_sq(o, &s0) <= p.obstacle_range_m.max(0.0).powi(2))
         .collect();
-    obs.sort_by(|a, c| {
-        let da = (a[0] - s0[0]).hypot(a[1] - s0[1]);
-        let dc = (c[0] - s0[0]).hypot(c[1] - s0[1]);
-        da.total_cmp(&dc)
-    });
+    obs.sort_by(|a, c| dist_sq(a, &s0).total_cmp(&dist_sq(c, &s0)));
     obs.truncate(p.max_obstacles);
     let mut half_planes = vec![Vec::new(); n];
     for k in 1..=n {
