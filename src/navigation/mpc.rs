@@ -132,13 +132,13 @@ fn push_bound(
     *row += 2;
 }
 
-/// Solves one cycle.
 /// The squared distance between two points (for comparisons: no root).
 fn dist_sq(a: &[f64; 2], b: &[f64]) -> f64 {
     let (dx, dy) = (a[0] - b[0], a[1] - b[1]);
     dx * dx + dy * dy
 }
 
+/// Solves one cycle.
 pub fn solve(problem: &MpcProblem, p: &MpcParams) -> Result<MpcPlan, MpcError> {
     let n = p.horizon.max(1);
     let dt = p.dt_s;

@@ -75,6 +75,13 @@ pub struct SupervisorInputs<'a> {
 /// rad/s).
 const MOVING_MPS: f64 = 0.02;
 const TURNING_RADPS: f64 = 0.05;
+/// A point within the crawl's margin of the footprint may not come nearer
+/// over this much of the requested motion, by more than [`CLOSING_MIN_M`].
+const CLOSING_S: f64 = 0.5;
+const CLOSING_MIN_M: f64 = 1e-4;
+/// The control step's period (20 Hz): how far the first output toward a
+/// command gets from the last one.
+const CONTROL_PERIOD_S: f64 = 0.05;
 
 #[derive(Debug, Clone)]
 pub struct Supervisor {
@@ -103,6 +110,23 @@ enum GoalState {
 /// Obstacles and drop-offs alike: places the chair must not enter.
 fn all_points(o: &Obstacles) -> impl Iterator<Item = &[f32; 2]> {
     o.points_base.iter().chain(o.drop_offs_base.iter())
+}
+
+/// Every point the chair must not enter, base_link: the lasers' points
+/// and drop-offs, the depth camera's, the remembered rear.
+fn all_inputs<'a>(
+    inputs: &'a SupervisorInputs,
+    obs: &'a Stamped<Obstacles>,
+) -> impl Iterator<Item = &'a [[f32; 2]]> {
+    let camera = inputs.camera.map(|c| &c.value);
+    [
+        &obs.value.points_base[..],
+        &obs.value.drop_offs_base,
+        camera.map_or(&[][..], |c| &c.points_base),
+        camera.map_or(&[][..], |c| &c.drop_offs_base),
+        inputs.rear.map_or(&[][..], |r| &r.points_base),
+    ]
+    .into_iter()
 }
 
 fn fresh(stamp: Option<Stamp>, now: Stamp, max: Duration) -> bool {
@@ -200,6 +224,58 @@ impl Supervisor {
         };
         let r = self.corner_reach_m() + margin;
         points.any(|p| (p[0] as f64).powi(2) + (p[1] as f64).powi(2) < r * r)
+    }
+
+    /// Any motion: true when a point already within the crawl's margin of
+    /// the footprint would be nearer to it after [`CLOSING_S`] of the
+    /// motion. The corridor, turn and arc checks leave a gap at creeping
+    /// speeds (below 5 cm/s with a slow turn only the corridor ahead is
+    /// checked), through which a slowly swinging side could close on a
+    /// doorway's jamb; a motion that keeps its distance or opens it (along
+    /// the jamb, away from it) stays allowed, so the chair is never held
+    /// where it stands.
+    fn closing_hits<'p>(
+        &self,
+        points: impl Iterator<Item = &'p [f32; 2]>,
+        v_mps: f64,
+        omega_radps: f64,
+    ) -> bool {
+        if v_mps == 0.0 && omega_radps == 0.0 {
+            return false;
+        }
+        let l = &self.limits;
+        let band = l.corridor_margin_slow_m.min(l.corridor_margin_m);
+        let (front, rear, half) = (l.front_offset_m, l.rear_offset_m, l.chair_width_m / 2.0);
+        // signed distance from the footprint (negative inside), in its frame
+        let gap = |qx: f64, qy: f64| {
+            let dx = (-rear - qx).max(qx - front);
+            let dy = qy.abs() - half;
+            if dx > 0.0 || dy > 0.0 {
+                dx.max(0.0).hypot(dy.max(0.0))
+            } else {
+                dx.max(dy)
+            }
+        };
+        // the footprint's pose after CLOSING_S (the unicycle's exact arc)
+        let th = omega_radps * CLOSING_S;
+        let (x, y) = if omega_radps.abs() > 1e-9 {
+            (
+                v_mps / omega_radps * th.sin(),
+                v_mps / omega_radps * (1.0 - th.cos()),
+            )
+        } else {
+            (v_mps * CLOSING_S, 0.0)
+        };
+        let (c, s) = (th.cos(), th.sin());
+        points.into_iter().any(|p| {
+            let (px, py) = (p[0] as f64, p[1] as f64);
+            let now = gap(px, py);
+            if now > band {
+                return false;
+            }
+            let (dx, dy) = (px - x, py - y);
+            gap(c * dx + s * dy, -s * dx + c * dy) < now - CLOSING_MIN_M
+        })
     }
 
     /// On an arc (|v| ≥ 5 cm/s and |ω| above 0.05 rad/s): true when an
@@ -390,6 +466,8 @@ impl Supervisor {
             .unwrap_or((0.0, 0.0));
         let v_last = self.last.map(|(c, _)| c.v_mps).unwrap_or(0.0);
         let rolling = |x: f64| if x.abs() >= MOVING_MPS { x } else { 0.0 };
+        // the first output toward (v, w) at the acceleration limits
+        let first = self.ramp(v, w, CONTROL_PERIOD_S);
         let blocked_by = |pts: &[&[[f32; 2]]]| {
             let all = || pts.iter().flat_map(|p| p.iter());
             [v, rolling(v_now), rolling(v_last)]
@@ -399,6 +477,8 @@ impl Supervisor {
                 || (w_now.abs() > TURNING_RADPS && self.turn_hits(all(), v_now, w_now))
                 || self.arc_hits(all(), v, w)
                 || self.arc_hits(all(), v_now, w_now)
+                || self.closing_hits(all(), v, w)
+                || self.closing_hits(all(), first.v_mps, first.omega_radps)
         };
         let camera = inputs.camera.map(|c| &c.value);
         let no_points: &[[f32; 2]] = &[];
@@ -443,6 +523,18 @@ impl Supervisor {
             Some(StopReason::LaserBlind)
         } else {
             None
+        }
+    }
+
+    /// The command `(v, w)` within the acceleration limits from the last
+    /// output, `dt_s` after it.
+    fn ramp(&self, v: f64, w: f64, dt_s: f64) -> VelocityCmd {
+        let l = &self.limits;
+        let prev = self.last.map_or(VelocityCmd::default(), |(p, _)| p);
+        let (dv, dw) = (l.a_linear_max_mps2 * dt_s, l.a_angular_max_radps2 * dt_s);
+        VelocityCmd {
+            v_mps: v.clamp(prev.v_mps - dv, prev.v_mps + dv),
+            omega_radps: w.clamp(prev.omega_radps - dw, prev.omega_radps + dw),
         }
     }
 
@@ -495,16 +587,21 @@ impl Supervisor {
                     state = SupervisorState::Stopped(reason);
                 } else {
                     // acceleration limits from the last output
-                    let (prev, dt) = match self.last {
-                        Some((p, t)) => (p, t.age_at(now).as_secs_f64().min(0.1)),
-                        None => (VelocityCmd::default(), 0.0),
-                    };
-                    let dv = l.a_linear_max_mps2 * dt;
-                    let dw = l.a_angular_max_radps2 * dt;
-                    out = VelocityCmd {
-                        v_mps: v.clamp(prev.v_mps - dv, prev.v_mps + dv),
-                        omega_radps: w.clamp(prev.omega_radps - dw, prev.omega_radps + dw),
-                    };
+                    let dt = self
+                        .last
+                        .map_or(0.0, |(_, t)| t.age_at(now).as_secs_f64().min(0.1));
+                    out = self.ramp(v, w, dt);
+                    // what the chair starts to do is the ramped command, a
+                    // different arc from the one asked for when it starts
+                    // from rest: it must not close on a point either
+                    if self.closing_hits(
+                        all_inputs(inputs, obs).flat_map(|p| p.iter()),
+                        out.v_mps,
+                        out.omega_radps,
+                    ) {
+                        state = SupervisorState::Stopped(StopReason::Obstacle);
+                        out = VelocityCmd::default();
+                    }
                 }
             }
         }

@@ -536,3 +536,36 @@ fn caps_and_acceleration_limits() {
     let w = World::new(30, -1.0, 0.0);
     assert!((s.step(ms(30), &w.inputs()).cmd.v_mps + 0.15).abs() < 1e-12);
 }
+
+#[test]
+fn a_point_at_the_footprint_may_not_come_nearer_as_the_chair_starts_to_move() {
+    // a doorway's jamb 2 mm off the rear right corner; the planner asks
+    // for a left arc whose own path swings the corner clear of it, but
+    // from rest the acceleration limits start the chair on a flatter arc
+    // that closes on the jamb (seen in the simulator, scene 233 of seed 1)
+    let limits = crate::config::Settings::defaults().safety_limits();
+    let jamb = [
+        -(limits.rear_offset_m as f32) + 0.02,
+        -(limits.chair_width_m as f32) / 2.0 - 0.002,
+    ];
+    let at = |t: u64, v: f64, w: f64| {
+        let mut world = World::new(t, v, w);
+        world.camera.value.points_base = vec![jamb];
+        world
+    };
+    let mut s = Supervisor::new(limits);
+    s.goal_active();
+    s.step(ms(0), &at(0, 0.1, 0.533).inputs());
+    let c = s.step(ms(50), &at(50, 0.1, 0.533).inputs());
+    assert_eq!(c.state, SupervisorState::Stopped(StopReason::Obstacle));
+    assert_eq!(c.cmd, VelocityCmd::default());
+    // straight along the jamb, forward or back: the chair goes
+    for (v, w) in [(0.1, 0.0), (-0.1, 0.0)] {
+        let mut s = Supervisor::new(limits);
+        s.goal_active();
+        s.step(ms(0), &at(0, v, w).inputs());
+        let c = s.step(ms(50), &at(50, v, w).inputs());
+        assert_eq!(c.state, SupervisorState::Navigating, "({v}, {w})");
+        assert!(c.cmd.v_mps * v > 0.0, "({v}, {w}): {:?}", c.cmd);
+    }
+}
