@@ -139,9 +139,6 @@ pub struct Control {
     /// when the supervisor would hold the planner's command.
     aim_odom: Option<[f64; 2]>,
     detours: u64,
-    /// When a search for a detour last found none: the next waits
-    /// [`DETOUR_RETRY`] (the search is the held chair's largest cost).
-    no_detour_at: Option<Stamp>,
     /// Since when the way to a goal has been held without a break, and
     /// whether the person has been told.
     held_since: Option<Stamp>,
@@ -158,9 +155,6 @@ pub const NEAR_ENOUGH_M: f64 = 0.3;
 /// Held on the way this long without a break (no detour, no room to back
 /// off): the person is told, once per hold; the chair keeps trying.
 pub const SAY_HELD_AFTER: std::time::Duration = std::time::Duration::from_secs(10);
-
-/// A search for a detour that found none is tried again after this.
-pub const DETOUR_RETRY: std::time::Duration = std::time::Duration::from_millis(250);
 
 /// A search turn held this long by an obstacle ends there.
 const TURN_HELD_FOR: std::time::Duration = std::time::Duration::from_secs(3);
@@ -218,7 +212,6 @@ impl Control {
             route: None,
             aim_odom: None,
             detours: 0,
-            no_detour_at: None,
             held_since: None,
             said_held: false,
         }
@@ -455,20 +448,7 @@ impl Control {
             camera: camera.as_ref(),
             rear: rear.as_ref(),
         };
-        if self
-            .no_detour_at
-            .is_none_or(|t| t.age_at(now) >= DETOUR_RETRY)
-        {
-            match self.detour(&supervisor_inputs) {
-                Some(Found::Detour(detour)) => {
-                    self.no_detour_at = None;
-                    self.detours += 1;
-                    self.planner_cmd = Some(Stamped::new(now, detour));
-                }
-                Some(Found::NoWay) => self.no_detour_at = Some(now),
-                None => self.no_detour_at = None,
-            }
-        }
+        self.detour_if_held(now, &supervisor_inputs);
         let mut cmd = self.supervisor.step(
             now,
             &SupervisorInputs {
@@ -811,7 +791,6 @@ impl Control {
 /// What the step does when the supervisor holds the way.
 #[path = "control_held.rs"]
 mod held;
-use held::Found;
 
 #[cfg(test)]
 #[path = "control_tests.rs"]
