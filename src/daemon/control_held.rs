@@ -6,22 +6,13 @@ use super::{Control, NEAR_ENOUGH_M, SAY_HELD_AFTER};
 use crate::msg::{Stamp, Stamped, VelocityCmd};
 use crate::safety::SupervisorInputs;
 
-/// What a search for a detour came to, when the planner's command is
-/// held for something in the way.
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Found {
-    Detour(VelocityCmd),
-    /// Every candidate is held too (or none gains on standing still).
-    NoWay,
-}
-
 impl Control {
     /// When the supervisor would hold the planner's command for something
     /// in the way, the planner's command becomes a detour it admits, if
     /// there is one (searched every step: a search skipped for even 100 ms
     /// after one that found none loses trips, e.g. scene 8 of seed 1).
     pub(super) fn detour_if_held(&mut self, now: Stamp, inputs: &SupervisorInputs) {
-        if let Some(Found::Detour(detour)) = self.detour(inputs) {
+        if let Some(detour) = self.detour(inputs) {
             self.detours += 1;
             self.planner_cmd = Some(Stamped::new(now, detour));
         }
@@ -29,10 +20,10 @@ impl Control {
 
     /// The planner's command would be held for something in the way (or
     /// a drop-off): the cheapest detour toward the planner's aim that the
-    /// supervisor would drive, if there is one. None: no search was due
-    /// (nothing holds the command, or the chair is within reach of the
-    /// place beside the object).
-    fn detour(&self, inputs: &SupervisorInputs) -> Option<Found> {
+    /// supervisor would drive, if there is one (none either when nothing
+    /// holds the command, or when the chair is within reach of the place
+    /// beside the object).
+    fn detour(&self, inputs: &SupervisorInputs) -> Option<VelocityCmd> {
         let aim = self.aim_odom?;
         let (cmd, obs, odo) = (inputs.command?, inputs.obstacles?, inputs.odometry?);
         let l = &self.supervisor.limits;
@@ -87,14 +78,11 @@ impl Control {
         });
         match found {
             Some(d) => {
-                tracing::debug!(?held, planned = ?cmd.value, detour = ?d, ?aim_base, "detour");
-                Some(Found::Detour(d))
+                tracing::debug!(?held, planned = ?cmd.value, detour = ?d, ?aim_base, "detour")
             }
-            None => {
-                tracing::debug!(?held, planned = ?cmd.value, ?aim_base, "no detour");
-                Some(Found::NoWay)
-            }
+            None => tracing::debug!(?held, planned = ?cmd.value, ?aim_base, "no detour"),
         }
+        found
     }
 
     /// Held on the way for [`SAY_HELD_AFTER`] without a break: said once

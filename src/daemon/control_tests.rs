@@ -324,14 +324,20 @@ fn step_with_points(
     )
 }
 
-#[test]
-fn held_by_something_ahead_on_the_way_it_backs_off_a_little_then_tries_again() {
+/// A control asked for "chair" and searching a place 2 m ahead, with an
+/// empty tracker.
+fn searching_two_metres_ahead() -> (Control, Tracker) {
     let mut c = control(false);
     c.on_input(UserInput::Goto("chair".into()));
     step_empty(&mut c, 0);
-    // a place to search 2 m ahead, a box 0.7 m ahead in the way
     c.goal.explore(at(0), Some([2.0, 0.0]));
-    let tracker = Tracker::new(crate::config::Settings::defaults().tracker);
+    (c, Tracker::new(crate::config::Settings::defaults().tracker))
+}
+
+#[test]
+fn held_by_something_ahead_on_the_way_it_backs_off_a_little_then_tries_again() {
+    // a place to search 2 m ahead, a box 0.7 m ahead in the way
+    let (mut c, tracker) = searching_two_metres_ahead();
     // a chair that never moved does not back onto floor it has not stood
     // on (a step down behind is seen by nothing)
     let mut still = control(false);
@@ -445,13 +451,9 @@ fn held_near_the_place_beside_the_object_it_arrives_as_near_as_it_safely_goes() 
 
 #[test]
 fn held_by_something_beside_the_way_it_drives_a_detour_the_supervisor_admits() {
-    let mut c = control(false);
-    c.on_input(UserInput::Goto("chair".into()));
-    step_empty(&mut c, 0);
     // a place to search 2 m ahead; a post ahead on the left, inside the
     // stop corridor of the straight way
-    c.goal.explore(at(0), Some([2.0, 0.0]));
-    let tracker = Tracker::new(crate::config::Settings::defaults().tracker);
+    let (mut c, tracker) = searching_two_metres_ahead();
     let mut moved = 0;
     for k in 1..=40u64 {
         let out = step_with_points(&mut c, 50 * k, &tracker, vec![[0.84, 0.2], [4.0, 0.0]]);
@@ -481,11 +483,7 @@ fn held_by_something_beside_the_way_it_drives_a_detour_the_supervisor_admits() {
 
 #[test]
 fn held_on_the_way_with_no_way_round_it_says_so_once_and_goes_on_when_clear() {
-    let mut c = control(false);
-    c.on_input(UserInput::Goto("chair".into()));
-    step_empty(&mut c, 0);
-    c.goal.explore(at(0), Some([2.0, 0.0]));
-    let tracker = Tracker::new(crate::config::Settings::defaults().tracker);
+    let (mut c, tracker) = searching_two_metres_ahead();
     let told = |said: &[String]| {
         said.iter()
             .filter(|s| s.contains("cannot find a way round"))

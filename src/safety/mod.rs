@@ -599,6 +599,11 @@ impl Supervisor {
                         out.v_mps,
                         out.omega_radps,
                     ) {
+                        tracing::debug!(
+                            v = out.v_mps,
+                            w = out.omega_radps,
+                            "blocked by: the ramped output closes on a point"
+                        );
                         state = SupervisorState::Stopped(StopReason::Obstacle);
                         out = VelocityCmd::default();
                     }
