@@ -1,7 +1,8 @@
 //! Perception benchmarks.
 //! - `geometry_10_masks`: paper steps 3–6 (erosion, depth isolation +
 //!   z-score, back-projection + extrinsics, boxes) on a 640×480 frame with
-//!   10 masks, one core. Target ≤ 2 ms.
+//!   10 masks, one core. Target ≤ 0.5 ms. The paper's numpy/scipy stack on
+//!   the same scene: `benches/paper_geometry.py`.
 //! - `depth_segmenter_10_boxes`: step 2 without a model.
 //! - `letterbox_640`: the detector's pre-processing of a 640×480 frame.
 //! - `whole_view_yolo11n_depth`: one whole view on the real MRPT RGB-D frame

@@ -2,7 +2,7 @@
 //! (`detector`: YOLO, YOLO-World with the CLIP text encoder and our
 //! `tokenizer`), box-prompted masks (`segmenter`: SAM-family, depth-guided),
 //! erosion (`masks`), depth isolation and back-projection (`cloud`,
-//! `registration`), 3D boxes and merging (`boxes`), all per view in
+//! `registration`; fused per mask in `mask_points`), 3D boxes and merging (`boxes`), all per view in
 //! `pipeline`; ONNX Runtime sessions (`runtime`), the model manifest
 //! (`models`), images (`image`).
 
@@ -11,6 +11,7 @@ pub mod cloud;
 pub mod depth_obstacles;
 pub mod detector;
 pub mod image;
+pub mod mask_points;
 pub mod masks;
 pub mod models;
 pub mod pipeline;

@@ -8,8 +8,8 @@ use serde::Serialize;
 use thiserror::Error;
 
 use super::boxes::Object3D;
-use super::cloud::{isolate_depth, isolate_eroded_depth, zscore_back_project};
 use super::detector::{Detection, Detector, DetectorError, PromptReport};
+use super::mask_points::{mask_object, MaskGeometry};
 use super::masks::Mask;
 use super::registration::register_depth_to_color;
 use super::segmenter::{Segmenter, SegmenterError};
@@ -64,12 +64,6 @@ pub struct Dropped {
     pub reason: String,
 }
 
-thread_local! {
-    /// Depth samples under the current mask (reused: see `objects_from_masks`).
-    static SAMPLES: std::cell::RefCell<Vec<super::cloud::DepthSample>> =
-        const { std::cell::RefCell::new(Vec::new()) };
-}
-
 /// Steps 3–6 for one view: each (detection, mask) pair → an object in the
 /// frame of `target_from_camera`, or a reason it was dropped. `depth` is
 /// registered to the colour image and `intrinsics` are the colour camera's.
@@ -84,60 +78,32 @@ pub fn objects_from_masks(
 ) -> (Vec<Object3D>, Vec<Dropped>) {
     let mut objects = Vec::new();
     let mut dropped = Vec::new();
+    let g = MaskGeometry {
+        erosion_iterations: settings.erosion_iterations,
+        min_depth_m: settings.min_depth_m,
+        max_depth_m: settings.max_depth_m,
+        zscore_tau: settings.zscore_tau,
+        intrinsics,
+        target_from_camera,
+        frame,
+    };
     for (det, mask) in detections.iter().zip(masks) {
-        let drop = |reason: String| Dropped {
-            label: det.label.clone(),
-            score: det.score,
-            box_xyxy: det.box_xyxy,
-            reason,
-        };
-        // the samples' buffer is kept between masks (and views): a fresh
-        // one per mask costs more in page faults than the work itself
-        let (points, eroded_px, n_depth) = SAMPLES.with(|buf| {
-            let mut samples = buf.borrow_mut();
-            samples.clear();
-            let eroded_px =
-                if settings.erosion_iterations == 1 {
-                    isolate_eroded_depth(
-                        mask,
-                        depth,
-                        settings.min_depth_m,
-                        settings.max_depth_m,
-                        &mut samples,
-                    )
-                } else {
-                    let eroded = mask.eroded(settings.erosion_iterations);
-                    samples.extend(isolate_depth(&eroded, depth).into_iter().filter(|s| {
-                        s.z_m >= settings.min_depth_m && s.z_m <= settings.max_depth_m
-                    }));
-                    eroded.count()
-                };
-            let points = zscore_back_project(
-                &samples,
-                settings.zscore_tau,
-                intrinsics,
-                target_from_camera,
-            );
-            (points, eroded_px, samples.len())
-        });
-        if points.len() < settings.min_points.max(1) {
-            dropped.push(drop(format!(
-                "{} points after filtering (< {}): mask {} px, eroded {eroded_px} px, valid depth {n_depth}",
-                points.len(),
-                settings.min_points,
-                mask.count(),
-            )));
-            continue;
-        }
-        match Object3D::from_points(
-            det.label.clone(),
-            det.score,
-            frame,
-            points,
-            Some(det.box_xyxy),
-        ) {
-            Some(o) => objects.push(o),
-            None => dropped.push(drop("no points".into())),
+        let made = mask_object(mask, depth, &g, &det.label, det.score, Some(det.box_xyxy));
+        match made.object {
+            Some(o) if made.points >= settings.min_points.max(1) => objects.push(o),
+            _ => dropped.push(Dropped {
+                label: det.label.clone(),
+                score: det.score,
+                box_xyxy: det.box_xyxy,
+                reason: format!(
+                    "{} points after filtering (< {}): mask {} px, eroded {} px, valid depth {}",
+                    made.points,
+                    settings.min_points,
+                    mask.count(),
+                    made.eroded_px,
+                    made.depth_samples,
+                ),
+            }),
         }
     }
     (objects, dropped)
