@@ -12,6 +12,7 @@ pub mod estimation;
 pub mod eval;
 pub mod input;
 pub mod live;
+pub mod memory;
 pub mod msg;
 pub mod navigation;
 pub mod output;

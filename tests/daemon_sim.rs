@@ -182,7 +182,11 @@ async fn the_stop_word_brings_the_chair_to_rest() {
 async fn two_runs_of_one_trip_on_the_virtual_clock_are_identical() {
     let a = trip(go_clear_behind("cabinet"), to_arrival(), |_, _| {}).await;
     let b = trip(go_clear_behind("cabinet"), to_arrival(), |_, _| {}).await;
+    // all but what the host measures: the steps' durations, the memory
     let json = |(r, s): &(RunReport, SimSummary)| {
+        let mut r = r.clone();
+        r.control.step = Default::default();
+        r.memory = None;
         serde_json::to_string(&serde_json::json!({"report": r, "sim": s})).expect("json")
     };
     assert_eq!(a.0.outcome, Outcome::Arrived);
@@ -580,4 +584,53 @@ fn records_a_run_that_replays_through_the_pipeline_to_the_same_objects() {
         let again: Vec<_> = again.objects.iter().map(object_record).collect();
         assert_eq!(&again, o);
     }
+}
+
+/// `[sim] detector = "model"`: the configured detector (YOLO11n, from the
+/// shared folder) and segmenter on the rendered frames, as on the chair;
+/// the run report has the control steps' timing and the daemon's memory,
+/// which holds the model (more than the ground-truth run, which loads no
+/// model at all).
+#[test]
+fn the_simulator_runs_the_configured_model_and_reports_timing_and_memory() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let config = dir.path().join("model.toml");
+    std::fs::write(
+        &config,
+        format!(
+            "[sim]\ndetector = \"model\"\n[perception]\ndetector = {:?}\nsegmenter = \"depth\"\n",
+            common::yolo11n().display().to_string()
+        ),
+    )
+    .expect("config");
+    let run = |extra: &[&std::ffi::OsStr]| {
+        let out = opennav()
+            .args(["--prompt", "chair", "--no-stdin", "--max-duration", "3s"])
+            .args(extra)
+            .output()
+            .expect("runs");
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        report(&out.stdout)
+    };
+    let model = run(&["--config".as_ref(), config.as_os_str()]);
+    let truth = run(&[]);
+    let views = model["estimation"]["views_placed"].as_u64().expect("views");
+    assert!(views >= 10, "{views} views in 3 s at 30 Hz: {model}");
+    // the 20 Hz steps on the virtual clock: 50 ms apart, to the histogram's bin
+    let period = &model["control"]["period"];
+    assert!(period["count"].as_u64().expect("count") >= 50, "{period}");
+    let p50 = period["p50_us"].as_f64().expect("p50");
+    assert!((49_990.0..=50_010.0).contains(&p50), "{period}");
+    assert!(model["control"]["step"]["max_us"].as_f64().expect("step") > 0.0);
+    let peak = |r: &Value| r["memory"]["peak_rss_mb"].as_f64().expect("peak memory");
+    assert!(
+        peak(&model) > peak(&truth) + 20.0,
+        "model {} MB, ground truth {} MB",
+        peak(&model),
+        peak(&truth)
+    );
 }

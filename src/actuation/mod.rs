@@ -71,6 +71,79 @@ impl PeriodStats {
     }
 }
 
+/// Durations (periods, step times) over a whole run in constant memory:
+/// 10 µs bins up to 100 ms, longer ones counted apart, and the longest.
+/// Percentiles are a bin's upper edge: at most 10 µs above the truth.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DurationHistogram {
+    bins: Vec<u32>,
+    over: u64,
+    count: u64,
+    max_s: f64,
+}
+
+impl Default for DurationHistogram {
+    fn default() -> Self {
+        DurationHistogram::new()
+    }
+}
+
+impl DurationHistogram {
+    const BIN_S: f64 = 10e-6;
+    const BINS: usize = 10_000;
+
+    pub fn new() -> DurationHistogram {
+        DurationHistogram {
+            bins: vec![0; Self::BINS],
+            over: 0,
+            count: 0,
+            max_s: 0.0,
+        }
+    }
+
+    /// One duration, seconds (a negative or NaN one counts as zero).
+    pub fn record(&mut self, d_s: f64) {
+        let d_s = if d_s > 0.0 { d_s } else { 0.0 };
+        let bin = (d_s / Self::BIN_S) as usize;
+        match self.bins.get_mut(bin) {
+            Some(b) => *b = b.saturating_add(1),
+            None => self.over += 1,
+        }
+        self.count += 1;
+        self.max_s = self.max_s.max(d_s);
+    }
+
+    pub fn count(&self) -> u64 {
+        self.count
+    }
+
+    /// Nearest-rank percentiles, as [`PeriodStats::from_intervals`].
+    pub fn stats(&self) -> PeriodStats {
+        if self.count == 0 {
+            return PeriodStats::default();
+        }
+        let max_us = self.max_s * 1e6;
+        let q = |p: f64| {
+            let rank = (p * (self.count - 1) as f64).round() as u64;
+            let mut seen = 0u64;
+            for (i, &n) in self.bins.iter().enumerate() {
+                seen += u64::from(n);
+                if seen > rank {
+                    return ((i + 1) as f64 * Self::BIN_S * 1e6).min(max_us);
+                }
+            }
+            max_us
+        };
+        PeriodStats {
+            count: self.count as usize,
+            p50_us: q(0.5),
+            p99_us: q(0.99),
+            p01_us: q(0.01),
+            max_us,
+        }
+    }
+}
+
 /// Live status of an actuator (for `opennav status`, logs and tests).
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
 pub struct ActuatorStatus {
@@ -88,8 +161,10 @@ pub struct ActuatorStatus {
     pub bus_errors: u64,
     /// Last joystick values sent (turn, forward).
     pub last_output: (i8, i8),
-    /// Writer period over the last second or so.
+    /// Writer period over the last thousand periods (10 s).
     pub period: PeriodStats,
+    /// Writer period over the whole run.
+    pub period_run: PeriodStats,
 }
 
 /// The channels an actuator runs with.
@@ -196,5 +271,44 @@ pub(crate) fn set_realtime(priority: i32) {
             error = %std::io::Error::last_os_error(),
             "real-time scheduling refused; writer runs at normal priority"
         );
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The histogram's percentiles are the exact ones rounded up to its
+    /// 10 µs bins; beyond 100 ms only the maximum is kept exactly.
+    #[test]
+    fn histogram_percentiles_are_the_exact_ones_to_a_bin() {
+        let mut h = DurationHistogram::new();
+        let mut seed = 3u64;
+        let mut all = Vec::new();
+        for i in 0..20_000 {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            let jitter = (seed >> 40) as f64 / (1u64 << 24) as f64; // 0..1
+            let d = if i % 500 == 0 {
+                0.25
+            } else {
+                0.010 + 0.002 * (jitter - 0.5)
+            };
+            h.record(d);
+            all.push(d);
+        }
+        let exact = PeriodStats::from_intervals(&all);
+        let got = h.stats();
+        assert_eq!(got.count, 20_000);
+        for (g, e) in [
+            (got.p01_us, exact.p01_us),
+            (got.p50_us, exact.p50_us),
+            (got.p99_us, exact.p99_us),
+        ] {
+            assert!(g >= e && g - e <= 10.0 + 1e-6, "{g} vs {e}");
+        }
+        assert_eq!(got.max_us, 250_000.0);
+        assert_eq!(DurationHistogram::new().stats(), PeriodStats::default());
     }
 }

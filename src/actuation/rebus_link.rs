@@ -282,6 +282,7 @@ impl RebusActuator {
             bus_errors: link.stats.decode_errors,
             last_output: link.last_output,
             period: Default::default(),
+            period_run: Default::default(),
         }
     }
 

@@ -149,6 +149,8 @@ struct WriterState {
     status: ActuatorStatus,
     last_send: Option<Stamp>,
     intervals: VecDeque<f64>,
+    /// Every period of the run.
+    periods: super::DurationHistogram,
     fault_at: Option<Stamp>,
 }
 
@@ -166,7 +168,9 @@ impl WriterState {
                         if self.intervals.len() == PERIOD_WINDOW {
                             self.intervals.pop_front();
                         }
-                        self.intervals.push_back(prev.age_at(now).as_secs_f64());
+                        let period_s = prev.age_at(now).as_secs_f64();
+                        self.intervals.push_back(period_s);
+                        self.periods.record(period_s);
                     }
                     self.last_send = Some(now);
                 }
@@ -239,6 +243,7 @@ impl<B: CanBus> Actuator for RnetActuator<B> {
             },
             last_send: None,
             intervals: VecDeque::with_capacity(PERIOD_WINDOW),
+            periods: super::DurationHistogram::new(),
             fault_at: None,
         };
         let mut interval = Ticker::new(s.period, s.precise_timer)
@@ -295,6 +300,7 @@ impl<B: CanBus> Actuator for RnetActuator<B> {
                         w.status.joystick_id = tk.joystick_id();
                         w.status.late = tk.late_frames;
                         w.status.period = PeriodStats::from_intervals(w.intervals.make_contiguous());
+                        w.status.period_run = w.periods.stats();
                         io.status.send_replace(w.status.clone());
                     }
                 }

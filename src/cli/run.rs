@@ -286,10 +286,17 @@ pub fn run(config: Option<&std::path::Path>, args: RunArgs) -> Result<(), Failur
             c.cancel();
         });
         let clock: Arc<dyn Clock> = Arc::new(TokioClock::new());
+        // at the wall clock's pace the writer runs as on the chair
+        let writer = if virtual_clock {
+            opennav::sim::devices::SimWriter::Task
+        } else {
+            opennav::sim::devices::SimWriter::OwnThread
+        };
         let (devices, world) = if sim {
             let world = opennav::sim::world::SimWorld::living_room(settings.drive_params());
             let (d, h) =
-                opennav::sim::devices::devices(&settings, world, clock.clone()).map_err(failed)?;
+                opennav::sim::devices::devices_with(&settings, world, clock.clone(), writer)
+                    .map_err(failed)?;
             (d, Some(h))
         } else {
             let d = opennav::daemon::chair::devices(

@@ -98,6 +98,22 @@ pub struct SimSection {
     pub detector_box_noise_px: f64,
     /// Seed of the noise (the benchmark sets each scene's).
     pub seed: u64,
+    /// What detects in the simulator's frames.
+    pub detector: SimDetectorChoice,
+}
+
+/// The simulator's detector (`[sim] detector`).
+#[derive(Debug, Clone, Copy, Default, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum SimDetectorChoice {
+    /// The ground truth's boxes, with the faults above: cheap, exact.
+    #[default]
+    Truth,
+    /// The configured `[perception]` detector and segmenter on the
+    /// rendered frames, as fast as they go (the camera at 30 Hz): the
+    /// chair's perception load, its memory and its timing (with `--clock
+    /// realtime`); what it finds in rendered rooms is not a measure of it.
+    Model,
 }
 
 #[derive(Debug, Clone, Deserialize, PartialEq)]

@@ -21,6 +21,7 @@ use crate::msg::{
     Clock, MapObstacles, Obstacles, Odometry, SafeCmd, Stamp, Stamped, SupervisorState, UserInput,
 };
 
+use crate::actuation::{DurationHistogram, PeriodStats};
 pub use crate::config::CONTROL_PERIOD;
 
 /// A trip ends (arrived, not found, lost, stopped) with the chair at rest:
@@ -73,9 +74,19 @@ pub struct ControlEnd {
     /// Everything said, in order.
     pub said: Vec<String>,
     pub end: Stamp,
+    pub timing: ControlTiming,
     /// The channels stay open until the daemon shuts the tasks down: a
     /// closed channel means a dead task.
     pub channels: (watch::Sender<Option<SafeCmd>>, watch::Sender<Vec<String>>),
+}
+
+/// How the control steps kept time over the run: the period between the
+/// 20 Hz ticks' steps (on the run's clock) and the time each step took (of
+/// the host's, whatever the clock).
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+pub struct ControlTiming {
+    pub period: PeriodStats,
+    pub step: PeriodStats,
 }
 
 /// Runs until the trip is over, the user quits, `cancel` or a fault; the
@@ -97,7 +108,11 @@ pub async fn run(mut control: Control, mut io: ControlTaskIo) -> ControlEnd {
     // view and the recording)
     let mut taken: Vec<String> = Vec::new();
     let keep_inputs = io.live.is_some() || io.record.is_some();
+    let (mut periods, mut step_times) = (DurationHistogram::new(), DurationHistogram::new());
+    let mut last_tick: Option<Stamp> = None;
+    let mut memory: Option<(Stamp, Option<crate::memory::MemoryUse>)> = None;
     let outcome = loop {
+        let mut ticked = false;
         tokio::select! {
             biased;
             Some((task, reason)) = io.faults.recv() => control.on_task_failure(&task, &reason),
@@ -139,9 +154,16 @@ pub async fn run(mut control: Control, mut io: ControlTaskIo) -> ControlEnd {
                 control.on_actuator_event(&ev);
             }
             Some(first) = io.first_readings.recv() => { io.waiting.remove(first); }
-            _ = tick.tick() => {}
+            _ = tick.tick() => ticked = true,
         }
         let now = io.clock.now();
+        if ticked {
+            if let Some(prev) = last_tick {
+                periods.record(prev.age_at(now).as_secs_f64());
+            }
+            last_tick = Some(now);
+        }
+        let step_started = std::time::Instant::now();
         let obstacles = io.obstacles.borrow().clone();
         let odometry = *io.odometry.borrow();
         let camera = io.camera.borrow().clone();
@@ -157,6 +179,7 @@ pub async fn run(mut control: Control, mut io: ControlTaskIo) -> ControlEnd {
                 },
             )
         };
+        step_times.record(step_started.elapsed().as_secs_f64());
         io.commands.send_replace(Some(out.cmd));
         io.prompts.send_if_modified(|p| {
             let changed = *p != out.wanted;
@@ -182,6 +205,9 @@ pub async fn run(mut control: Control, mut io: ControlTaskIo) -> ControlEnd {
             last_said.push_back(s.clone());
         }
         if let Some(tx) = &io.status {
+            if memory.is_none_or(|(at, _)| at.age_at(now) >= Duration::from_secs(1)) {
+                memory = Some((now, crate::memory::own_memory()));
+            }
             let goal = control.goal_state();
             tx.send_replace(crate::input::DaemonStatus {
                 state: Some(out.cmd.state),
@@ -220,6 +246,7 @@ pub async fn run(mut control: Control, mut io: ControlTaskIo) -> ControlEnd {
                     labels
                 },
                 said: last_said.iter().cloned().collect(),
+                memory: memory.and_then(|(_, m)| m),
             });
         }
         if io.live.is_some() || io.record.is_some() {
@@ -343,6 +370,10 @@ pub async fn run(mut control: Control, mut io: ControlTaskIo) -> ControlEnd {
         outcome,
         said,
         end: now,
+        timing: ControlTiming {
+            period: periods.stats(),
+            step: step_times.stats(),
+        },
         channels: (io.commands, io.prompts),
     }
 }

@@ -125,6 +125,10 @@ pub struct RunReport {
     pub said: Vec<String>,
     pub record: Option<RecordReport>,
     pub live: Option<crate::live::LiveReport>,
+    /// The control steps' period and duration.
+    pub control: control_task::ControlTiming,
+    /// The daemon's resident memory at the end and at its peak.
+    pub memory: Option<crate::memory::MemoryUse>,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -640,6 +644,7 @@ pub async fn run(
         mut outcome,
         said,
         end,
+        timing,
         channels: _channels,
     } = match control_end {
         Ok(c) => c,
@@ -661,6 +666,7 @@ pub async fn run(
                 },
                 said: Vec::new(),
                 end: clock.now(),
+                timing: Default::default(),
                 channels: (watch::channel(None).0, watch::channel(Vec::new()).0),
             }
         }
@@ -729,6 +735,8 @@ pub async fn run(
         actuator: actuator_status,
         said,
         record,
+        control: timing,
+        memory: crate::memory::own_memory(),
         live,
     })
 }

@@ -107,4 +107,6 @@ pub struct DaemonStatus {
     pub seen: Vec<String>,
     /// The last sentences the chair said, oldest first.
     pub said: Vec<String>,
+    /// The daemon's resident memory (read once a second).
+    pub memory: Option<crate::memory::MemoryUse>,
 }

@@ -23,6 +23,7 @@ use crate::actuation::can::MemoryBus;
 use crate::actuation::writer::RnetActuator;
 use crate::actuation::{Actuator, ActuatorError};
 use crate::config::Settings;
+use crate::config::SimDetectorChoice;
 use crate::daemon::devices::{CameraDevice, DeviceError, Devices, WatchSource};
 use crate::daemon::Source;
 use crate::msg::RgbImage;
@@ -86,12 +87,33 @@ impl SimHandle {
     }
 }
 
+/// Where the simulated chair's R-Net writer runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SimWriter {
+    /// A task on the daemon's runtime, ticking on tokio's clock: what the
+    /// virtual (paused) clock needs.
+    Task,
+    /// Its own thread at real-time priority with the precise timer, as on
+    /// the chair (`daemon::chair`): for the wall clock's pace.
+    OwnThread,
+}
+
 /// The simulator's devices on `world`, timed by `clock` (tokio's: real
-/// or paused).
+/// or paused), the writer a task.
 pub fn devices(
     settings: &Settings,
     world: SimWorld,
     clock: Arc<dyn Clock>,
+) -> Result<(Devices, SimHandle), DeviceError> {
+    devices_with(settings, world, clock, SimWriter::Task)
+}
+
+/// [`devices`] with the writer where `writer` says.
+pub fn devices_with(
+    settings: &Settings,
+    world: SimWorld,
+    clock: Arc<dyn Clock>,
+    writer: SimWriter,
 ) -> Result<(Devices, SimHandle), DeviceError> {
     let world = Arc::new(Mutex::new(world));
     let stop = CancellationToken::new();
@@ -172,9 +194,24 @@ pub fn devices(
     // ticking on tokio's clock (real or paused)
     // the configured takeover mode, as on the chair
     let mut rnet = settings.rnet_settings();
-    rnet.precise_timer = false;
+    rnet.precise_timer = writer == SimWriter::OwnThread;
     let endpoint = bus.endpoint();
     let actuator: crate::daemon::devices::ActuatorStart = Box::new(move |io| {
+        if writer == SimWriter::OwnThread {
+            let h = crate::actuation::spawn_actuator_thread(
+                "rnet-writer",
+                50,
+                move || {
+                    Ok(RnetActuator {
+                        bus: endpoint,
+                        settings: rnet,
+                    })
+                },
+                io,
+            )
+            .map_err(|e| DeviceError::new("rnet-writer", e.to_string()))?;
+            return Ok(Box::pin(crate::actuation::thread_result(h)));
+        }
         let h = tokio::spawn(
             RnetActuator {
                 bus: endpoint,
@@ -227,6 +264,21 @@ pub fn devices(
         restamp: false,
         period: Duration::from_millis(500),
         latency: Duration::from_millis(100),
+    };
+    let camera = match settings.sim.detector {
+        SimDetectorChoice::Truth => camera,
+        SimDetectorChoice::Model => {
+            let choice = crate::setup::PerceptionChoice::default();
+            CameraDevice {
+                detector: crate::setup::open_configured_detector(settings, &choice)
+                    .map_err(|e| DeviceError::new("detector", e.to_string()))?,
+                segmenter: crate::setup::open_configured_segmenter(settings, &choice)
+                    .map_err(|e| DeviceError::new("segmenter", e.to_string()))?,
+                period: Duration::from_millis(33),
+                latency: Duration::ZERO,
+                ..camera
+            }
+        }
     };
 
     let devices = Devices {
@@ -441,6 +493,7 @@ mod tests {
             detector_false_positive_rate: 0.0,
             detector_box_noise_px: 0.0,
             seed: 3,
+            detector: crate::config::SimDetectorChoice::Truth,
         };
         // no noise: the ground truth as it is
         let mut d = detector(none);
