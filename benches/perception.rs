@@ -9,6 +9,9 @@
 //!   with YOLO11n (CPU) + the depth segmenter. Target ≤ 130 ms (the paper's
 //!   GPU figure). Needs ../shared/models/yolo11n_coco.onnx and the ONNX
 //!   Runtime library (scripts/fetch-onnxruntime.sh).
+//! - `yolo11n_model_only`: the same model's inference alone (its own
+//!   session, same settings, a pre-made input): the whole view's ratio
+//!   to it is what perception adds to the model.
 //!
 //! Run: `cargo bench --bench perception`
 
@@ -161,10 +164,27 @@ fn bench_whole_view(c: &mut Criterion) {
     );
     p.set_prompts(&["book".into(), "chair".into(), "person".into()])
         .expect("prompts");
+    // the bare model: the same ONNX file in its own session with the same
+    // settings, one pre-made 640×640 input, nothing before or after
+    let bare = opennav::perception::runtime::Model::load(&model, &settings.session).expect("model");
+    let input = bare.signature.inputs[0].name.clone();
+    let (chw, _) = letterbox_chw(&color, 640, 114);
+    let mut bare = bare;
     let mut group = c.benchmark_group("whole_view");
     group.sample_size(30);
     group.bench_function("whole_view_yolo11n_depth", |b| {
         b.iter(|| p.process(&color, Some(&depth)).expect("view"))
+    });
+    group.bench_function("yolo11n_model_only", |b| {
+        b.iter(|| {
+            let t = ort::value::Tensor::from_array((vec![1usize, 3, 640, 640], chw.clone()))
+                .expect("tensor");
+            let out = bare
+                .session
+                .run(ort::inputs![input.as_str() => t])
+                .expect("inference");
+            out.len()
+        })
     });
     group.finish();
 }
