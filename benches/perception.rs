@@ -123,7 +123,11 @@ fn shared() -> PathBuf {
 
 fn bench_whole_view(c: &mut Criterion) {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-    let model = shared().join("models/yolo11n_coco.onnx");
+    // OPENNAV_BENCH_DETECTOR: another YOLO11n file, e.g. the INT8 one the
+    // fixture step makes (tests/fixtures/generated/yolo11n_int8.onnx)
+    let model = std::env::var_os("OPENNAV_BENCH_DETECTOR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| shared().join("models/yolo11n_coco.onnx"));
     if !model.is_file() {
         eprintln!(
             "\n*** whole_view_yolo11n_depth NOT RUN: {} is missing ***\n",

@@ -157,3 +157,52 @@ fn cuda_request_on_the_cpu_library_falls_back_and_still_detects() {
     assert_eq!(d.len(), 1);
     assert!((d[0].score - 0.94).abs() < 0.01);
 }
+
+/// The INT8 detector mode (`[perception] detector` = the quantised model
+/// the fixture step makes from YOLO11n, calibrated on the MRPT frame only)
+/// against the FP32 model, box by box, on the four photos it never saw:
+/// each FP32 detection has an INT8 one of its class with IoU ≥ 0.85 and a
+/// score within 0.1, and INT8 finds nothing above 0.35 that FP32 lacks.
+#[test]
+fn the_int8_model_finds_the_fp32_models_boxes() {
+    common::init_ort();
+    let settings = DetectorSettings {
+        score_threshold: 0.25,
+        ..Default::default()
+    };
+    let open = |path: &std::path::Path| {
+        let mut d = open_detector(path, &settings, None).expect("model opens");
+        assert_eq!(d.backend(), "yolo-closed-vocabulary");
+        d.set_prompts(&coco_names()).expect("prompts");
+        d
+    };
+    let mut fp32 = open(&common::yolo11n());
+    let mut int8 = open(&common::generated("yolo11n_int8.onnx"));
+    let mut compared = 0;
+    for image in ["bus.jpg", "zidane.jpg", "person.jpg", "dog.jpg"] {
+        let img = RgbImage::load(&common::asset(
+            common::shared().join("data/images").join(image),
+        ))
+        .expect("image");
+        let want = fp32.detect(&img).expect("fp32");
+        let got = int8.detect(&img).expect("int8");
+        let mut used = vec![false; got.len()];
+        for w in &want {
+            let hit = got.iter().enumerate().position(|(i, g)| {
+                !used[i]
+                    && g.class == w.class
+                    && iou_xyxy(&g.box_xyxy, &w.box_xyxy) >= 0.85
+                    && (g.score - w.score).abs() <= 0.1
+            });
+            let Some(i) = hit else {
+                panic!("{image}: {w:?} has no INT8 match in {got:#?}");
+            };
+            used[i] = true;
+            compared += 1;
+        }
+        for (g, u) in got.iter().zip(&used) {
+            assert!(*u || g.score <= 0.35, "{image}: INT8 alone found {g:?}");
+        }
+    }
+    assert!(compared >= 12, "only {compared} boxes compared");
+}
