@@ -26,6 +26,17 @@ fn opennav() -> Command {
 
 use common::report;
 
+/// Runs `c` to its end, which must be success, and parses its report.
+fn report_of(c: &mut Command) -> Value {
+    let out = c.output().expect("runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    report(&out.stdout)
+}
+
 /// One simulated trip in the living room (`common::sim_run`).
 async fn trip(
     words: Vec<(Duration, UserInput)>,
@@ -196,25 +207,16 @@ async fn two_runs_of_one_trip_on_the_virtual_clock_are_identical() {
 #[test]
 fn the_cli_runs_the_trip_and_a_real_time_run_reaches_the_same_outcome() {
     let run = |clock: &str| {
-        let out = opennav()
-            .args([
-                "--clock",
-                clock,
-                "--prompt",
-                "chair",
-                "--exit-on-arrival",
-                "--max-duration",
-                "60s",
-                "--no-stdin",
-            ])
-            .output()
-            .expect("runs");
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        report(&out.stdout)
+        report_of(opennav().args([
+            "--clock",
+            clock,
+            "--prompt",
+            "chair",
+            "--exit-on-arrival",
+            "--max-duration",
+            "60s",
+            "--no-stdin",
+        ]))
     };
     let v = run("virtual");
     let rt = run("realtime");
@@ -604,17 +606,11 @@ fn the_simulator_runs_the_configured_model_and_reports_timing_and_memory() {
     )
     .expect("config");
     let run = |extra: &[&std::ffi::OsStr]| {
-        let out = opennav()
-            .args(["--prompt", "chair", "--no-stdin", "--max-duration", "3s"])
-            .args(extra)
-            .output()
-            .expect("runs");
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        report(&out.stdout)
+        report_of(
+            opennav()
+                .args(["--prompt", "chair", "--no-stdin", "--max-duration", "3s"])
+                .args(extra),
+        )
     };
     let model = run(&["--config".as_ref(), config.as_os_str()]);
     let truth = run(&[]);

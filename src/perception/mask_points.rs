@@ -19,9 +19,10 @@ use std::cell::RefCell;
 use nalgebra::{Isometry3, Point3};
 use wide::f32x8;
 
-use super::boxes::{Object3D, Sweep, SweepLanes, SWEEP_LANES};
+use super::boxes::Object3D;
 use super::cloud::depth_stats_of;
 use super::masks::Mask;
+use super::sweep::{Sweep, SweepLanes, SWEEP_LANES};
 use crate::msg::{DepthImage, Frame, Intrinsics};
 
 /// The depth samples of one mask, as three arrays (pixel column, row and
@@ -40,6 +41,12 @@ impl Samples {
     /// not).
     fn clear_for(&mut self, n: usize) {
         self.len = 0;
+        self.grow(n);
+    }
+
+    /// Slots for at least `n` samples in all.
+    #[cold]
+    fn grow(&mut self, n: usize) {
         for a in [&mut self.u, &mut self.v, &mut self.z_m] {
             if a.len() < n {
                 a.resize(n, 0.0);
@@ -61,8 +68,9 @@ impl Samples {
             self.z_m.get_mut(start..start + n),
         ) else {
             // room is made for every pixel of the region beforehand
-            debug_assert!(false, "sample arrays too short");
-            return;
+            // (`clear_for`); were it not, the row is not lost: room, again
+            self.grow(start + n);
+            return self.push_row(x0, v, bits, depths, lo, hi);
         };
         let (bits, depths) = (&bits[..n], &depths[..n]);
         let vf = v as f32;
@@ -415,13 +423,7 @@ mod tests {
     /// the fused path gives the steps' points and boxes bit for bit.
     #[test]
     fn fused_steps_are_the_steps_one_after_the_other() {
-        let mut seed = 7u64;
-        let mut next = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 33) as usize
-        };
+        let mut next = crate::perception::test_sequence(7);
         let k = Intrinsics {
             width: 64,
             height: 48,
@@ -452,7 +454,7 @@ mod tests {
             let mut mask = Mask::empty_in(iw, ih, x0, y0, x1, y1);
             for v in y0..y1 {
                 for u in x0..x1 {
-                    mask.set(u, v, next() % 10 != 0);
+                    mask.set(u, v, !next().is_multiple_of(10));
                 }
             }
             let g = MaskGeometry {

@@ -313,13 +313,7 @@ mod tests {
     /// anywhere in the image (touching its edges or not), random bits.
     #[test]
     fn eroded_rows_are_the_eroded_mask() {
-        let mut seed = 12345u64;
-        let mut next = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 33) as usize
-        };
+        let mut next = crate::perception::test_sequence(12345);
         for _ in 0..300 {
             let (iw, ih) = (1 + next() % 12, 1 + next() % 12);
             let (x0, y0) = (next() % iw, next() % ih);
@@ -327,7 +321,7 @@ mod tests {
             let mut m = Mask::empty_in(iw, ih, x0, y0, x1, y1);
             for v in y0..y1 {
                 for u in x0..x1 {
-                    m.set(u, v, next() % 4 != 0);
+                    m.set(u, v, !next().is_multiple_of(4));
                 }
             }
             let e = m.eroded(1);
