@@ -12,7 +12,14 @@
 //! Measured idle and with both cores busy (two spinning threads standing
 //! in for perception).
 //!
+//!
+//! `--jsmerror PERIODS`: the writer in JSMerror mode instead (the JSM goes
+//! quiet at the silence frame, the writer's own 10 ms ticker sends every
+//! frame): the period between our frames as they arrive at the observer,
+//! PERIODS of them, idle and with both cores busy.
+//!
 //!   cargo bench --bench followjsm_latency [-- FRAMES]
+//!   cargo bench --bench followjsm_latency -- --jsmerror 10000
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -20,7 +27,7 @@ use std::time::{Duration, Instant};
 
 use opennav::actuation::can::{BusEvent, CanBus, MemoryBus};
 use opennav::actuation::rnet::{
-    joystick_frame, CanFrame, JoystickMapping, TakeoverMode, JSM_HEARTBEAT_ID,
+    joystick_frame, CanFrame, JoystickMapping, TakeoverMode, JSM_HEARTBEAT_ID, JSM_SILENCE_ID,
 };
 use opennav::actuation::writer::{RnetActuator, RnetSettings};
 use opennav::actuation::{
@@ -37,8 +44,9 @@ fn percentile(sorted: &[f64], p: f64) -> f64 {
     sorted[i]
 }
 
-/// Latencies (µs) of `frames` answers.
-fn measure(frames: usize, load: bool, own_thread: bool) -> Vec<f64> {
+/// Latencies (µs) of `frames` answers (FollowJSM), or with `jsmerror`
+/// the periods (µs) between `frames + 1` of our frames.
+fn measure(frames: usize, load: bool, own_thread: bool, jsmerror: bool) -> Vec<f64> {
     let stop_load = Arc::new(AtomicBool::new(false));
     let mut spinners = Vec::new();
     if load {
@@ -79,6 +87,7 @@ fn measure(frames: usize, load: bool, own_thread: bool) -> Vec<f64> {
                         },
                         state: SupervisorState::Navigating,
                         stamp: clock.now(),
+                        view: None,
                     }));
                 }
             });
@@ -89,7 +98,11 @@ fn measure(frames: usize, load: bool, own_thread: bool) -> Vec<f64> {
         let actuator = RnetActuator {
             bus: bus.endpoint(),
             settings: RnetSettings::new(
-                TakeoverMode::FollowJsm,
+                if jsmerror {
+                    TakeoverMode::JsmError
+                } else {
+                    TakeoverMode::FollowJsm
+                },
                 JoystickMapping {
                     forward_full_mps: 0.6,
                     reverse_full_mps: 0.3,
@@ -116,8 +129,10 @@ fn measure(frames: usize, load: bool, own_thread: bool) -> Vec<f64> {
         // device), absolute 10 ms deadlines
         let sent: Arc<Mutex<Vec<Instant>>> = Arc::new(Mutex::new(Vec::new()));
         let jsm_stop = Arc::new(AtomicBool::new(false));
+        // JSMerror: the silence frame seen, the JSM's joystick frames stop
+        let silenced = Arc::new(AtomicBool::new(false));
         let jsm_thread = {
-            let (sent, stop) = (sent.clone(), jsm_stop.clone());
+            let (sent, stop, silenced) = (sent.clone(), jsm_stop.clone(), silenced.clone());
             std::thread::spawn(move || {
                 let param = libc::sched_param { sched_priority: 70 };
                 // SAFETY: plain syscall on this thread; refusal is fine
@@ -129,8 +144,10 @@ fn measure(frames: usize, load: bool, own_thread: bool) -> Vec<f64> {
                     if k.is_multiple_of(10) {
                         let _ = jsm.try_send(&CanFrame::ext(JSM_HEARTBEAT_ID, &[0x87; 8]));
                     }
-                    sent.lock().expect("sent").push(now);
-                    let _ = jsm.try_send(&joystick_frame(JSM_ID, 0, 0));
+                    if !silenced.load(Ordering::Relaxed) {
+                        sent.lock().expect("sent").push(now);
+                        let _ = jsm.try_send(&joystick_frame(JSM_ID, 0, 0));
+                    }
                     k += 1;
                     next += Duration::from_millis(10);
                     std::thread::sleep(next.saturating_duration_since(Instant::now()));
@@ -141,7 +158,7 @@ fn measure(frames: usize, load: bool, own_thread: bool) -> Vec<f64> {
         // higher real-time priority than the writer (so the spinners do
         // not delay the measurement itself)
         let observer_thread = {
-            let sent = sent.clone();
+            let (sent, silenced) = (sent.clone(), silenced.clone());
             std::thread::spawn(move || {
                 let param = libc::sched_param { sched_priority: 70 };
                 // SAFETY: plain syscall on this thread; refusal is fine
@@ -153,10 +170,24 @@ fn measure(frames: usize, load: bool, own_thread: bool) -> Vec<f64> {
                 rt.block_on(async move {
                     let mut latencies = Vec::with_capacity(frames);
                     let warmup = Instant::now() + Duration::from_secs(1);
+                    let mut last_ours: Option<Instant> = None;
                     while latencies.len() < frames {
                         let Ok(ev) = observer.recv().await else { break };
                         let at = Instant::now();
                         let BusEvent::Frame(f) = ev else { continue };
+                        if jsmerror {
+                            if f.id == JSM_SILENCE_ID {
+                                silenced.store(true, Ordering::Relaxed);
+                            }
+                            // after the silence only ours carry the id
+                            if f.id != JSM_ID || !silenced.load(Ordering::Relaxed) || at < warmup {
+                                continue;
+                            }
+                            if let Some(prev) = last_ours.replace(at) {
+                                latencies.push((at - prev).as_secs_f64() * 1e6);
+                            }
+                            continue;
+                        }
                         // ours carry the command (the JSM's and our first
                         // frames are centred)
                         if f.id != JSM_ID || f.data[..2] == [0, 0] || at < warmup {
@@ -195,8 +226,32 @@ fn main() {
         .skip(1)
         .find_map(|a| a.parse().ok())
         .unwrap_or(3000);
+    if std::env::args().any(|a| a == "--jsmerror") {
+        for load in [false, true] {
+            let mut l = measure(frames, load, true, true);
+            l.sort_by(f64::total_cmp);
+            let off = |us: &f64| (us - 10_000.0).abs();
+            let mut jitter: Vec<f64> = l.iter().map(off).collect();
+            jitter.sort_by(f64::total_cmp);
+            let over_1ms = jitter.iter().filter(|j| **j > 1000.0).count();
+            println!(
+                "jsmerror writer period (writer thread SCHED_FIFO, {}, {} periods): p1 {:.0} µs, p50 {:.0} µs, p99 {:.0} µs, max {:.0} µs; |period − 10 ms| p99 {:.0} µs, max {:.0} µs, over 1 ms: {} ({:.2} %)",
+                if load { "both cores busy" } else { "idle" },
+                l.len(),
+                percentile(&l, 0.01),
+                percentile(&l, 0.5),
+                percentile(&l, 0.99),
+                l.last().copied().unwrap_or(f64::NAN),
+                percentile(&jitter, 0.99),
+                jitter.last().copied().unwrap_or(f64::NAN),
+                over_1ms,
+                100.0 * over_1ms as f64 / l.len().max(1) as f64
+            );
+        }
+        return;
+    }
     for (own_thread, load) in [(true, false), (true, true), (false, false), (false, true)] {
-        let mut l = measure(frames, load, own_thread);
+        let mut l = measure(frames, load, own_thread, false);
         l.sort_by(f64::total_cmp);
         let over_1ms = l.iter().filter(|v| **v > 1000.0).count();
         println!(

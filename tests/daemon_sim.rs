@@ -193,10 +193,12 @@ async fn the_stop_word_brings_the_chair_to_rest() {
 async fn two_runs_of_one_trip_on_the_virtual_clock_are_identical() {
     let a = trip(go_clear_behind("cabinet"), to_arrival(), |_, _| {}).await;
     let b = trip(go_clear_behind("cabinet"), to_arrival(), |_, _| {}).await;
-    // all but what the host measures: the steps' durations, the memory
+    // all but what the host measures: the steps' and the views' durations,
+    // the memory
     let json = |(r, s): &(RunReport, SimSummary)| {
         let mut r = r.clone();
         r.control.step = Default::default();
+        r.view_time = Default::default();
         r.memory = None;
         serde_json::to_string(&serde_json::json!({"report": r, "sim": s})).expect("json")
     };
@@ -622,6 +624,19 @@ fn the_simulator_runs_the_configured_model_and_reports_timing_and_memory() {
     let p50 = period["p50_us"].as_f64().expect("p50");
     assert!((49_990.0..=50_010.0).contains(&p50), "{period}");
     assert!(model["control"]["step"]["max_us"].as_f64().expect("step") > 0.0);
+    // frame-to-command through the whole daemon: the simulator's 100 ms
+    // stand-in for the compute time, then at most one world step (the
+    // frame's stamp) and one R-Net period (the JSM's next frame)
+    let f2c = &truth["actuator"]["frame_to_command"];
+    let views = truth["estimation"]["views_placed"].as_u64().expect("views");
+    assert!(views >= 3, "{truth}");
+    assert!(f2c["count"].as_u64().expect("count") + 1 >= views, "{f2c}");
+    for q in ["p01_us", "p50_us", "max_us"] {
+        let us = f2c[q].as_f64().expect("latency");
+        assert!((100_000.0..=120_100.0).contains(&us), "{q}: {f2c}");
+    }
+    assert!(model["view_time"]["count"].as_u64().expect("views") >= 10);
+    assert!(model["view_time"]["p50_us"].as_f64().expect("view time") > 0.0);
     let peak = |r: &Value| r["memory"]["peak_rss_mb"].as_f64().expect("peak memory");
     assert!(
         peak(&model) > peak(&truth) + 20.0,

@@ -65,6 +65,7 @@ fn rig() -> Rig {
                         cmd: CMD,
                         state: SupervisorState::Navigating,
                         stamp: c.now(),
+                        view: None,
                     }));
                 }
             }

@@ -166,6 +166,7 @@ where
                     cmd,
                     state: SupervisorState::Navigating,
                     stamp: clock.now(),
+                    view: None,
                 }));
             }
         }

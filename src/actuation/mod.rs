@@ -13,7 +13,7 @@ use tokio::sync::{mpsc, watch};
 use tokio_util::sync::CancellationToken;
 
 use crate::msg::Clock;
-use crate::msg::{FaultReason, SafeCmd};
+use crate::msg::{FaultReason, SafeCmd, Stamp};
 
 pub mod can;
 pub mod check;
@@ -77,6 +77,7 @@ impl PeriodStats {
 #[derive(Debug, Clone, PartialEq)]
 pub struct DurationHistogram {
     bins: Vec<u32>,
+    bin_s: f64,
     over: u64,
     count: u64,
     max_s: f64,
@@ -93,8 +94,14 @@ impl DurationHistogram {
     const BINS: usize = 10_000;
 
     pub fn new() -> DurationHistogram {
+        DurationHistogram::with_bins(Self::BIN_S, Self::BINS)
+    }
+
+    /// `bins` bins of `bin_s` seconds each.
+    pub fn with_bins(bin_s: f64, bins: usize) -> DurationHistogram {
         DurationHistogram {
-            bins: vec![0; Self::BINS],
+            bins: vec![0; bins.max(1)],
+            bin_s,
             over: 0,
             count: 0,
             max_s: 0.0,
@@ -104,7 +111,7 @@ impl DurationHistogram {
     /// One duration, seconds (a negative or NaN one counts as zero).
     pub fn record(&mut self, d_s: f64) {
         let d_s = if d_s > 0.0 { d_s } else { 0.0 };
-        let bin = (d_s / Self::BIN_S) as usize;
+        let bin = (d_s / self.bin_s) as usize;
         match self.bins.get_mut(bin) {
             Some(b) => *b = b.saturating_add(1),
             None => self.over += 1,
@@ -129,7 +136,7 @@ impl DurationHistogram {
             for (i, &n) in self.bins.iter().enumerate() {
                 seen += u64::from(n);
                 if seen > rank {
-                    return ((i + 1) as f64 * Self::BIN_S * 1e6).min(max_us);
+                    return ((i + 1) as f64 * self.bin_s * 1e6).min(max_us);
                 }
             }
             max_us
@@ -141,6 +148,51 @@ impl DurationHistogram {
             p01_us: q(0.01),
             max_us,
         }
+    }
+}
+
+/// Frame-to-command latency: from a view's camera stamp to the first
+/// frame the actuator sent carrying a command made after the tracker had
+/// that view (100 µs bins up to 1 s).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ViewLatency {
+    /// The newest view of the commands not yet sent.
+    pending: Option<Stamp>,
+    /// The newest view already measured.
+    measured: Option<Stamp>,
+    latency: DurationHistogram,
+}
+
+impl Default for ViewLatency {
+    fn default() -> Self {
+        ViewLatency {
+            pending: None,
+            measured: None,
+            latency: DurationHistogram::with_bins(100e-6, 10_000),
+        }
+    }
+}
+
+impl ViewLatency {
+    /// The command the next frame carries.
+    pub fn on_command(&mut self, cmd: &SafeCmd) {
+        if let Some(v) = cmd.view {
+            if self.measured.is_none_or(|m| v > m) {
+                self.pending = Some(v);
+            }
+        }
+    }
+
+    /// A frame carrying the latest command went out at `now`.
+    pub fn on_sent(&mut self, now: Stamp) {
+        if let Some(v) = self.pending.take() {
+            self.latency.record(v.age_at(now).as_secs_f64());
+            self.measured = Some(v);
+        }
+    }
+
+    pub fn stats(&self) -> PeriodStats {
+        self.latency.stats()
     }
 }
 
@@ -165,6 +217,9 @@ pub struct ActuatorStatus {
     pub period: PeriodStats,
     /// Writer period over the whole run.
     pub period_run: PeriodStats,
+    /// Camera stamp of each new view → the first frame carrying the
+    /// command made after it, over the whole run.
+    pub frame_to_command: PeriodStats,
 }
 
 /// The channels an actuator runs with.
@@ -310,5 +365,47 @@ mod tests {
         }
         assert_eq!(got.max_us, 250_000.0);
         assert_eq!(DurationHistogram::new().stats(), PeriodStats::default());
+    }
+
+    fn cmd_of(view_ms: Option<u64>) -> SafeCmd {
+        SafeCmd {
+            cmd: Default::default(),
+            state: crate::msg::SupervisorState::Navigating,
+            stamp: Stamp(std::time::Duration::ZERO),
+            view: view_ms.map(|ms| Stamp(std::time::Duration::from_millis(ms))),
+        }
+    }
+
+    /// Each view is measured once, at the first frame after a command
+    /// that carries it; commands without a view, an older view or the
+    /// same view again measure nothing.
+    #[test]
+    fn frame_to_command_measures_each_view_once_at_its_first_frame() {
+        let ms = |m: u64| Stamp(std::time::Duration::from_millis(m));
+        let mut l = ViewLatency::default();
+        l.on_sent(ms(5));
+        l.on_command(&cmd_of(None));
+        l.on_sent(ms(10));
+        assert_eq!(l.stats().count, 0);
+        l.on_command(&cmd_of(Some(100)));
+        l.on_command(&cmd_of(Some(100)));
+        l.on_sent(ms(134));
+        l.on_sent(ms(144));
+        l.on_command(&cmd_of(Some(100)));
+        l.on_sent(ms(154));
+        l.on_command(&cmd_of(Some(90)));
+        l.on_sent(ms(164));
+        let s = l.stats();
+        assert_eq!(s.count, 1);
+        assert_eq!(s.max_us, 34_000.0);
+        // a newer view; two views before one frame: the newest is measured
+        l.on_command(&cmd_of(Some(200)));
+        l.on_command(&cmd_of(Some(233)));
+        l.on_sent(ms(270));
+        let s = l.stats();
+        assert_eq!(s.count, 2);
+        // percentiles are a 100 µs bin's upper edge, the maximum exact
+        assert!((34_000.0..=34_100.0).contains(&s.p01_us), "{s:?}");
+        assert_eq!(s.max_us, 37_000.0);
     }
 }

@@ -271,7 +271,7 @@ fn emit(io: &ActuatorIo, ev: ActuatorEvent) {
 }
 
 impl RebusActuator {
-    fn status(&self, link: &RebusLink) -> ActuatorStatus {
+    fn status(&self, link: &RebusLink, latency: &super::ViewLatency) -> ActuatorStatus {
         ActuatorStatus {
             backend: "rebus",
             state: format!("{:?}", link.state).to_lowercase(),
@@ -283,6 +283,7 @@ impl RebusActuator {
             last_output: link.last_output,
             period: Default::default(),
             period_run: Default::default(),
+            frame_to_command: latency.stats(),
         }
     }
 
@@ -306,6 +307,7 @@ impl RebusActuator {
         let mut release_at: Option<Stamp> = None;
         let mut buf = [0u8; 256];
         let mut ticks = 0u64;
+        let mut latency = super::ViewLatency::default();
         let io_err = |what: &str, e: std::io::Error| {
             ActuatorError::Rebus(format!("{}: {what}: {e}", self.port))
         };
@@ -319,7 +321,7 @@ impl RebusActuator {
                 match release_at {
                     Some(at) if now >= at => {
                         link.release();
-                        let st = self.status(&link);
+                        let st = self.status(&link, &latency);
                         io.status.send_replace(st.clone());
                         emit(&io, ActuatorEvent::Released);
                         return Ok(st);
@@ -329,6 +331,7 @@ impl RebusActuator {
                         Some(c) => {
                             let (x, y) = s.mapping.to_joystick(c.cmd.v_mps, c.cmd.omega_radps);
                             link.set_command(x, y, c.stamp);
+                            latency.on_command(&c);
                         }
                         None => link.clear_command(),
                     },
@@ -337,6 +340,9 @@ impl RebusActuator {
                 if let Some(p) = packet {
                     port.write_all(&p.encode())
                         .map_err(|e| io_err("write", e))?;
+                    if link.state == LinkState::Up {
+                        latency.on_sent(now);
+                    }
                 }
                 self.link_event(&io, event);
                 next_tick = Stamp(next_tick.0 + s.period);
@@ -345,7 +351,7 @@ impl RebusActuator {
                 }
                 ticks += 1;
                 if ticks.is_multiple_of(10) {
-                    io.status.send_replace(self.status(&link));
+                    io.status.send_replace(self.status(&link, &latency));
                 }
             }
             let n = match port.read(&mut buf) {

@@ -152,6 +152,7 @@ struct WriterState {
     /// Every period of the run.
     periods: super::DurationHistogram,
     fault_at: Option<Stamp>,
+    latency: super::ViewLatency,
 }
 
 impl WriterState {
@@ -173,6 +174,7 @@ impl WriterState {
                         self.periods.record(period_s);
                     }
                     self.last_send = Some(now);
+                    self.latency.on_sent(now);
                 }
             }
             Err(e) => {
@@ -226,6 +228,7 @@ impl<B: CanBus> RnetActuator<B> {
             .mapping
             .to_joystick(cmd.cmd.v_mps, cmd.cmd.omega_radps);
         tk.set_command(x, y, cmd.stamp);
+        w.latency.on_command(&cmd);
     }
 }
 
@@ -245,6 +248,7 @@ impl<B: CanBus> Actuator for RnetActuator<B> {
             intervals: VecDeque::with_capacity(PERIOD_WINDOW),
             periods: super::DurationHistogram::new(),
             fault_at: None,
+            latency: Default::default(),
         };
         let mut interval = Ticker::new(s.period, s.precise_timer)
             .map_err(|e| ActuatorError::Task(format!("ticker thread: {e}")))?;
@@ -268,6 +272,7 @@ impl<B: CanBus> Actuator for RnetActuator<B> {
                             tk.release();
                             w.status.state = state_name(tk.state).into();
                             w.status.period_run = w.periods.stats();
+                            w.status.frame_to_command = w.latency.stats();
                             io.status.send_replace(w.status.clone());
                             emit(&io, ActuatorEvent::Released);
                             return Ok(w.status);
@@ -305,6 +310,7 @@ impl<B: CanBus> Actuator for RnetActuator<B> {
                         // once a second (and at release) is enough
                         if ticks.is_multiple_of(100) {
                             w.status.period_run = w.periods.stats();
+                            w.status.frame_to_command = w.latency.stats();
                         }
                         io.status.send_replace(w.status.clone());
                     }

@@ -65,6 +65,8 @@ pub struct ControlTaskIo {
     /// The motor interface's status (what it sent last), for the live view
     /// and the recording.
     pub actuator_status: Option<watch::Receiver<crate::actuation::ActuatorStatus>>,
+    /// The views' compute time, for the status.
+    pub view_time: Option<watch::Receiver<PeriodStats>>,
 }
 
 /// How the control task ended.
@@ -101,6 +103,7 @@ pub async fn run(mut control: Control, mut io: ControlTaskIo) -> ControlEnd {
     // the last stop's reason, for systemd's status line
     let mut last_stop: Option<String> = None;
     let mut inputs_open = true;
+    let mut tracks_open = true;
     let mut stops = io.stops.take();
     let mut last_said: std::collections::VecDeque<String> = Default::default();
     let mut ending: Option<(Outcome, Stamp)> = None;
@@ -154,6 +157,15 @@ pub async fn run(mut control: Control, mut io: ControlTaskIo) -> ControlEnd {
                 control.on_actuator_event(&ev);
             }
             Some(first) = io.first_readings.recv() => { io.waiting.remove(first); }
+            // a new view in the tracker: a step at once, so that its command
+            // does not wait for the tick (frame-to-command latency)
+            r = io.tracks.changed(), if tracks_open => match r {
+                Ok(()) => {
+                    io.tracks.borrow_and_update();
+                }
+                // the estimation task gone: its failure reaches `faults`
+                Err(_) => tracks_open = false,
+            },
             _ = tick.tick() => ticked = true,
         }
         let now = io.clock.now();
@@ -169,7 +181,7 @@ pub async fn run(mut control: Control, mut io: ControlTaskIo) -> ControlEnd {
         let camera = io.camera.borrow().clone();
         let out = {
             let tracker = io.tracks.borrow();
-            control.step(
+            let mut out = control.step(
                 now,
                 ControlInputs {
                     obstacles: obstacles.as_ref(),
@@ -177,7 +189,9 @@ pub async fn run(mut control: Control, mut io: ControlTaskIo) -> ControlEnd {
                     tracker: &tracker,
                     camera: camera.as_ref(),
                 },
-            )
+            );
+            out.cmd.view = tracker.newest_view();
+            out
         };
         step_times.record(step_started.elapsed().as_secs_f64());
         io.commands.send_replace(Some(out.cmd));
@@ -247,6 +261,11 @@ pub async fn run(mut control: Control, mut io: ControlTaskIo) -> ControlEnd {
                 },
                 said: last_said.iter().cloned().collect(),
                 memory: memory.and_then(|(_, m)| m),
+                view_time: io.view_time.as_ref().map(|v| *v.borrow()),
+                frame_to_command: io
+                    .actuator_status
+                    .as_ref()
+                    .map(|a| a.borrow().frame_to_command),
             });
         }
         if io.live.is_some() || io.record.is_some() {
@@ -361,6 +380,7 @@ pub async fn run(mut control: Control, mut io: ControlTaskIo) -> ControlEnd {
         cmd: Default::default(),
         state: control.state(),
         stamp: now,
+        view: None,
     }));
     sd_notify(NotifyState::Stopping);
     // the channels stay open until the daemon shuts the tasks down: a
@@ -377,3 +397,7 @@ pub async fn run(mut control: Control, mut io: ControlTaskIo) -> ControlEnd {
         channels: (io.commands, io.prompts),
     }
 }
+
+#[cfg(test)]
+#[path = "control_task_tests.rs"]
+mod tests;

@@ -127,6 +127,9 @@ pub struct RunReport {
     pub live: Option<crate::live::LiveReport>,
     /// The control steps' period and duration.
     pub control: control_task::ControlTiming,
+    /// Each view's compute time (registration, detector, masks, geometry);
+    /// beside `actuator.frame_to_command`.
+    pub view_time: crate::actuation::PeriodStats,
     /// The daemon's resident memory at the end and at its peak.
     pub memory: Option<crate::memory::MemoryUse>,
 }
@@ -425,6 +428,7 @@ pub async fn run(
     let (cmd_tx, cmd_rx) = watch::channel::<Option<SafeCmd>>(None);
     let (act_ev_tx, act_ev_rx) = mpsc::channel(64);
     let (status_tx, status_rx) = watch::channel(ActuatorStatus::default());
+    let (view_time_tx, view_time_rx) = watch::channel(crate::actuation::PeriodStats::default());
     let writer_cancel = CancellationToken::new();
     let actuator_run = actuator(ActuatorIo {
         commands: cmd_rx,
@@ -501,6 +505,7 @@ pub async fn run(
                         first_frame: first_tx.clone(),
                         record: sink.clone(),
                         live: live_sink.clone(),
+                        view_time: view_time_tx.clone(),
                     },
                     clock.clone(),
                     sources.clone(),
@@ -604,6 +609,7 @@ pub async fn run(
                 live: live_sink,
                 record: sink,
                 actuator_status: Some(status_rx.clone()),
+                view_time: Some(view_time_rx.clone()),
             },
         ),
     ));
@@ -722,6 +728,7 @@ pub async fn run(
         None => None,
     };
     let odometry = odo_report.borrow().map(|o| o.value);
+    let view_time = *view_time_rx.borrow();
     Ok(RunReport {
         outcome,
         duration_s: end.0.saturating_sub(start.0).as_secs_f64(),
@@ -736,6 +743,7 @@ pub async fn run(
         said,
         record,
         control: timing,
+        view_time,
         memory: crate::memory::own_memory(),
         live,
     })

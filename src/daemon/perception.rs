@@ -30,6 +30,9 @@ pub struct PerceptionIo {
     pub record: Option<RecordSink>,
     /// The live view (Foxglove), when it is on.
     pub live: Option<crate::live::LiveSink>,
+    /// The whole view's compute time over the run (registration,
+    /// detector, masks, geometry), published with each view.
+    pub view_time: watch::Sender<crate::actuation::PeriodStats>,
 }
 
 /// The camera's side of the loop.
@@ -87,6 +90,7 @@ pub async fn run(
     let inline = tokio::runtime::Handle::current().runtime_flavor()
         == tokio::runtime::RuntimeFlavor::CurrentThread;
     let mut failing_since: Option<crate::msg::Stamp> = None;
+    let mut view_times = crate::actuation::DurationHistogram::with_bins(100e-6, 10_000);
     loop {
         tokio::select! {
             biased;
@@ -191,7 +195,12 @@ pub async fn run(
                         .map_err(|_| "the estimation task is gone".to_string())?;
                 }
                 let view = match result {
-                    Ok(Some(v)) => v,
+                    Ok(Some(v)) => {
+                        view_times.record(v.timing_ms.total / 1e3);
+                        // a walk over the bins: microseconds, each view
+                        io.view_time.send_replace(view_times.stats());
+                        v
+                    }
                     Ok(None) => continue,
                     Err(e) => {
                         tracing::warn!(error = %e, "perception");

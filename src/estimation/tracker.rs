@@ -64,6 +64,8 @@ pub struct Tracker {
     pub params: TrackerParams,
     tracks: Vec<Track>,
     next_id: u64,
+    /// The stamp of the newest view updated into the tracker.
+    newest_view: Option<Stamp>,
 }
 
 fn dist3(a: &[f64; 3], b: &[f64; 3]) -> f64 {
@@ -76,11 +78,17 @@ impl Tracker {
             params,
             tracks: Vec::new(),
             next_id: 1,
+            newest_view: None,
         }
     }
 
     pub fn tracks(&self) -> &[Track] {
         &self.tracks
+    }
+
+    /// The camera stamp of the newest view updated into the tracker.
+    pub fn newest_view(&self) -> Option<Stamp> {
+        self.newest_view
     }
 
     /// One view's objects (already in odom, stamped `stamp`); `visible`
@@ -93,6 +101,7 @@ impl Tracker {
         visible: impl Fn(&[f64; 3]) -> bool,
     ) {
         let p = self.params;
+        self.newest_view = self.newest_view.max(Some(stamp));
         // predict: uncertainty grows with time
         for t in &mut self.tracks {
             let dt = t.last_update.age_at(stamp).as_secs_f64();

@@ -109,4 +109,9 @@ pub struct DaemonStatus {
     pub said: Vec<String>,
     /// The daemon's resident memory (read once a second).
     pub memory: Option<crate::memory::MemoryUse>,
+    /// Each view's compute time over the run (None: no camera).
+    pub view_time: Option<crate::actuation::PeriodStats>,
+    /// Camera stamp of each view → the first motor frame carrying the
+    /// command made after it, over the run.
+    pub frame_to_command: Option<crate::actuation::PeriodStats>,
 }

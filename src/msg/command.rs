@@ -73,4 +73,8 @@ pub struct SafeCmd {
     pub cmd: VelocityCmd,
     pub state: SupervisorState,
     pub stamp: Stamp,
+    /// The camera stamp of the newest view the step that made this command
+    /// had seen (its objects in the tracker): the writer measures from it
+    /// to the first frame carrying the command (frame-to-command latency).
+    pub view: Option<Stamp>,
 }

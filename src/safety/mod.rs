@@ -624,6 +624,7 @@ impl Supervisor {
             cmd: out,
             state,
             stamp: now,
+            view: None,
         }
     }
 }
