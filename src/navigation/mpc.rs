@@ -132,10 +132,70 @@ fn push_bound(
     *row += 2;
 }
 
+/// Appends `lo ≤ z[var]` and `z[var] ≤ hi`, each only where given.
+#[allow(clippy::too_many_arguments)]
+fn push_bound_rows(
+    var: usize,
+    lo: Option<f64>,
+    hi: Option<f64>,
+    ai: &mut Vec<usize>,
+    aj: &mut Vec<usize>,
+    av: &mut Vec<f64>,
+    b: &mut Vec<f64>,
+    row: &mut usize,
+) {
+    if let Some(hi) = hi {
+        ai.push(*row);
+        aj.push(var);
+        av.push(1.0);
+        b.push(hi);
+        *row += 1;
+    }
+    if let Some(lo) = lo {
+        ai.push(*row);
+        aj.push(var);
+        av.push(-1.0);
+        b.push(-lo);
+        *row += 1;
+    }
+}
+
 /// The squared distance between two points (for comparisons: no root).
 fn dist_sq(a: &[f64; 2], b: &[f64]) -> f64 {
     let (dx, dy) = (a[0] - b[0], a[1] - b[1]);
     dx * dx + dy * dy
+}
+
+/// How far from the chair's position state k's position (k = 0..=n) can
+/// be in the QP's linearised dynamics with its speed and rate bounds: each
+/// step moves `dt·(|v_k| + |v̄|·|θ_k − θ̄_k|)` at most (v̄ = v0 along the
+/// reference rollout), with `|v_k|` and `θ_k − θ̄_k = dt·Σ_{i=1}^{k−1}
+/// (ω_i − ω0)` bounded by the bounds and by what the rate limits reach
+/// from the current speeds.
+pub fn position_reach_m(state: &UnicycleState, p: &MpcParams, n: usize) -> Vec<f64> {
+    let dt = p.dt_s;
+    let (v0, w0) = (state.v_mps, state.omega_radps);
+    let mut reach = vec![0.0; n + 1];
+    let (mut heading_off, mut travelled) = (0.0f64, 0.0f64);
+    for (k, reach_k) in reach.iter_mut().enumerate().skip(1) {
+        // speed k − 1: within its bounds and its reach from v0
+        let v_prev = if k == 1 {
+            v0.abs()
+        } else {
+            let r = p.accel_max_mps2 * dt * (k - 1) as f64;
+            let lo = p.v_min_mps.min(v0 + r).max(v0 - r);
+            let hi = p.v_max_mps.max(v0 - r).min(v0 + r);
+            lo.abs().max(hi.abs())
+        };
+        travelled += dt * (v_prev + v0.abs() * heading_off);
+        *reach_k = travelled;
+        // turn rate k: within ±ω_max and its reach from ω0
+        let turn = p.alpha_max_radps2 * dt * k as f64;
+        let w_lo = (-p.omega_max_radps).max(w0 - turn);
+        let w_hi = p.omega_max_radps.min(w0 + turn);
+        heading_off += dt * (w_lo - w0).abs().max((w_hi - w0).abs());
+    }
+    reach
 }
 
 /// Solves one cycle.
@@ -239,25 +299,34 @@ pub fn solve(problem: &MpcProblem, p: &MpcParams) -> Result<MpcPlan, MpcError> {
         row += NX;
     }
     let n_eq = row;
-    let v0 = problem.state.v_mps;
+    let (v0, w0) = (problem.state.v_mps, problem.state.omega_radps);
+    // Speed bounds. State k's speed is v0 plus k steps of bounded
+    // acceleration, so it lies in [v0 − ramp_k, v0 + ramp_k]: a bound
+    // outside that interval cannot bind and its row is left out (the
+    // feasible set, and so the solution, is the same; the KKT system is
+    // smaller). Same for the turn rate.
+    let reach = position_reach_m(&problem.state, p, n);
     for k in 1..=n {
         // a chair moving outside the speed bounds (backing off, which the
         // plan does not do) gets back inside them at the rate limit
         let ramp = p.accel_max_mps2 * dt * k as f64;
-        push_bound(
+        let (v_lo, v_hi) = (p.v_min_mps.min(v0 + ramp), p.v_max_mps.max(v0 - ramp));
+        let turn = p.alpha_max_radps2 * dt * k as f64;
+        let w_max = p.omega_max_radps;
+        push_bound_rows(
             sx(k, 3),
-            p.v_min_mps.min(v0 + ramp),
-            p.v_max_mps.max(v0 - ramp),
+            (v_lo > v0 - ramp).then_some(v_lo),
+            (v_hi < v0 + ramp).then_some(v_hi),
             &mut ai,
             &mut aj,
             &mut av,
             &mut b,
             &mut row,
         );
-        push_bound(
+        push_bound_rows(
             sx(k, 4),
-            -p.omega_max_radps,
-            p.omega_max_radps,
+            (-w_max > w0 - turn).then_some(-w_max),
+            (w_max < w0 + turn).then_some(w_max),
             &mut ai,
             &mut aj,
             &mut av,
@@ -315,6 +384,12 @@ pub fn solve(problem: &MpcProblem, p: &MpcParams) -> Result<MpcPlan, MpcError> {
             let now_m = (s0[0] - o[0]) * nx + (s0[1] - o[1]) * ny;
             let clearance = p.clearance_m.min((now_m - 0.05).max(0.0));
             let bb = nx * o[0] + ny * o[1] + clearance;
+            half_planes[k - 1].push(([nx, ny], bb));
+            // every position state k can reach keeps the clearance: the
+            // row cannot bind and is left out
+            if now_m - reach[k] > clearance + 1e-9 {
+                continue;
+            }
             // −n·p ≤ −b
             ai.push(row);
             aj.push(sx(k, 0));
@@ -324,7 +399,6 @@ pub fn solve(problem: &MpcProblem, p: &MpcParams) -> Result<MpcPlan, MpcError> {
             av.push(-ny);
             b.push(-bb);
             row += 1;
-            half_planes[k - 1].push(([nx, ny], bb));
         }
     }
     let n_ineq = row - n_eq;
@@ -456,5 +530,148 @@ mod tests {
             closest = closest.min((s.x_m - obstacle[0]).hypot(s.y_m - obstacle[1]));
         }
         assert!(closest > p.clearance_m - 0.1, "came within {closest} m");
+    }
+
+    /// xorshift64*, for the seeded cases below.
+    struct Rng(u64);
+    impl Rng {
+        fn next(&mut self) -> f64 {
+            self.0 ^= self.0 >> 12;
+            self.0 ^= self.0 << 25;
+            self.0 ^= self.0 >> 27;
+            (self.0.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11) as f64 / (1u64 << 53) as f64
+        }
+        fn range(&mut self, lo: f64, hi: f64) -> f64 {
+            lo + (hi - lo) * self.next()
+        }
+    }
+
+    /// The rows left out rest on `position_reach_m`: every rollout of the
+    /// QP's linearised dynamics with inputs and speeds within their
+    /// bounds (here at the extremes, bang-bang, where the reach is
+    /// largest) stays within it.
+    #[test]
+    fn the_position_reach_bounds_every_rollout_of_the_linearised_dynamics() {
+        let p = MpcParams {
+            horizon: 30,
+            ..crate::config::Settings::defaults().mpc
+        };
+        let (n, dt) = (p.horizon, p.dt_s);
+        let mut r = Rng(0x4EAC_0001);
+        let mut largest_share: f64 = 0.0;
+        for _ in 0..2000 {
+            let s0 = UnicycleState {
+                x_m: r.range(-2.0, 2.0),
+                y_m: r.range(-2.0, 2.0),
+                theta_rad: r.range(-3.1, 3.1),
+                v_mps: r.range(-0.1, 0.35),
+                omega_radps: r.range(-0.8, 0.8),
+            };
+            let reach = position_reach_m(&s0, &p, n);
+            let (mut x, mut y, mut th, mut v, mut w) =
+                (s0.x_m, s0.y_m, s0.theta_rad, s0.v_mps, s0.omega_radps);
+            let extreme = r.next() < 0.5;
+            for k in 0..n {
+                // the reference rollout at k (constant speeds)
+                let th_ref = s0.theta_rad + dt * s0.omega_radps * k as f64;
+                let (st, ct) = th_ref.sin_cos();
+                let (nx, ny) = (
+                    x + dt * ct * v - dt * s0.v_mps * st * (th - th_ref),
+                    y + dt * st * v + dt * s0.v_mps * ct * (th - th_ref),
+                );
+                th += dt * w;
+                (x, y) = (nx, ny);
+                let d = (x - s0.x_m).hypot(y - s0.y_m);
+                assert!(
+                    d <= reach[k + 1] + 1e-12,
+                    "step {}: {d} > {}",
+                    k + 1,
+                    reach[k + 1]
+                );
+                largest_share = largest_share.max(d / reach[k + 1].max(1e-9));
+                // inputs, then the next speeds kept within the QP's bounds
+                let pick = |r: &mut Rng, m: f64| {
+                    if extreme {
+                        if r.next() < 0.5 {
+                            -m
+                        } else {
+                            m
+                        }
+                    } else {
+                        r.range(-m, m)
+                    }
+                };
+                let ramp = p.accel_max_mps2 * dt * (k + 1) as f64;
+                let (v_lo, v_hi) = (
+                    p.v_min_mps.min(s0.v_mps + ramp),
+                    p.v_max_mps.max(s0.v_mps - ramp),
+                );
+                let a = pick(&mut r, p.accel_max_mps2);
+                v = (v + dt * a)
+                    .clamp(v_lo, v_hi)
+                    .clamp(v - dt * p.accel_max_mps2, v + dt * p.accel_max_mps2);
+                let alpha = pick(&mut r, p.alpha_max_radps2);
+                w = (w + dt * alpha)
+                    .clamp(-p.omega_max_radps, p.omega_max_radps)
+                    .clamp(w - dt * p.alpha_max_radps2, w + dt * p.alpha_max_radps2);
+            }
+        }
+        // the bound is not vacuous: some rollouts come near it
+        assert!(largest_share > 0.5, "{largest_share}");
+    }
+
+    /// The plans keep every constraint of the full problem, the rows left
+    /// out included: all the half-planes and both speed bounds at every
+    /// step, over seeded cases with obstacles near and far.
+    #[test]
+    fn plans_keep_the_constraints_whose_rows_were_left_out() {
+        let p = MpcParams {
+            horizon: 30,
+            ..crate::config::Settings::defaults().mpc
+        };
+        let mut r = Rng(0x4EAC_0002);
+        let mut binding = 0;
+        for _ in 0..200 {
+            let theta = r.range(-3.1, 3.1);
+            let state = UnicycleState {
+                x_m: 0.0,
+                y_m: 0.0,
+                theta_rad: theta,
+                v_mps: r.range(0.0, 0.3),
+                omega_radps: r.range(-0.5, 0.5),
+            };
+            let problem = MpcProblem {
+                state,
+                goal: [r.range(-4.0, 4.0), r.range(-4.0, 4.0)],
+                heading_ref_rad: Some(theta + r.range(-0.8, 0.8)),
+                v_ref_mps: r.range(0.05, 0.3),
+                obstacles: (0..(r.next() * 12.0) as usize)
+                    .map(|_| {
+                        let a = theta + r.range(-1.5, 1.5);
+                        let d = r.range(0.6, 3.0);
+                        [d * a.cos(), d * a.sin()]
+                    })
+                    .collect(),
+            };
+            let Ok(plan) = solve(&problem, &p) else {
+                continue;
+            };
+            for (k, s) in plan.states.iter().enumerate() {
+                for (nrm, bb) in &plan.half_planes[k] {
+                    let side = nrm[0] * s.x_m + nrm[1] * s.y_m - bb;
+                    assert!(side >= -1e-4, "step {}: {side}", k + 1);
+                    if side < 1e-3 {
+                        binding += 1;
+                    }
+                }
+                let ramp = p.accel_max_mps2 * p.dt_s * (k + 1) as f64;
+                let v_lo = p.v_min_mps.min(state.v_mps + ramp);
+                let v_hi = p.v_max_mps.max(state.v_mps - ramp);
+                assert!(s.v_mps >= v_lo - 1e-4 && s.v_mps <= v_hi + 1e-4, "{s:?}");
+                assert!(s.omega_radps.abs() <= p.omega_max_radps + 1e-4, "{s:?}");
+            }
+        }
+        // obstacles shaped some plans
+        assert!(binding > 0);
     }
 }
