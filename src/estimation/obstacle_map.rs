@@ -10,7 +10,7 @@
 use std::collections::BTreeMap;
 
 use crate::msg::Pose2;
-use crate::perception::depth_obstacles::{cell_centre, DepthScan};
+use crate::perception::depth_obstacles::DepthScan;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum CellKind {
@@ -18,12 +18,14 @@ pub enum CellKind {
     DropOff,
 }
 
-/// Cells in `odom`.
+/// Cells in `odom`, each with the point last seen in it (a depth frame's
+/// cell is the mean of its points: where the surface is, not the cell's
+/// centre).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ObstacleMap {
     cell_m: f64,
     radius_m: f64,
-    cells: BTreeMap<(i32, i32), CellKind>,
+    cells: BTreeMap<(i32, i32), (CellKind, [f64; 2])>,
 }
 
 /// The chair's footprint about base_link (metres): cells under it are
@@ -69,8 +71,9 @@ impl ObstacleMap {
             (&scan.obstacles_base, CellKind::Obstacle),
         ] {
             for q in list {
-                if let Some(k) = self.cell(to_odom(q)) {
-                    self.cells.insert(k, kind);
+                let p = to_odom(q);
+                if let Some(k) = self.cell(p) {
+                    self.cells.insert(k, (kind, p));
                 }
             }
         }
@@ -80,9 +83,8 @@ impl ObstacleMap {
     /// Drops the cells under the footprint at `pose` and beyond the radius.
     pub fn forget(&mut self, pose: Pose2, f: FootprintM) {
         let (c, s) = (pose.theta_rad.cos(), pose.theta_rad.sin());
-        let (cell_m, r) = (self.cell_m, self.radius_m);
-        self.cells.retain(|k, _| {
-            let p = cell_centre(*k, cell_m);
+        let r = self.radius_m;
+        self.cells.retain(|_, (_, p)| {
             let (dx, dy) = (p[0] - pose.x_m, p[1] - pose.y_m);
             if dx.hypot(dy) > r {
                 return false;
@@ -93,12 +95,12 @@ impl ObstacleMap {
         });
     }
 
-    /// The remembered cells' centres in `odom`, of one kind.
+    /// The remembered cells' points in `odom`, of one kind.
     pub fn points(&self, kind: CellKind) -> Vec<[f64; 2]> {
         self.cells
-            .iter()
-            .filter(|(_, k)| **k == kind)
-            .map(|(c, _)| cell_centre(*c, self.cell_m))
+            .values()
+            .filter(|(k, _)| *k == kind)
+            .map(|(_, p)| *p)
             .collect()
     }
 
@@ -143,13 +145,14 @@ mod tests {
         // seen 1.5 m ahead from a chair at (1, 0) facing +y
         m.insert(
             at(1.0, 0.0, std::f64::consts::FRAC_PI_2),
-            &scan(&[[1.525, 0.025]], &[]),
+            &scan(&[[1.51, 0.04]], &[]),
             F,
         );
         let p = m.points(CellKind::Obstacle);
         assert_eq!(p.len(), 1);
+        // the point itself in odom, not its cell's centre (0.975, 1.525)
         assert!(
-            (p[0][0] - 0.975).abs() < 0.03 && (p[0][1] - 1.525).abs() < 0.03,
+            (p[0][0] - 0.96).abs() < 1e-6 && (p[0][1] - 1.51).abs() < 1e-6,
             "{p:?}"
         );
         // the next frame does not see it (out of view): still there

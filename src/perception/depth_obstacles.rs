@@ -15,7 +15,7 @@
 //! real camera loses depth on shiny or dark floors; treating that as a
 //! step would stop the chair for nothing). Points are binned into
 //! `cell_m` cells; a cell needs `min_hits` points to count (one noisy
-//! pixel is not a box).
+//! pixel is not a box), and stands for the mean of its points.
 
 use std::collections::BTreeMap;
 
@@ -67,7 +67,8 @@ impl Default for DepthObstacleSettings {
     }
 }
 
-/// One frame's cells in `base_link` (centres, metres), each list sorted.
+/// One frame's cells in `base_link` (each the mean of its points, metres),
+/// each list in cell order.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct DepthScan {
     pub obstacles_base: Vec<[f32; 2]>,
@@ -83,11 +84,6 @@ fn cell_of(x: f64, y: f64, cell_m: f64) -> Option<Cell> {
     (ok(i) && ok(j)).then_some((i as i32, j as i32))
 }
 
-/// The centre of a cell, metres.
-pub fn cell_centre(c: Cell, cell_m: f64) -> [f64; 2] {
-    [(c.0 as f64 + 0.5) * cell_m, (c.1 as f64 + 0.5) * cell_m]
-}
-
 /// The cells of one depth frame. `base_from_depth` is the depth camera's
 /// optical frame (z forward, x right, y down) in `base_link`.
 pub fn scan(
@@ -98,9 +94,10 @@ pub fn scan(
 ) -> DepthScan {
     let stride = s.stride_px.max(1);
     let origin = base_from_depth.translation.vector;
-    let mut obstacles: BTreeMap<Cell, usize> = BTreeMap::new();
-    let mut drops: BTreeMap<Cell, usize> = BTreeMap::new();
-    let mut floor: BTreeMap<Cell, usize> = BTreeMap::new();
+    // per cell: its points' count and sums (the cell reports their mean)
+    let mut obstacles: BTreeMap<Cell, (usize, f64, f64)> = BTreeMap::new();
+    let mut drops: BTreeMap<Cell, (usize, f64, f64)> = BTreeMap::new();
+    let mut floor: BTreeMap<Cell, (usize, f64, f64)> = BTreeMap::new();
     let (w, h) = (depth.width().min(k.width), depth.height().min(k.height));
     let data = depth.data();
     for v in (0..h).step_by(stride) {
@@ -141,17 +138,18 @@ pub fn scan(
                 continue;
             };
             if let Some(c) = cell_of(at.0, at.1, s.cell_m) {
-                *map.entry(c).or_default() += 1;
+                let e = map.entry(c).or_default();
+                *e = (e.0 + 1, e.1 + at.0, e.2 + at.1);
             }
         }
     }
-    let keep = |m: BTreeMap<Cell, usize>| -> Vec<[f32; 2]> {
-        m.into_iter()
-            .filter(|(_, n)| *n >= s.min_hits.max(1))
-            .map(|(c, _)| {
-                let p = cell_centre(c, s.cell_m);
-                [p[0] as f32, p[1] as f32]
-            })
+    // each cell as the mean of its points: on a surface seen at a slant a
+    // cell's centre lies up to half its diagonal (3.5 cm) off it, the mean
+    // on it
+    let keep = |m: BTreeMap<Cell, (usize, f64, f64)>| -> Vec<[f32; 2]> {
+        m.into_values()
+            .filter(|(n, _, _)| *n >= s.min_hits.max(1))
+            .map(|(n, x, y)| [(x / n as f64) as f32, (y / n as f64) as f32])
             .collect()
     };
     DepthScan {
@@ -243,6 +241,40 @@ mod tests {
         assert!(s.obstacles_base.is_empty(), "{:?}", s.obstacles_base);
         assert!(s.drop_offs_base.is_empty(), "{:?}", s.drop_offs_base);
         assert!(s.floor_base.len() > 100);
+    }
+
+    /// A cell reports where its points are: every obstacle point lies on
+    /// the box (to the renderer's 5 mm steps), where a cell's centre lies
+    /// up to half a cell off it — in front of a face that crosses the
+    /// cell, or beside it.
+    #[test]
+    fn obstacle_cells_lie_on_the_box_not_at_cell_centres() {
+        let t = base_from_camera(30.0);
+        // faces off the 5 cm grid: x 1.535 (the cell 1.50–1.55's centre
+        // 1.525 is in front of it), y −0.213 (the cell's centre −0.225
+        // beside it)
+        let b = [1.535, 1.9, -0.213, 0.187];
+        let s = scan(
+            &render(&t, |_, _| 0.0, Some((b, 0.3))),
+            &k(),
+            &t,
+            &DepthObstacleSettings::default(),
+        );
+        assert!(s.obstacles_base.len() > 10, "{:?}", s.obstacles_base);
+        for p in &s.obstacles_base {
+            let (x, y) = (p[0] as f64, p[1] as f64);
+            assert!(
+                x >= b[0] - 0.006 && x <= b[1] + 0.006 && y >= b[2] - 0.006 && y <= b[3] + 0.006,
+                "{p:?} off the box {b:?}"
+            );
+        }
+        // and the front face is where it is
+        let nearest = s
+            .obstacles_base
+            .iter()
+            .map(|p| p[0] as f64)
+            .fold(f64::INFINITY, f64::min);
+        assert!((nearest - b[0]).abs() < 0.01, "{nearest}");
     }
 
     #[test]
