@@ -35,10 +35,10 @@ pub(super) const PASSAGE_BLOCKED_FOR: std::time::Duration = std::time::Duration:
 pub(super) const PASSAGE_AT_MOST: std::time::Duration = std::time::Duration::from_secs(60);
 pub(super) const PASSAGE_SKIP_FOR: std::time::Duration = std::time::Duration::from_secs(20);
 /// A gap measured narrower than this is no doorway for the chair: 0.70 m
-/// and the crawl's stop corridor (3 cm a side), less the measurement's
-/// cell (a 0.80 m doorway can measure 0.75 m); one that measures wide
-/// enough but is not, the supervisor holds, and the passage is given up, m.
-pub(super) const MIN_DOORWAY_M: f64 = 0.78;
+/// and 2 cm a side (the measurement is to a cell: an 0.85 m doorway at a
+/// slant can measure 0.77 m); one that measures wide enough but is not,
+/// the supervisor holds, and the passage is given up, m.
+pub(super) const MIN_DOORWAY_M: f64 = 0.74;
 
 /// Replan this often, or when the goal moved this far (s, m).
 pub(super) const REPLAN_EVERY: std::time::Duration = std::time::Duration::from_secs(1);

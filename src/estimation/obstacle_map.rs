@@ -18,14 +18,40 @@ pub enum CellKind {
     DropOff,
 }
 
-/// Cells in `odom`, each with the point last seen in it (a depth frame's
-/// cell is the mean of its points: where the surface is, not the cell's
-/// centre).
+/// Cells in `odom`, each with the points the latest frame that saw it put
+/// there (a depth frame's cell is its points farthest along ±x and ±y:
+/// on the surface and out to its edges, not the cell's centre), at most
+/// [`MAX_POINTS_PER_CELL`], again its extremes.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ObstacleMap {
     cell_m: f64,
     radius_m: f64,
-    cells: BTreeMap<(i32, i32), (CellKind, [f64; 2])>,
+    cells: Cells,
+}
+
+/// Each cell's kind and points.
+type Cells = BTreeMap<(i32, i32), (CellKind, Vec<[f64; 2]>)>;
+
+const MAX_POINTS_PER_CELL: usize = 4;
+
+/// The points farthest along −x, +x, −y and +y (distinct).
+fn extremes(points: &[[f64; 2]]) -> Vec<[f64; 2]> {
+    let by = |i: usize, max: bool| {
+        points
+            .iter()
+            .copied()
+            .reduce(|a, b| if (b[i] > a[i]) == max { b } else { a })
+    };
+    let mut out: Vec<[f64; 2]> = Vec::with_capacity(4);
+    for p in [by(0, false), by(0, true), by(1, false), by(1, true)]
+        .into_iter()
+        .flatten()
+    {
+        if !out.contains(&p) {
+            out.push(p);
+        }
+    }
+    out
 }
 
 /// The chair's footprint about base_link (metres): cells under it are
@@ -66,6 +92,8 @@ impl ObstacleMap {
                 self.cells.remove(&k);
             }
         }
+        // this frame's points by cell: they replace what the cell held
+        let mut seen = Cells::new();
         for (list, kind) in [
             (&scan.drop_offs_base, CellKind::DropOff),
             (&scan.obstacles_base, CellKind::Obstacle),
@@ -73,9 +101,20 @@ impl ObstacleMap {
             for q in list {
                 let p = to_odom(q);
                 if let Some(k) = self.cell(p) {
-                    self.cells.insert(k, (kind, p));
+                    let e = seen.entry(k).or_insert((kind, Vec::new()));
+                    if e.0 != kind {
+                        // an obstacle over a drop-off: the obstacle
+                        *e = (kind, Vec::new());
+                    }
+                    e.1.push(p);
                 }
             }
+        }
+        for (k, (kind, mut points)) in seen {
+            if points.len() > MAX_POINTS_PER_CELL {
+                points = extremes(&points);
+            }
+            self.cells.insert(k, (kind, points));
         }
         self.forget(pose, footprint);
     }
@@ -84,7 +123,7 @@ impl ObstacleMap {
     pub fn forget(&mut self, pose: Pose2, f: FootprintM) {
         let (c, s) = (pose.theta_rad.cos(), pose.theta_rad.sin());
         let r = self.radius_m;
-        self.cells.retain(|_, (_, p)| {
+        let keep = |p: &[f64; 2]| {
             let (dx, dy) = (p[0] - pose.x_m, p[1] - pose.y_m);
             if dx.hypot(dy) > r {
                 return false;
@@ -92,6 +131,10 @@ impl ObstacleMap {
             // in base_link
             let (x, y) = (c * dx + s * dy, -s * dx + c * dy);
             !(x >= -f.rear_m && x <= f.front_m && y.abs() <= f.half_width_m)
+        };
+        self.cells.retain(|_, (_, points)| {
+            points.retain(keep);
+            !points.is_empty()
         });
     }
 
@@ -100,7 +143,7 @@ impl ObstacleMap {
         self.cells
             .values()
             .filter(|(k, _)| *k == kind)
-            .map(|(_, p)| *p)
+            .flat_map(|(_, p)| p.iter().copied())
             .collect()
     }
 
@@ -191,5 +234,31 @@ mod tests {
         let p = m.points(CellKind::Obstacle);
         assert_eq!(p.len(), 1, "{p:?}");
         assert!(p[0][0] > 0.55);
+    }
+
+    /// A frame's points replace what their cell held; a cell keeps at
+    /// most four, its extremes; the chair standing on a point forgets it.
+    #[test]
+    fn a_cell_keeps_the_latest_frames_extreme_points() {
+        let mut m = ObstacleMap::new(0.05, 4.0);
+        let pts: Vec<[f32; 2]> = (0..6)
+            .map(|i| [2.01 + 0.007 * i as f32, 0.01 + 0.006 * i as f32])
+            .collect();
+        m.insert(at(0.0, 0.0, 0.0), &scan(&pts, &[]), F);
+        let p = m.points(CellKind::Obstacle);
+        // one cell: its points farthest along ±x and ±y (here two)
+        assert_eq!(p.len(), 2, "{p:?}");
+        assert!(p.iter().any(|q| (q[0] - 2.01).abs() < 1e-6), "{p:?}");
+        assert!(p.iter().any(|q| (q[0] - 2.045).abs() < 1e-6), "{p:?}");
+        m.insert(at(0.0, 0.0, 0.0), &scan(&[[2.02, 0.02]], &[]), F);
+        let p = m.points(CellKind::Obstacle);
+        assert_eq!(p.len(), 1, "{p:?}");
+        assert!(
+            (p[0][0] - 2.02).abs() < 1e-6 && (p[0][1] - 0.02).abs() < 1e-6,
+            "{p:?}"
+        );
+        // the chair drives onto it
+        m.forget(at(1.8, 0.0, 0.0), F);
+        assert!(m.is_empty());
     }
 }

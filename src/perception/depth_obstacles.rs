@@ -15,7 +15,8 @@
 //! real camera loses depth on shiny or dark floors; treating that as a
 //! step would stop the chair for nothing). Points are binned into
 //! `cell_m` cells; a cell needs `min_hits` points to count (one noisy
-//! pixel is not a box), and stands for the mean of its points.
+//! pixel is not a box), and stands for its points farthest along ±x and
+//! ±y (on the surface, out to its edges).
 
 use std::collections::BTreeMap;
 
@@ -67,8 +68,9 @@ impl Default for DepthObstacleSettings {
     }
 }
 
-/// One frame's cells in `base_link` (each the mean of its points, metres),
-/// each list in cell order.
+/// One frame's cells in `base_link`, metres, in cell order: an obstacle
+/// or drop-off cell as its points farthest along ±x and ±y (one to four),
+/// a floor cell as its centre.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct DepthScan {
     pub obstacles_base: Vec<[f32; 2]>,
@@ -94,10 +96,10 @@ pub fn scan(
 ) -> DepthScan {
     let stride = s.stride_px.max(1);
     let origin = base_from_depth.translation.vector;
-    // per cell: its points' count and sums (the cell reports their mean)
-    let mut obstacles: BTreeMap<Cell, (usize, f64, f64)> = BTreeMap::new();
-    let mut drops: BTreeMap<Cell, (usize, f64, f64)> = BTreeMap::new();
-    let mut floor: BTreeMap<Cell, (usize, f64, f64)> = BTreeMap::new();
+    // per cell: its points' count and extremes
+    let mut obstacles: BTreeMap<Cell, Extremes> = BTreeMap::new();
+    let mut drops: BTreeMap<Cell, Extremes> = BTreeMap::new();
+    let mut floor: BTreeMap<Cell, Extremes> = BTreeMap::new();
     let (w, h) = (depth.width().min(k.width), depth.height().min(k.height));
     let data = depth.data();
     for v in (0..h).step_by(stride) {
@@ -138,24 +140,79 @@ pub fn scan(
                 continue;
             };
             if let Some(c) = cell_of(at.0, at.1, s.cell_m) {
-                let e = map.entry(c).or_default();
-                *e = (e.0 + 1, e.1 + at.0, e.2 + at.1);
+                map.entry(c).or_default().add([at.0, at.1]);
             }
         }
     }
-    // each cell as the mean of its points: on a surface seen at a slant a
-    // cell's centre lies up to half its diagonal (3.5 cm) off it, the mean
-    // on it
-    let keep = |m: BTreeMap<Cell, (usize, f64, f64)>| -> Vec<[f32; 2]> {
-        m.into_values()
-            .filter(|(n, _, _)| *n >= s.min_hits.max(1))
-            .map(|(n, x, y)| [(x / n as f64) as f32, (y / n as f64) as f32])
+    // each cell as its extreme points: on a surface seen at a slant a
+    // cell's centre lies up to half its diagonal (3.5 cm) off it, and a
+    // mean of its points lies inside an object's edge; the points
+    // farthest along ±x and ±y lie on the surface and reach the edge
+    let keep = |m: BTreeMap<Cell, Extremes>| -> Vec<[f32; 2]> {
+        let mut out = Vec::with_capacity(m.len() * 2);
+        for e in m.into_values().filter(|e| e.count >= s.min_hits.max(1)) {
+            e.points_into(&mut out);
+        }
+        out
+    };
+    // seen floor only forgets cells: one point (the cell's centre) each
+    let floor_cells = |m: BTreeMap<Cell, Extremes>| -> Vec<[f32; 2]> {
+        m.into_iter()
+            .filter(|(_, e)| e.count >= s.min_hits.max(1))
+            .map(|(c, _)| {
+                [
+                    ((c.0 as f64 + 0.5) * s.cell_m) as f32,
+                    ((c.1 as f64 + 0.5) * s.cell_m) as f32,
+                ]
+            })
             .collect()
     };
     DepthScan {
         obstacles_base: keep(obstacles),
         drop_offs_base: keep(drops),
-        floor_base: keep(floor),
+        floor_base: floor_cells(floor),
+    }
+}
+
+/// A cell's point count and its points farthest along −x, +x, −y, +y.
+#[derive(Debug, Clone, Copy, Default)]
+struct Extremes {
+    count: usize,
+    /// min x, max x, min y, max y
+    points: [[f64; 2]; 4],
+}
+
+impl Extremes {
+    fn add(&mut self, p: [f64; 2]) {
+        if self.count == 0 {
+            self.points = [p; 4];
+        } else {
+            let e = &mut self.points;
+            if p[0] < e[0][0] {
+                e[0] = p;
+            }
+            if p[0] > e[1][0] {
+                e[1] = p;
+            }
+            if p[1] < e[2][1] {
+                e[2] = p;
+            }
+            if p[1] > e[3][1] {
+                e[3] = p;
+            }
+        }
+        self.count += 1;
+    }
+
+    /// The distinct extreme points, appended to `out`.
+    fn points_into(&self, out: &mut Vec<[f32; 2]>) {
+        let start = out.len();
+        for p in self.points {
+            let q = [p[0] as f32, p[1] as f32];
+            if !out[start..].contains(&q) {
+                out.push(q);
+            }
+        }
     }
 }
 
@@ -246,7 +303,7 @@ mod tests {
     /// A cell reports where its points are: every obstacle point lies on
     /// the box (to the renderer's 5 mm steps), where a cell's centre lies
     /// up to half a cell off it — in front of a face that crosses the
-    /// cell, or beside it.
+    /// cell, or beside it — and the points reach the box's edges.
     #[test]
     fn obstacle_cells_lie_on_the_box_not_at_cell_centres() {
         let t = base_from_camera(30.0);
@@ -258,7 +315,11 @@ mod tests {
             &render(&t, |_, _| 0.0, Some((b, 0.3))),
             &k(),
             &t,
-            &DepthObstacleSettings::default(),
+            &DepthObstacleSettings {
+                // every pixel: the points' spacing well under a centimetre
+                stride_px: 1,
+                ..DepthObstacleSettings::default()
+            },
         );
         assert!(s.obstacles_base.len() > 10, "{:?}", s.obstacles_base);
         for p in &s.obstacles_base {
@@ -268,13 +329,21 @@ mod tests {
                 "{p:?} off the box {b:?}"
             );
         }
-        // and the front face is where it is
-        let nearest = s
-            .obstacles_base
-            .iter()
-            .map(|p| p[0] as f64)
-            .fold(f64::INFINITY, f64::min);
+        // and reach its edges: the front face and both sides (a cell's
+        // mean lies inside an edge by up to half a cell)
+        let fold = |f: fn(f64, f64) -> f64, i: usize, from: f64| {
+            s.obstacles_base.iter().map(|p| p[i] as f64).fold(from, f)
+        };
+        let nearest = fold(f64::min, 0, f64::INFINITY);
+        let (right, left) = (
+            fold(f64::min, 1, f64::INFINITY),
+            fold(f64::max, 1, f64::NEG_INFINITY),
+        );
         assert!((nearest - b[0]).abs() < 0.01, "{nearest}");
+        assert!(
+            (right - b[2]).abs() < 0.01 && (left - b[3]).abs() < 0.01,
+            "{right} {left}"
+        );
     }
 
     #[test]
