@@ -456,6 +456,7 @@ pub fn solve(problem: &MpcProblem, p: &MpcParams) -> Result<MpcPlan, MpcError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::sim::scene::SplitMix64;
 
     fn step(s: UnicycleState, cmd: VelocityCmd, dt: f64) -> UnicycleState {
         let (v, w) = (cmd.v_mps, cmd.omega_radps);
@@ -532,20 +533,6 @@ mod tests {
         assert!(closest > p.clearance_m - 0.1, "came within {closest} m");
     }
 
-    /// xorshift64*, for the seeded cases below.
-    struct Rng(u64);
-    impl Rng {
-        fn next(&mut self) -> f64 {
-            self.0 ^= self.0 >> 12;
-            self.0 ^= self.0 << 25;
-            self.0 ^= self.0 >> 27;
-            (self.0.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11) as f64 / (1u64 << 53) as f64
-        }
-        fn range(&mut self, lo: f64, hi: f64) -> f64 {
-            lo + (hi - lo) * self.next()
-        }
-    }
-
     /// The rows left out rest on `position_reach_m`: every rollout of the
     /// QP's linearised dynamics with inputs and speeds within their
     /// bounds (here at the extremes, bang-bang, where the reach is
@@ -557,7 +544,7 @@ mod tests {
             ..crate::config::Settings::defaults().mpc
         };
         let (n, dt) = (p.horizon, p.dt_s);
-        let mut r = Rng(0x4EAC_0001);
+        let mut r = SplitMix64::new(0x4EAC_0001);
         let mut largest_share: f64 = 0.0;
         for _ in 0..2000 {
             let s0 = UnicycleState {
@@ -570,7 +557,7 @@ mod tests {
             let reach = position_reach_m(&s0, &p, n);
             let (mut x, mut y, mut th, mut v, mut w) =
                 (s0.x_m, s0.y_m, s0.theta_rad, s0.v_mps, s0.omega_radps);
-            let extreme = r.next() < 0.5;
+            let extreme = r.unit() < 0.5;
             for k in 0..n {
                 // the reference rollout at k (constant speeds)
                 let th_ref = s0.theta_rad + dt * s0.omega_radps * k as f64;
@@ -590,9 +577,9 @@ mod tests {
                 );
                 largest_share = largest_share.max(d / reach[k + 1].max(1e-9));
                 // inputs, then the next speeds kept within the QP's bounds
-                let pick = |r: &mut Rng, m: f64| {
+                let pick = |r: &mut SplitMix64, m: f64| {
                     if extreme {
-                        if r.next() < 0.5 {
+                        if r.unit() < 0.5 {
                             -m
                         } else {
                             m
@@ -629,7 +616,7 @@ mod tests {
             horizon: 30,
             ..crate::config::Settings::defaults().mpc
         };
-        let mut r = Rng(0x4EAC_0002);
+        let mut r = SplitMix64::new(0x4EAC_0002);
         let mut binding = 0;
         for _ in 0..200 {
             let theta = r.range(-3.1, 3.1);
@@ -645,7 +632,7 @@ mod tests {
                 goal: [r.range(-4.0, 4.0), r.range(-4.0, 4.0)],
                 heading_ref_rad: Some(theta + r.range(-0.8, 0.8)),
                 v_ref_mps: r.range(0.05, 0.3),
-                obstacles: (0..(r.next() * 12.0) as usize)
+                obstacles: (0..(r.unit() * 12.0) as usize)
                     .map(|_| {
                         let a = theta + r.range(-1.5, 1.5);
                         let d = r.range(0.6, 3.0);
