@@ -10,7 +10,7 @@
 use std::collections::BTreeMap;
 
 use crate::msg::Pose2;
-use crate::perception::depth_obstacles::{DepthScan, Extremes};
+use crate::perception::depth_obstacles::DepthScan;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum CellKind {
@@ -33,6 +33,26 @@ pub struct ObstacleMap {
 type Cells = BTreeMap<(i32, i32), (CellKind, Vec<[f64; 2]>)>;
 
 const MAX_POINTS_PER_CELL: usize = 4;
+
+/// The points farthest along −x, +x, −y and +y (distinct).
+fn extremes(points: &[[f64; 2]]) -> Vec<[f64; 2]> {
+    let by = |i: usize, max: bool| {
+        points
+            .iter()
+            .copied()
+            .reduce(|a, b| if (b[i] > a[i]) == max { b } else { a })
+    };
+    let mut out: Vec<[f64; 2]> = Vec::with_capacity(4);
+    for p in [by(0, false), by(0, true), by(1, false), by(1, true)]
+        .into_iter()
+        .flatten()
+    {
+        if !out.contains(&p) {
+            out.push(p);
+        }
+    }
+    out
+}
 
 /// The chair's footprint about base_link (metres): cells under it are
 /// cleared.
@@ -92,9 +112,7 @@ impl ObstacleMap {
         }
         for (k, (kind, mut points)) in seen {
             if points.len() > MAX_POINTS_PER_CELL {
-                let mut e = Extremes::default();
-                points.iter().for_each(|p| e.add(*p));
-                points = e.distinct();
+                points = extremes(&points);
             }
             self.cells.insert(k, (kind, points));
         }

@@ -174,17 +174,16 @@ pub fn scan(
     }
 }
 
-/// A cell's point count and its points farthest along −x, +x, −y, +y
-/// (the first of equals).
+/// A cell's point count and its points farthest along −x, +x, −y, +y.
 #[derive(Debug, Clone, Copy, Default)]
-pub struct Extremes {
-    pub count: usize,
+struct Extremes {
+    count: usize,
     /// min x, max x, min y, max y
     points: [[f64; 2]; 4],
 }
 
 impl Extremes {
-    pub fn add(&mut self, p: [f64; 2]) {
+    fn add(&mut self, p: [f64; 2]) {
         if self.count == 0 {
             self.points = [p; 4];
         } else {
@@ -205,22 +204,15 @@ impl Extremes {
         self.count += 1;
     }
 
-    /// The distinct extreme points (none before the first `add`).
-    pub fn distinct(&self) -> Vec<[f64; 2]> {
-        let mut out: Vec<[f64; 2]> = Vec::with_capacity(4);
-        if self.count > 0 {
-            for p in self.points {
-                if !out.contains(&p) {
-                    out.push(p);
-                }
+    /// The distinct extreme points, appended to `out`.
+    fn points_into(&self, out: &mut Vec<[f32; 2]>) {
+        let start = out.len();
+        for p in self.points {
+            let q = [p[0] as f32, p[1] as f32];
+            if !out[start..].contains(&q) {
+                out.push(q);
             }
         }
-        out
-    }
-
-    /// The distinct extreme points, appended to `out` as f32.
-    fn points_into(&self, out: &mut Vec<[f32; 2]>) {
-        out.extend(self.distinct().iter().map(|p| [p[0] as f32, p[1] as f32]));
     }
 }
 
