@@ -102,6 +102,29 @@ fn bench_geometry(c: &mut Criterion) {
             )
         })
     });
+    // the same masks seen by a camera mounted as on the chair (looking
+    // along base x, 0.9 m up): each object's ground projection is a strip
+    // a few centimetres deep, not a filled rectangle
+    let level = nalgebra::Matrix3::new(0.0, 0.0, 1.0, -1.0, 0.0, 0.0, 0.0, -1.0, 0.0);
+    let base_from_camera_forward = Isometry3::from_parts(
+        nalgebra::Translation3::new(0.3, 0.0, 0.9),
+        nalgebra::UnitQuaternion::from_rotation_matrix(
+            &nalgebra::Rotation3::from_matrix_unchecked(level),
+        ),
+    );
+    c.bench_function("geometry_10_masks_forward", |b| {
+        b.iter(|| {
+            objects_from_masks(
+                &dets,
+                &masks,
+                &depth,
+                &k,
+                &base_from_camera_forward,
+                Frame::BaseLink,
+                &settings,
+            )
+        })
+    });
     c.bench_function("depth_segmenter_10_boxes", |b| {
         b.iter(|| {
             dets.iter()

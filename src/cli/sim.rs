@@ -163,6 +163,8 @@ fn trips(config: Option<&std::path::Path>, args: &SimArgs) -> Result<(), Failure
                     .build()
                     .map_err(|e| e.to_string())
                     .and_then(|rt| {
+                        // the scene's number on every log line of its trip
+                        let _scene = tracing::info_span!("scene", k).entered();
                         rt.block_on(trial::run(&settings, k, &scene, record, args.record_all))
                     });
                 if let Ok(mut all) = results.lock() {

@@ -223,7 +223,18 @@ impl Router {
             || since.age_at(now) >= PASSAGE_AT_MOST;
         if give_up {
             self.doorways_given_up += 1;
-            tracing::warn!(center = ?passage.door.center, phase = ?passage.phase, ?pose, "doorway: given up (blocked)");
+            let (along_m, left_m) = passage.door.local(from);
+            let heading_err_rad = crate::msg::wrap_angle(pose.theta_rad - passage.door.axis_rad);
+            tracing::warn!(
+                center = ?passage.door.center,
+                width_m = passage.door.width_m,
+                phase = ?passage.phase,
+                along_m,
+                left_m,
+                heading_err_rad,
+                held = blocked.is_some(),
+                "doorway: given up"
+            );
             self.skip = Some((passage.door.center, Stamp(now.0 + PASSAGE_SKIP_FOR)));
             self.passage = None;
             return None;

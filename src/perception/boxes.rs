@@ -140,8 +140,8 @@ impl OrientedBox {
 /// x, y, x+y, x−y), or on its edges between vertices, cannot be; they are
 /// dropped in one pass after the sweep, leaving few points for the hull's
 /// sort. Exact.
-fn hull_candidates(points: &[Point3<f32>], sweep: &Sweep) -> Vec<[f64; 2]> {
-    let all = || points.iter().map(|p| [p.x as f64, p.y as f64]).collect();
+fn hull_candidates(points: &[Point3<f32>], sweep: &Sweep) -> Vec<u64> {
+    let all = || points.iter().map(|p| ground_key(p.x, p.y)).collect();
     if points.len() < 64 {
         return all();
     }
@@ -176,24 +176,56 @@ fn hull_candidates(points: &[Point3<f32>], sweep: &Sweep) -> Vec<[f64; 2]> {
         ny[i] = (ey / len) as f32;
         c[i] = ((ex * a[0] + ey * a[1]) / len + 1e-5 * scale) as f32;
     }
-    let mut out = poly.clone();
+    let mut out: Vec<u64> = poly
+        .iter()
+        .map(|p| ground_key(p[0] as f32, p[1] as f32))
+        .collect();
     for p in points {
         let mut outside = false;
         for k in 0..8 {
             outside |= nx[k] * p.x + ny[k] * p.y < c[k];
         }
         if outside {
-            out.push([p.x as f64, p.y as f64]);
+            out.push(ground_key(p.x, p.y));
         }
     }
     out
 }
 
-/// Andrew's monotone chain; returns the hull counter-clockwise without
-/// repeating the first point (1 or 2 points for degenerate input).
-fn convex_hull(mut pts: Vec<[f64; 2]>) -> Vec<[f64; 2]> {
-    pts.sort_unstable_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
-    pts.dedup();
+/// A ground point (finite `f32` coordinates) as one integer whose order
+/// is the points' order by x, then y: each coordinate's bits made
+/// monotone (negative values flipped, the sign bit set on the rest), −0
+/// taken as +0 (they are equal). Integers sort several times faster than
+/// pairs of floats compared field by field, and the hull needs its
+/// candidates sorted.
+fn ground_key(x: f32, y: f32) -> u64 {
+    let monotone = |v: f32| {
+        let b = (v + 0.0).to_bits();
+        if b >> 31 == 1 {
+            !b
+        } else {
+            b | 1 << 31
+        }
+    };
+    (u64::from(monotone(x)) << 32) | u64::from(monotone(y))
+}
+
+/// The point a [`ground_key`] stands for.
+fn ground_point(key: u64) -> [f64; 2] {
+    let value = |m: u32| {
+        let b = if m >> 31 == 1 { m & !(1 << 31) } else { !m };
+        f32::from_bits(b) as f64
+    };
+    [value((key >> 32) as u32), value(key as u32)]
+}
+
+/// Andrew's monotone chain over the points of `keys` ([`ground_key`]);
+/// returns the hull counter-clockwise without repeating the first point
+/// (1 or 2 points for degenerate input).
+fn convex_hull(mut keys: Vec<u64>) -> Vec<[f64; 2]> {
+    keys.sort_unstable();
+    keys.dedup();
+    let pts: Vec<[f64; 2]> = keys.into_iter().map(ground_point).collect();
     if pts.len() < 3 {
         return pts;
     }
@@ -411,6 +443,38 @@ pub fn merge_objects_by(objects: Vec<Object3D>, rule: &MergeRule) -> Vec<Object3
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The integer keys order ground points as comparing x then y does
+    /// (`total_cmp`, −0 as +0), and give the points back exactly: the
+    /// hull's sort and dedup are those of the points themselves.
+    #[test]
+    fn ground_keys_sort_as_the_points_and_give_them_back() {
+        let mut next = crate::perception::test_sequence(5);
+        let mut value = || -> f32 {
+            match next() % 6 {
+                0 => 0.0,
+                1 => -0.0,
+                2 => f32::from_bits(1) * if next().is_multiple_of(2) { 1.0 } else { -1.0 },
+                3 => (next() % 7) as f32 * 0.25 - 0.75,
+                _ => (next() % 2_000_001) as f32 * 1e-3 - 1000.0,
+            }
+        };
+        let pts: Vec<[f32; 2]> = (0..3000).map(|_| [value(), value()]).collect();
+        let canon = |v: f32| (v + 0.0) as f64;
+        for a in &pts {
+            let back = ground_point(ground_key(a[0], a[1]));
+            assert_eq!(
+                back.map(f64::to_bits),
+                [canon(a[0]), canon(a[1])].map(f64::to_bits)
+            );
+        }
+        for w in pts.windows(2) {
+            let (a, b) = (w[0].map(canon), w[1].map(canon));
+            let by_points = a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1]));
+            let by_keys = ground_key(w[0][0], w[0][1]).cmp(&ground_key(w[1][0], w[1][1]));
+            assert_eq!(by_keys, by_points, "{:?} {:?}", w[0], w[1]);
+        }
+    }
 
     fn cube(min: [f32; 3], max: [f32; 3]) -> Vec<Point3<f32>> {
         let mut v = Vec::new();
