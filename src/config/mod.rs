@@ -192,6 +192,7 @@ pub struct SafetySection {
     pub corridor_margin_m: f64,
     pub corridor_margin_slow_m: f64,
     pub stop_distance_m: f64,
+    pub stop_distance_slow_m: f64,
     pub front_offset_m: f64,
     pub rear_offset_m: f64,
     pub overspeed_margin_mps: f64,
@@ -398,6 +399,7 @@ impl Settings {
             corridor_margin_m: s.corridor_margin_m,
             corridor_margin_slow_m: s.corridor_margin_slow_m,
             stop_distance_m: s.stop_distance_m,
+            stop_distance_slow_m: s.stop_distance_slow_m,
             front_offset_m: s.front_offset_m,
             rear_offset_m: s.rear_offset_m,
             overspeed_margin_mps: s.overspeed_margin_mps,
@@ -576,6 +578,23 @@ mod tests {
             e.contains("input.switch.key") && e.contains("KEY_NOPE"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn a_crawl_stop_distance_too_short_or_beyond_the_full_one_is_refused() {
+        // defaults: 0.1 m/s · 0.6 s + 0.01 / 1.0 = 0.07 m ≤ 0.15 m
+        for v in ["0.06", "0.31"] {
+            let e =
+                Settings::load_with_env(None, env(&[("OPENNAV_SAFETY__STOP_DISTANCE_SLOW_M", v)]))
+                    .expect_err(v)
+                    .to_string();
+            assert!(e.contains("safety.stop_distance_slow_m"), "{v}: {e}");
+        }
+        assert!(Settings::load_with_env(
+            None,
+            env(&[("OPENNAV_SAFETY__STOP_DISTANCE_SLOW_M", "0.08")])
+        )
+        .is_ok());
     }
 
     #[test]

@@ -117,6 +117,12 @@ impl Settings {
             sf.corridor_margin_m,
         )?;
         finite_range("safety.stop_distance_m", sf.stop_distance_m, 0.05, 2.0)?;
+        finite_range(
+            "safety.stop_distance_slow_m",
+            sf.stop_distance_slow_m,
+            0.05,
+            sf.stop_distance_m,
+        )?;
         finite_range("safety.front_offset_m", sf.front_offset_m, 0.0, 2.0)?;
         finite_range("safety.rear_offset_m", sf.rear_offset_m, 0.0, 2.0)?;
         finite_range(
@@ -163,6 +169,23 @@ impl Settings {
                     CONTROL_PERIOD,
                     sf.v_forward_max_mps.powi(2) / (2.0 * sf.a_linear_max_mps2),
                     sf.a_linear_max_mps2,
+                ),
+            });
+        }
+        // and the crawl's, the same way at the crawl's top speed (a third
+        // of the forward cap)
+        let crawl_mps = sf.v_forward_max_mps / 3.0;
+        let needed_slow = crawl_mps * reaction_s + crawl_mps.powi(2) / (2.0 * sf.a_linear_max_mps2);
+        if sf.stop_distance_slow_m < needed_slow {
+            return Err(ConfigError::Range {
+                key: "safety.stop_distance_slow_m".into(),
+                value: sf.stop_distance_slow_m.to_string(),
+                reason: format!(
+                    "the chair cannot stop in it at a crawl: at a third of safety.v_forward_max_mps \
+                     ({crawl_mps:.3} m/s) it covers {:.3} m in {reaction_s:.3} s of reaction and \
+                     brakes over {:.3} m: needs at least {needed_slow:.3} m",
+                    crawl_mps * reaction_s,
+                    crawl_mps.powi(2) / (2.0 * sf.a_linear_max_mps2),
                 ),
             });
         }

@@ -409,7 +409,7 @@ fn held_on_the_way_to_a_chair_at(x_m: f32, steps: u64) -> (Option<u64>, Vec<Stri
         tracker.update(at(50 * k), &[chair_at(x_m)], |_| true);
         let now = at(50 * k);
         let (mut o, odo) = fresh(now);
-        o.value.points_base = vec![[0.72, 0.38], [4.0, 0.0]];
+        o.value.points_base = vec![[0.68, 0.36], [4.0, 0.0]];
         let out = c.step(
             now,
             ControlInputs {
@@ -456,7 +456,7 @@ fn held_by_something_beside_the_way_it_drives_a_detour_the_supervisor_admits() {
     let (mut c, tracker) = searching_two_metres_ahead();
     let mut moved = 0;
     for k in 1..=40u64 {
-        let out = step_with_points(&mut c, 50 * k, &tracker, vec![[0.84, 0.2], [4.0, 0.0]]);
+        let out = step_with_points(&mut c, 50 * k, &tracker, vec![[0.68, 0.2], [4.0, 0.0]]);
         if out.cmd.cmd.v_mps > 0.0 || out.cmd.cmd.omega_radps != 0.0 {
             moved += 1;
             // away from the post: to the right

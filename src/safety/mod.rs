@@ -38,6 +38,11 @@ pub struct SafetyLimits {
     /// so that a 0.8–0.9 m doorway can be passed slowly, m.
     pub corridor_margin_slow_m: f64,
     pub stop_distance_m: f64,
+    /// The stop distance at a crawl (≤ a third of the forward cap, as for
+    /// the margin), m: what the crawl needs to stop in, with room to
+    /// spare (config validation), so that the chair creeps on through a
+    /// doorway with furniture beyond it.
+    pub stop_distance_slow_m: f64,
     /// From `base_link` to the chair's front edge / rear edge, metres.
     pub front_offset_m: f64,
     pub rear_offset_m: f64,
@@ -303,7 +308,7 @@ impl Supervisor {
             l.rear_offset_m + margin,
             l.chair_width_m / 2.0 + margin,
         );
-        let horizon_s = l.stop_distance_m / v_mps.abs();
+        let horizon_s = self.stop_distance_at(v_mps) / v_mps.abs();
         const POSES: usize = 8;
         let poses: Vec<(f64, f64, f64, f64)> = (1..=POSES)
             .map(|k| {
@@ -347,6 +352,19 @@ impl Supervisor {
         })
     }
 
+    /// The stop distance for travel at `v_mps`: the crawl's at a crawl (a
+    /// third of the forward cap or less), the full one faster. Each speed
+    /// checked (the command, the measured motion, the last output) gets
+    /// its own: a chair still rolling fast keeps the full corridor.
+    pub fn stop_distance_at(&self, v_mps: f64) -> f64 {
+        let l = &self.limits;
+        if v_mps.abs() <= l.v_forward_max_mps / 3.0 {
+            l.stop_distance_slow_m.min(l.stop_distance_m)
+        } else {
+            l.stop_distance_m
+        }
+    }
+
     /// The corridor's box in `base_link` for travel at `v_mps` (None at 0).
     fn corridor_box(&self, v_mps: f64) -> Option<([f64; 2], [f64; 2])> {
         let l = &self.limits;
@@ -358,10 +376,11 @@ impl Supervisor {
             l.corridor_margin_m
         };
         let half = l.chair_width_m / 2.0 + margin;
+        let stop_m = self.stop_distance_at(v_mps);
         let (lo, hi) = if v_mps > 0.0 {
-            (l.front_offset_m, l.front_offset_m + l.stop_distance_m)
+            (l.front_offset_m, l.front_offset_m + stop_m)
         } else if v_mps < 0.0 {
-            (-l.rear_offset_m - l.stop_distance_m, -l.rear_offset_m)
+            (-l.rear_offset_m - stop_m, -l.rear_offset_m)
         } else {
             return None;
         };

@@ -270,6 +270,30 @@ fn obstacle_in_the_corridor_stops_in_the_direction_of_travel() {
 }
 
 #[test]
+fn at_a_crawl_the_corridor_reaches_the_crawls_stop_distance_only() {
+    // 0.20 m ahead of the front, in the middle: inside the full stop
+    // distance (0.30 m), beyond the crawl's (0.15 m)
+    let beyond = [0.55 + 0.20, 0.0];
+    let step = |v_cmd: f64, v_measured: f64, p: [f32; 2]| {
+        let mut s = moving(v_cmd);
+        let mut w = World::new(20, v_cmd, 0.0);
+        w.odom.value.v_mps = v_measured;
+        w.obstacles.value.points_base = vec![p];
+        s.step(ms(20), &w.inputs()).state
+    };
+    // creeping on (0.09 m/s, a third of the cap or less): goes on
+    assert_eq!(step(0.09, 0.09, beyond), SupervisorState::Navigating);
+    // faster: held
+    let held = SupervisorState::Stopped(StopReason::Obstacle);
+    assert_eq!(step(0.2, 0.2, beyond), held);
+    // asked to creep while still rolling at 0.2 m/s: the motion keeps
+    // the full corridor
+    assert_eq!(step(0.09, 0.2, beyond), held);
+    // within the crawl's distance: held at a crawl too
+    assert_eq!(step(0.09, 0.09, [0.55 + 0.14, 0.0]), held);
+}
+
+#[test]
 fn the_depth_cameras_obstacles_and_drop_offs_stop_like_the_lasers() {
     // a box under the lasers' plane, seen only by the camera
     let mut s = moving(0.2);
