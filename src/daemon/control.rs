@@ -664,10 +664,9 @@ impl Control {
             return self.finish_step(event);
         }
         self.planner_cmd = if let Some((to, within)) = target {
-            let door = self
-                .route
-                .as_mut()
-                .and_then(|r| r.through_doorway(now, pose, to, within, state));
+            let door = self.route.as_mut().and_then(|r| {
+                r.through_doorway(now, pose, to, within, state, &lasers.value.points_base)
+            });
             let aim = match (door, self.route.as_mut()) {
                 (Some(PassageCmd::Drive(cmd)), _) => {
                     // through a doorway: its own steering

@@ -185,6 +185,7 @@ impl Router {
 
     /// A doorway on the way ahead is passed as its own manoeuvre (see
     /// `navigation::doorway`): what to do now, or None (follow the way).
+    /// `lasers_base`: the lasers' points now, which measure the jambs.
     pub(super) fn through_doorway(
         &mut self,
         now: Stamp,
@@ -192,6 +193,7 @@ impl Router {
         to: [f64; 2],
         within_m: f64,
         state: SupervisorState,
+        lasers_base: &[[f32; 2]],
     ) -> Option<PassageCmd> {
         let from = [pose.x_m, pose.y_m];
         if self.passage.is_none() {
@@ -217,6 +219,15 @@ impl Router {
             self.passage = Some((Passage::new(door, PassageSettings::default()), now, None));
         }
         let (passage, since, blocked) = self.passage.as_mut()?;
+        let odom_from_base = pose.to_isometry3();
+        let lasers_odom: Vec<[f64; 2]> = lasers_base
+            .iter()
+            .map(|q| {
+                let p = odom_from_base * nalgebra::Point3::new(q[0] as f64, q[1] as f64, 0.0);
+                [p.x, p.y]
+            })
+            .collect();
+        passage.observe(&lasers_odom);
         let held = state == SupervisorState::Stopped(crate::msg::StopReason::Obstacle);
         *blocked = if held { blocked.or(Some(now)) } else { None };
         let give_up = blocked.is_some_and(|b| b.age_at(now) >= PASSAGE_BLOCKED_FOR)
@@ -239,7 +250,13 @@ impl Router {
             self.passage = None;
             return None;
         }
-        match passage.step(pose, to) {
+        let phase = passage.phase;
+        let cmd = passage.step(pose, to);
+        if passage.phase != phase {
+            let (along_m, left_m) = passage.door.local(from);
+            tracing::debug!(from = ?phase, to = ?passage.phase, along_m, left_m, width_m = passage.door.width_m, "doorway: phase");
+        }
+        match cmd {
             PassageCmd::Done => {
                 self.passage = None;
                 self.path = None;

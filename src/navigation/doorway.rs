@@ -271,6 +271,15 @@ fn principal_direction(points: &[&[f64; 2]]) -> Option<[f64; 2]> {
 pub enum Phase {
     /// To the point on the axis before the doorway.
     Approach,
+    /// Off the middle line near that point: turned to face a point on the
+    /// middle line ([`PassageSettings::line_up_m`] before the doorway, or
+    /// nearer when the chair is already past that) and driven straight
+    /// onto it, so that the passage starts centred (the gap leaves 2–7 cm
+    /// a side, the approach is good to 15 cm).
+    LineUp {
+        /// The point's place along the axis, m (negative: before it).
+        at_m: f64,
+    },
     /// Turning on the spot to face along the axis.
     Align,
     /// Straight through at a crawl.
@@ -313,6 +322,18 @@ pub struct PassageSettings {
     /// base_link this far past the middle: the chair's rear (0.45 m behind
     /// it) is out of the doorway, m.
     pub clear_of_door_m: f64,
+    /// The point on the middle line lined up on, this far before the
+    /// middle, m; from nearer, a point `line_up_ahead_m` ahead of the
+    /// chair, but never nearer than `line_up_nearest_m` (room to turn on
+    /// the spot there: the corners' circle and the crawl's margin reach
+    /// 0.68 m, the wall's face is 0.05 m before the middle); lined up when
+    /// further off the line than `line_up_off_m`, from at most
+    /// `line_up_from_m` off it, m.
+    pub line_up_m: f64,
+    pub line_up_ahead_m: f64,
+    pub line_up_nearest_m: f64,
+    pub line_up_off_m: f64,
+    pub line_up_from_m: f64,
 }
 
 impl Default for PassageSettings {
@@ -327,8 +348,13 @@ impl Default for PassageSettings {
             k_lateral: 4.0,
             k_heading: 1.5,
             omega_max_radps: 0.25,
-            square_within_m: 0.95,
+            square_within_m: 0.85,
             clear_of_door_m: 0.6,
+            line_up_m: 1.1,
+            line_up_ahead_m: 0.2,
+            line_up_nearest_m: 0.78,
+            line_up_off_m: 0.03,
+            line_up_from_m: 0.35,
         }
     }
 }
@@ -336,9 +362,55 @@ impl Default for PassageSettings {
 /// One doorway being passed.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Passage {
+    /// The doorway as passed: the map's, its middle and width moved to
+    /// the jambs the lasers measure now ([`Passage::observe`]).
     pub door: Doorway,
+    /// The doorway as the map found it.
+    pub found: Doorway,
     pub phase: Phase,
     pub settings: PassageSettings,
+}
+
+/// Jamb points are taken within this of the wall's middle plane along the
+/// axis (half the wall and 5 cm), m.
+const JAMB_BAND_M: f64 = 0.10;
+/// The measured jambs may move the map's middle this far at most, and
+/// their gap may be this much narrower or this much wider than the map's
+/// (which is good to a cell and measures short), m.
+const JAMB_SHIFT_MAX_M: f64 = 0.10;
+const JAMB_NARROWER_M: f64 = 0.05;
+const JAMB_WIDER_M: f64 = 0.15;
+
+/// The jambs' faces across the doorway, measured from points (odom): to
+/// the right and to the left of `door`'s middle line (m, negative and
+/// positive), each the nearest point to the middle line within the wall's
+/// band on its side, with at least two points on each side. None when a
+/// side is unseen, or the gap is implausible for `door` (something
+/// standing in the doorway, a person passing).
+pub fn jamb_faces(door: &Doorway, points_odom: &[[f64; 2]]) -> Option<(f64, f64)> {
+    let reach = door.width_m / 2.0 + JAMB_SHIFT_MAX_M + JAMB_WIDER_M;
+    let (mut right, mut left) = (f64::NEG_INFINITY, f64::INFINITY);
+    let (mut n_right, mut n_left) = (0usize, 0usize);
+    for p in points_odom {
+        let (along, l) = door.local(*p);
+        if along.abs() > JAMB_BAND_M || l.abs() > reach {
+            continue;
+        }
+        if l < 0.0 {
+            n_right += 1;
+            right = right.max(l);
+        } else {
+            n_left += 1;
+            left = left.min(l);
+        }
+    }
+    let gap = left - right;
+    (n_right >= 2
+        && n_left >= 2
+        && gap >= door.width_m - JAMB_NARROWER_M
+        && gap <= door.width_m + JAMB_WIDER_M
+        && ((left + right) / 2.0).abs() <= JAMB_SHIFT_MAX_M)
+        .then_some((right, left))
 }
 
 impl Passage {
@@ -347,9 +419,32 @@ impl Passage {
     pub fn new(door: Doorway, settings: PassageSettings) -> Passage {
         Passage {
             door,
+            found: door,
             phase: Phase::Approach,
             settings,
         }
+    }
+
+    /// The doorway's middle and width from the jambs in `points_odom`
+    /// (the lasers' points now), measured about the map's doorway: the
+    /// map's cells put the middle within a cell, the lasers to a
+    /// centimetre. Where the jambs are not both seen, the last measure
+    /// stands. Returns whether they were.
+    pub fn observe(&mut self, points_odom: &[[f64; 2]]) -> bool {
+        let Some((right, left)) = jamb_faces(&self.found, points_odom) else {
+            return false;
+        };
+        let mid = (left + right) / 2.0;
+        let (c, s) = (self.found.axis_rad.cos(), self.found.axis_rad.sin());
+        self.door = Doorway {
+            center: [
+                self.found.center[0] - s * mid,
+                self.found.center[1] + c * mid,
+            ],
+            axis_rad: self.found.axis_rad,
+            width_m: left - right,
+        };
+        true
     }
 
     /// The command at `pose` (odom) on the way to `goal` (odom): through
@@ -374,10 +469,44 @@ impl Passage {
                     // doorway and near the middle line
                     let near = (pre[0] - p[0]).hypot(pre[1] - p[1]) <= s.at_m
                         || (along > -s.before_m - s.at_m && along < -0.2 && left.abs() <= s.at_m);
-                    if !near {
+                    // the point to line up on, where there is room
+                    let line_up_at = (-s.line_up_m).max(along + s.line_up_ahead_m);
+                    let room_to_line_up = line_up_at <= -s.line_up_nearest_m;
+                    // off the line, but near enough to drive onto it at
+                    // 45 degrees or less (steeper, the stop corridor sweeps
+                    // across whatever stands beside the way)
+                    let onto_line = room_to_line_up
+                        && along > -s.before_m - s.at_m - 0.2
+                        && left.abs() <= s.line_up_from_m.min(line_up_at - along);
+                    if !near && !onto_line {
                         return PassageCmd::Aim(pre);
                     }
-                    self.phase = Phase::Align;
+                    self.phase = if left.abs() > s.line_up_off_m && room_to_line_up {
+                        Phase::LineUp { at_m: line_up_at }
+                    } else {
+                        Phase::Align
+                    };
+                }
+                Phase::LineUp { at_m } => {
+                    let to = self.door.on_axis(at_m);
+                    if along >= at_m - 0.02 {
+                        self.phase = Phase::Align;
+                        continue;
+                    }
+                    let bearing = wrap_angle((to[1] - p[1]).atan2(to[0] - p[0]) - pose.theta_rad);
+                    // face it on the spot, then straight on, steering onto it
+                    return PassageCmd::Drive(if bearing.abs() > 0.12 {
+                        VelocityCmd {
+                            v_mps: 0.0,
+                            omega_radps: s.turn_radps.copysign(bearing),
+                        }
+                    } else {
+                        VelocityCmd {
+                            v_mps: s.crawl_mps,
+                            omega_radps: (2.0 * bearing)
+                                .clamp(-s.omega_max_radps, s.omega_max_radps),
+                        }
+                    });
                 }
                 Phase::Align => {
                     if heading_err.abs() > s.aligned_rad {
@@ -561,6 +690,100 @@ mod tests {
             }
         }
         (pose, worst_left, false)
+    }
+
+    /// Laser points on two jambs of a wall along x = 2 (0.1 m thick), the
+    /// doorway's faces at y = 1 ± 0.42, as the lasers see them: the wall's
+    /// faces before and beyond, and the jambs' faces.
+    fn jamb_points() -> Vec<[f64; 2]> {
+        let mut pts = Vec::new();
+        for i in 0..=40 {
+            let t = i as f64 * 0.02;
+            // the wall's near face, out from each jamb
+            pts.push([1.95, 1.42 + t]);
+            pts.push([1.95, 0.58 - t]);
+        }
+        for i in 0..=10 {
+            let x = 1.95 + i as f64 * 0.01;
+            pts.push([x, 1.42]);
+            pts.push([x, 0.58]);
+        }
+        pts
+    }
+
+    #[test]
+    fn the_lasers_jambs_move_the_maps_doorway_to_its_true_middle() {
+        // the map's doorway: 4 cm to the left and 6 cm narrow
+        let found = Doorway {
+            center: [2.0, 1.04],
+            axis_rad: 0.0,
+            width_m: 0.78,
+        };
+        let mut p = Passage::new(found, PassageSettings::default());
+        assert!(p.observe(&jamb_points()));
+        assert!((p.door.center[1] - 1.0).abs() < 0.005, "{:?}", p.door);
+        assert!((p.door.center[0] - 2.0).abs() < 1e-9, "{:?}", p.door);
+        assert!((p.door.width_m - 0.84).abs() < 0.005, "{:?}", p.door);
+        assert_eq!(p.door.axis_rad, found.axis_rad);
+        // a person standing in the doorway: no plausible gap, the last
+        // measure stands
+        let mut with_person = jamb_points();
+        for i in 0..5 {
+            with_person.push([2.0, 0.9 + i as f64 * 0.02]);
+        }
+        let before = p.door;
+        assert!(!p.observe(&with_person));
+        assert_eq!(p.door, before);
+        // one jamb only in sight: none
+        let one_side: Vec<[f64; 2]> = jamb_points().into_iter().filter(|q| q[1] > 1.0).collect();
+        assert!(jamb_faces(&found, &one_side).is_none());
+        // the wall beyond the band (a cabinet 0.3 m past the wall) is no jamb
+        let mut far = jamb_points();
+        far.extend((0..10).map(|i| [2.35, 0.8 + i as f64 * 0.01]));
+        let (right, left) = jamb_faces(&found, &far).expect("both jambs");
+        assert!(
+            (right + 0.46).abs() < 0.005 && (left - 0.38).abs() < 0.005,
+            "{right} {left}"
+        );
+    }
+
+    #[test]
+    fn a_chair_off_the_middle_line_lines_up_before_it_passes() {
+        let door = Doorway {
+            center: [2.0, 1.0],
+            axis_rad: 0.0,
+            width_m: 0.82,
+        };
+        // close before the doorway, 13 cm off its middle line, square to
+        // it: too near to correct on the way through (held at the jamb
+        // before the line-up)
+        for (x_m, y_m) in [(0.95, 0.87), (0.6, 1.3), (0.7, 0.8)] {
+            let start = Pose2 {
+                x_m,
+                y_m,
+                theta_rad: 0.0,
+            };
+            let mut p = Passage::new(door, PassageSettings::default());
+            let (end, worst_left, done) = drive(&mut p, start, [4.0, 1.0]);
+            assert!(done, "from {start:?}: did not get through: {end:?}");
+            // 4 cm a side for a 0.70 m chair with the crawl's 3 cm margin
+            assert!(worst_left < 0.02, "from {start:?}: {worst_left}");
+        }
+        // without the line-up the first start passes 5 cm off the line
+        let mut p = Passage::new(
+            door,
+            PassageSettings {
+                line_up_off_m: 1.0,
+                ..PassageSettings::default()
+            },
+        );
+        let start = Pose2 {
+            x_m: 0.95,
+            y_m: 0.87,
+            theta_rad: 0.0,
+        };
+        let (_, worst_left, _) = drive(&mut p, start, [4.0, 1.0]);
+        assert!(worst_left > 0.04, "{worst_left}");
     }
 
     #[test]
