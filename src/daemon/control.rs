@@ -116,6 +116,9 @@ pub struct Control {
     rear_scan: Option<Stamp>,
     /// Since when a turn on the spot waits for the rear to be seen.
     rear_blocked_since: Option<Stamp>,
+    /// Since when turns have not been refused for it (the wait ends after
+    /// [`REAR_WAIT_OVER_AFTER`]).
+    rear_clear_since: Option<Stamp>,
     /// The chair asked whether it is clear behind (the pose it asked at).
     asked_rear: Option<crate::msg::Pose2>,
     /// "yes" arrived: vouch for the rear at the next step.
@@ -159,6 +162,8 @@ pub const SAY_HELD_AFTER: std::time::Duration = std::time::Duration::from_secs(1
 /// A search turn held this long by an obstacle ends there.
 const TURN_HELD_FOR: std::time::Duration = std::time::Duration::from_secs(3);
 const ASK_REAR_AFTER: std::time::Duration = std::time::Duration::from_secs(1);
+/// Turns no longer refused for an unseen rear this long: that wait is over.
+const REAR_WAIT_OVER_AFTER: std::time::Duration = std::time::Duration::from_secs(1);
 
 /// The motor interface up but not driving this long: the takeover failed.
 const TAKEOVER_WITHIN: std::time::Duration = std::time::Duration::from_secs(1);
@@ -201,6 +206,7 @@ impl Control {
             rear: RearWatch::new(RearSettings::default()),
             rear_scan: None,
             rear_blocked_since: None,
+            rear_clear_since: None,
             asked_rear: None,
             rear_yes: false,
             turn_held_since: None,
@@ -501,12 +507,19 @@ impl Control {
         pose: Option<crate::msg::Pose2>,
     ) {
         if state != SupervisorState::Stopped(crate::msg::StopReason::RearUnseen) {
-            // the wait is over (turned, or no turn needed any more): a
-            // later one asks again
-            self.rear_blocked_since = None;
-            self.asked_rear = None;
+            // the wait is over (turned, or no turn needed any more) once
+            // it has been over a while: a chair creeping on between
+            // refused turns (the planner's command switching between a
+            // crawl and a turn) is still waiting, and must still ask
+            let clear = *self.rear_clear_since.get_or_insert(now);
+            if clear.age_at(now) >= REAR_WAIT_OVER_AFTER {
+                // a later one asks again
+                self.rear_blocked_since = None;
+                self.asked_rear = None;
+            }
             return;
         }
+        self.rear_clear_since = None;
         let since = *self.rear_blocked_since.get_or_insert(now);
         if since.age_at(now) >= ASK_REAR_AFTER && self.asked_rear.is_none() {
             if let Some(p) = pose {
@@ -607,9 +620,13 @@ impl Control {
         };
         // held on the way, close to the place beside the object: as near
         // as it safely goes
+        // (for something in the way, or asked whether it is clear behind
+        // and not answered: the last turn to face the object could wait
+        // for a "yes" that never comes)
         let goal_held = matches!(self.goal.state(), GoalState::Tracking { .. })
-            && self.supervisor.state()
-                == SupervisorState::Stopped(crate::msg::StopReason::Obstacle);
+            && (self.supervisor.state()
+                == SupervisorState::Stopped(crate::msg::StopReason::Obstacle)
+                || self.asked_rear.is_some());
         if !goal_held {
             self.goal_held_since = None;
         }

@@ -516,3 +516,40 @@ fn held_on_the_way_with_no_way_round_it_says_so_once_and_goes_on_when_clear() {
         .sum();
     assert_eq!(again, 1);
 }
+
+/// The living-room trip on the real-time clock: close to the place beside
+/// the chair, the planner's command switched each step between a crawl
+/// (allowed) and a turn on the spot (refused, the rear unseen). The wait
+/// restarted at every allowed step, so the chair never asked and never
+/// arrived, and said nothing for 25 s.
+#[test]
+fn turns_refused_between_crawls_still_ask_about_the_rear_once() {
+    let rear_unseen = SupervisorState::Stopped(crate::msg::StopReason::RearUnseen);
+    let pose = Some(Pose2::default());
+    let asked = |c: &Control| {
+        c.said
+            .iter()
+            .filter(|l| l.contains("cannot see behind me"))
+            .count()
+    };
+    let mut c = control(false);
+    for k in 0..40u64 {
+        let state = if k % 2 == 0 {
+            rear_unseen
+        } else {
+            SupervisorState::Navigating
+        };
+        c.ask_about_rear(at(50 * k), state, pose);
+    }
+    assert_eq!(asked(&c), 1, "{:?}", c.said);
+    assert!(c.asking(), "waits for the answer");
+    // turns allowed for a second: that wait is over, a later one asks again
+    for k in 40..62u64 {
+        c.ask_about_rear(at(50 * k), SupervisorState::Navigating, pose);
+    }
+    assert!(!c.asking());
+    for k in 62..90u64 {
+        c.ask_about_rear(at(50 * k), rear_unseen, pose);
+    }
+    assert_eq!(asked(&c), 2, "{:?}", c.said);
+}
