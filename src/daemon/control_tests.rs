@@ -553,3 +553,78 @@ fn turns_refused_between_crawls_still_ask_about_the_rear_once() {
     }
     assert_eq!(asked(&c), 2, "{:?}", c.said);
 }
+
+/// A chair (0.5 m square, 0.9 m high) centred at (`x_m`, `y_m`) in odom.
+fn chair_at_xy(x_m: f32, y_m: f32) -> crate::msg::Object3D {
+    use nalgebra::Point3;
+    let pts = vec![
+        Point3::new(x_m - 0.25, y_m - 0.25, 0.0),
+        Point3::new(x_m + 0.25, y_m + 0.25, 0.9),
+    ];
+    crate::msg::Object3D::from_points("chair".into(), 0.9, crate::msg::Frame::Odom, pts, None)
+        .expect("object")
+}
+
+/// Goes to a chair at (`x_m`, `y_m`) with the rear unseen and nobody
+/// answering, for `steps` steps of 50 ms (the chair stands where it is);
+/// the step at which the trip ended and what was said.
+fn unanswered_about_the_rear_going_to_a_chair_at(
+    x_m: f32,
+    y_m: f32,
+    steps: u64,
+) -> (Option<u64>, Vec<String>) {
+    let mut c = control(true);
+    c.supervisor.limits.turn_needs_seen_rear = true;
+    c.on_input(UserInput::Goto("chair".into()));
+    let mut tracker = Tracker::new(crate::config::Settings::defaults().tracker);
+    let mut said = Vec::new();
+    for k in 0..steps {
+        let now = at(50 * k);
+        tracker.update(now, &[chair_at_xy(x_m, y_m)], |_| true);
+        let (o, odo) = fresh(now);
+        let out = c.step(
+            now,
+            ControlInputs {
+                obstacles: Some(&o),
+                odometry: Some(&odo),
+                tracker: &tracker,
+                camera: None,
+            },
+        );
+        said.extend(out.said);
+        if out.done.is_some() {
+            assert_eq!(out.done, Some(Outcome::Arrived));
+            assert_eq!(out.cmd.cmd, VelocityCmd::default());
+            return (Some(k), said);
+        }
+    }
+    (None, said)
+}
+
+#[test]
+fn asked_about_the_rear_near_the_object_and_not_answered_it_arrives_as_near_as_it_goes() {
+    // the place beside this chair is within 0.3 m, but facing it needs a
+    // turn on the spot, refused with the rear unseen: asked once, then 2 s
+    // without an answer ends the trip there
+    let (done, said) = unanswered_about_the_rear_going_to_a_chair_at(0.9, 0.9, 120);
+    let k = done.unwrap_or_else(|| panic!("no arrival: {said:?}"));
+    let asked = said
+        .iter()
+        .filter(|s| s.contains("cannot see behind me"))
+        .count();
+    assert_eq!(asked, 1, "{said:?}");
+    // asked after 1 s of waiting, arrived 2 s after
+    assert!((55..=70).contains(&k), "ended at step {k}: {said:?}");
+    assert!(
+        said.iter()
+            .any(|s| s.contains("as near the chair as I can safely go")),
+        "{said:?}"
+    );
+    // the same question far from the place: it waits for the answer
+    let (done, said) = unanswered_about_the_rear_going_to_a_chair_at(2.5, 2.5, 120);
+    assert_eq!(done, None, "{said:?}");
+    assert!(
+        said.iter().any(|s| s.contains("cannot see behind me")),
+        "{said:?}"
+    );
+}
