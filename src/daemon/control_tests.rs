@@ -387,13 +387,7 @@ fn held_by_something_ahead_on_the_way_it_backs_off_a_little_then_tries_again() {
 
 /// A chair (0.5 m square, 0.9 m high) centred `x_m` ahead, in odom.
 fn chair_at(x_m: f32) -> crate::msg::Object3D {
-    use nalgebra::Point3;
-    let pts = vec![
-        Point3::new(x_m - 0.25, -0.25, 0.0),
-        Point3::new(x_m + 0.25, 0.25, 0.9),
-    ];
-    crate::msg::Object3D::from_points("chair".into(), 0.9, crate::msg::Frame::Odom, pts, None)
-        .expect("object")
+    chair_at_xy(x_m, 0.0)
 }
 
 /// Goes to a chair centred `x_m` ahead with a box ahead and to the left
@@ -401,15 +395,31 @@ fn chair_at(x_m: f32) -> crate::msg::Object3D {
 /// straight ahead), for `steps` steps of 50 ms; the step at which the trip
 /// ended and what was said.
 fn held_on_the_way_to_a_chair_at(x_m: f32, steps: u64) -> (Option<u64>, Vec<String>) {
-    let mut c = control(true);
+    trip_to(
+        control(true),
+        chair_at(x_m),
+        vec![[0.68, 0.36], [4.0, 0.0]],
+        steps,
+    )
+}
+
+/// Goes to `chair` with the lasers' points `points_base`, for `steps` steps
+/// of 50 ms (the chair stands where it is); the step at which the trip
+/// ended (arrived, at rest) and what was said.
+fn trip_to(
+    mut c: Control,
+    chair: crate::msg::Object3D,
+    points_base: Vec<[f32; 2]>,
+    steps: u64,
+) -> (Option<u64>, Vec<String>) {
     c.on_input(UserInput::Goto("chair".into()));
     let mut tracker = Tracker::new(crate::config::Settings::defaults().tracker);
     let mut said = Vec::new();
     for k in 0..steps {
-        tracker.update(at(50 * k), &[chair_at(x_m)], |_| true);
         let now = at(50 * k);
+        tracker.update(now, std::slice::from_ref(&chair), |_| true);
         let (mut o, odo) = fresh(now);
-        o.value.points_base = vec![[0.68, 0.36], [4.0, 0.0]];
+        o.value.points_base = points_base.clone();
         let out = c.step(
             now,
             ControlInputs {
@@ -575,30 +585,7 @@ fn unanswered_about_the_rear_going_to_a_chair_at(
 ) -> (Option<u64>, Vec<String>) {
     let mut c = control(true);
     c.supervisor.limits.turn_needs_seen_rear = true;
-    c.on_input(UserInput::Goto("chair".into()));
-    let mut tracker = Tracker::new(crate::config::Settings::defaults().tracker);
-    let mut said = Vec::new();
-    for k in 0..steps {
-        let now = at(50 * k);
-        tracker.update(now, &[chair_at_xy(x_m, y_m)], |_| true);
-        let (o, odo) = fresh(now);
-        let out = c.step(
-            now,
-            ControlInputs {
-                obstacles: Some(&o),
-                odometry: Some(&odo),
-                tracker: &tracker,
-                camera: None,
-            },
-        );
-        said.extend(out.said);
-        if out.done.is_some() {
-            assert_eq!(out.done, Some(Outcome::Arrived));
-            assert_eq!(out.cmd.cmd, VelocityCmd::default());
-            return (Some(k), said);
-        }
-    }
-    (None, said)
+    trip_to(c, chair_at_xy(x_m, y_m), vec![[4.0, 0.0]], steps)
 }
 
 #[test]
