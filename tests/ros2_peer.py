@@ -220,6 +220,7 @@ out = {
     "stamp_lag_s": [],
     # a stop on /opennav/stop once the chair moves, then "go on", "chair"
     "stop_sent": False,
+    "answered_yes": 0,
     "stopped_state": None,
     "go_sent": False,
 }
@@ -316,6 +317,12 @@ while time.time() < end:
         time.sleep(0.3)
         prompt.write(String_(data="chair"))
         out["go_sent"] = True
+    # asked whether it is clear behind (a turn on the spot with the rear
+    # unseen): the carer, who can see that it is, answers each question
+    asked = sum("Is it clear behind?" in h for h in heard)
+    if asked > out["answered_yes"]:
+        prompt.write(String_(data="yes"))
+        out["answered_yes"] = asked
     if "Arrived at the chair." in heard:
         # and the daemon ends when told to
         prompt.write(String_(data="quit"))
