@@ -26,6 +26,33 @@ fn the_real_recording_decodes_to_its_words() {
 }
 
 #[test]
+fn an_utterance_is_heard_the_same_whatever_was_heard_before() {
+    // the front end's noise estimate used to carry over from one
+    // utterance to the next, so the same audio scored differently after
+    // loud noise (and a target's rival pass differently from its own)
+    let raw = common::asset(common::shared().join("data/speech/goforward.raw"));
+    let gram = common::asset(common::shared().join("data/speech/goforward.gram"));
+    let jsgf = std::fs::read_to_string(&gram).expect("grammar");
+    let mut r = Recognizer::new(&ModelPaths::debian_en_us(), &jsgf).expect("recogniser");
+    let samples =
+        samples_from_s16le(&std::fs::read(&raw).expect("audio"), "goforward.raw").expect("samples");
+    let first = r.decode(&samples).expect("decodes").expect("heard");
+    // two seconds of loud noise in between
+    let mut state = 12345u32;
+    let noise: Vec<i16> = (0..32_000)
+        .map(|_| {
+            state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            ((state >> 16) as i16) / 2
+        })
+        .collect();
+    r.decode(&noise).expect("decodes");
+    let again = r.decode(&samples).expect("decodes").expect("heard");
+    assert_eq!(again.text, first.text);
+    assert_eq!(again.score, first.score, "{first:?}\n{again:?}");
+    assert_eq!(again.frames, first.frames);
+}
+
+#[test]
 fn a_grammar_with_an_unknown_word_is_an_error() {
     let e = Recognizer::new(
         &ModelPaths::debian_en_us(),

@@ -253,6 +253,16 @@ impl Control {
         ));
     }
 
+    /// The chair is driving itself: a goal it searches for, drives to or
+    /// looks around for, and no stop latched.
+    fn under_way(&self) -> bool {
+        !self.latched
+            && !matches!(
+                self.goal.state(),
+                GoalState::None | GoalState::Reached { .. }
+            )
+    }
+
     /// Stopped by the user: the goal is put aside until "go".
     fn latch(&mut self) {
         self.latched = true;
@@ -308,6 +318,19 @@ impl Control {
                 }
             }
             UserInput::Go => tracing::info!("\"go\" while not stopped: nothing to clear"),
+            UserInput::Heard(word) | UserInput::Unsure(word) if self.under_way() => {
+                // any word heard while the chair drives itself stops it: a
+                // misheard "stop" must never keep it going, or send it
+                // elsewhere
+                self.supervisor.user_stop();
+                self.latch();
+                self.asked_goal = None;
+                self.say(format!(
+                    "Stopped. Did you say the {word}? Say go to go there."
+                ));
+                self.pending = Some(word);
+            }
+            UserInput::Heard(word) => self.on_input(UserInput::Goto(word)),
             UserInput::Unsure(word) => {
                 self.say(format!("Did you say the {word}? Say yes, or say it again."));
                 self.asked_goal = Some(word);

@@ -160,6 +160,54 @@ fn an_unsure_word_is_asked_back_and_only_yes_goes() {
 }
 
 #[test]
+fn any_word_heard_while_the_chair_drives_itself_stops_it_and_go_goes_to_it() {
+    // a sure word, an unsure one, and the very goal's word (a "stop" in
+    // noise can come out as "door" while the chair drives to the door)
+    for (goal, heard) in [
+        ("chair", UserInput::Heard("door".into())),
+        ("chair", UserInput::Unsure("door".into())),
+        ("door", UserInput::Heard("door".into())),
+    ] {
+        let mut c = control(false);
+        c.on_input(UserInput::Heard(goal.into()));
+        step_empty(&mut c, 0);
+        assert!(
+            step_empty(&mut c, 50).cmd.cmd.omega_radps > 0.0,
+            "at rest a sure word goes: searching for the {goal}"
+        );
+        c.on_input(heard.clone());
+        let out = step_empty(&mut c, 100);
+        assert_eq!(out.cmd.cmd, VelocityCmd::default(), "{heard:?}");
+        assert_eq!(
+            out.cmd.state,
+            SupervisorState::Stopped(crate::msg::StopReason::UserStop)
+        );
+        assert_eq!(
+            out.said,
+            vec!["Stopped. Did you say the door? Say go to go there.".to_string()]
+        );
+        // it stays at rest until "go", then goes to the word it heard
+        for k in 3..10 {
+            assert_eq!(step_empty(&mut c, 50 * k).cmd.cmd, VelocityCmd::default());
+        }
+        c.on_input(UserInput::Go);
+        let out = step_empty(&mut c, 600);
+        assert_eq!(out.wanted, vec!["door".to_string()], "{heard:?}");
+        assert!(step_empty(&mut c, 650).cmd.cmd.omega_radps > 0.0);
+    }
+    // typed or chosen words (the socket, the switch menu) change the goal
+    // without a stop: only the recogniser can mishear
+    let mut c = control(false);
+    c.on_input(UserInput::Goto("chair".into()));
+    step_empty(&mut c, 0);
+    step_empty(&mut c, 50);
+    c.on_input(UserInput::Goto("door".into()));
+    let out = step_empty(&mut c, 100);
+    assert_eq!(out.wanted, vec!["door".to_string()]);
+    assert!(out.cmd.cmd.omega_radps > 0.0);
+}
+
+#[test]
 fn a_stop_latches_until_go_and_a_word_alone_does_not_clear_it() {
     let mut c = control(false);
     c.on_input(UserInput::Goto("chair".into()));

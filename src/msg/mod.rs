@@ -65,6 +65,11 @@ pub enum UserInput {
     /// The recogniser is unsure it heard this word: ask "Did you say the
     /// X?" and go only after "yes" (never from typed text).
     Unsure(String),
+    /// The recogniser heard this target word surely: at rest it is a
+    /// [`UserInput::Goto`]; while the chair drives itself it stops the
+    /// chair first, as any switch press does (a "stop" in noise can come
+    /// out as a target: "stop" as "door"), and "go" then goes to it.
+    Heard(String),
 }
 
 /// Words that stop the chair wherever they appear in what was said.

@@ -40,6 +40,7 @@ extern "C" {
     fn ps_set_jsgf_string(ps: *mut Decoder, name: *const c_char, jsgf: *const c_char) -> c_int;
     fn ps_set_search(ps: *mut Decoder, name: *const c_char) -> c_int;
     fn ps_set_lm_file(ps: *mut Decoder, name: *const c_char, path: *const c_char) -> c_int;
+    fn ps_start_stream(ps: *mut Decoder) -> c_int;
     fn ps_start_utt(ps: *mut Decoder) -> c_int;
     fn ps_process_raw(
         ps: *mut Decoder,
@@ -334,6 +335,13 @@ impl Recognizer {
     fn pass(&mut self, samples: &[i16]) -> Result<Option<Pass>, SphinxError> {
         // SAFETY: valid decoder; the samples outlive the call
         unsafe {
+            // a new stream: the front end's noise estimate starts from this
+            // audio, not from whatever was decoded before it, so each pass
+            // over an utterance (grammar, English, rival) and each utterance
+            // is heard the same way whatever came before
+            if ps_start_stream(self.ps) < 0 {
+                return Err(SphinxError::Decoder("cannot start a stream".into()));
+            }
             if ps_start_utt(self.ps) < 0 {
                 return Err(SphinxError::Decoder("cannot start an utterance".into()));
             }
