@@ -7,14 +7,20 @@ mod common;
 
 use opennav::voice::sphinx::{samples_from_s16le, ModelPaths, Recognizer};
 
-#[test]
-fn the_real_recording_decodes_to_its_words() {
+/// A recogniser with the real recording's grammar, and its samples.
+fn real_recording() -> (Recognizer, Vec<i16>) {
     let raw = common::asset(common::shared().join("data/speech/goforward.raw"));
     let gram = common::asset(common::shared().join("data/speech/goforward.gram"));
     let jsgf = std::fs::read_to_string(&gram).expect("grammar");
-    let mut r = Recognizer::new(&ModelPaths::debian_en_us(), &jsgf).expect("recogniser");
+    let r = Recognizer::new(&ModelPaths::debian_en_us(), &jsgf).expect("recogniser");
     let samples =
         samples_from_s16le(&std::fs::read(&raw).expect("audio"), "goforward.raw").expect("samples");
+    (r, samples)
+}
+
+#[test]
+fn the_real_recording_decodes_to_its_words() {
+    let (mut r, samples) = real_recording();
     let h = r
         .decode(&samples)
         .expect("decodes")
@@ -30,12 +36,7 @@ fn an_utterance_is_heard_the_same_whatever_was_heard_before() {
     // the front end's noise estimate used to carry over from one
     // utterance to the next, so the same audio scored differently after
     // loud noise (and a target's rival pass differently from its own)
-    let raw = common::asset(common::shared().join("data/speech/goforward.raw"));
-    let gram = common::asset(common::shared().join("data/speech/goforward.gram"));
-    let jsgf = std::fs::read_to_string(&gram).expect("grammar");
-    let mut r = Recognizer::new(&ModelPaths::debian_en_us(), &jsgf).expect("recogniser");
-    let samples =
-        samples_from_s16le(&std::fs::read(&raw).expect("audio"), "goforward.raw").expect("samples");
+    let (mut r, samples) = real_recording();
     let first = r.decode(&samples).expect("decodes").expect("heard");
     // two seconds of loud noise in between
     let mut state = 12345u32;
