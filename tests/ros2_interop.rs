@@ -27,6 +27,12 @@ fn a_cyclone_dds_peer_sends_the_chair_and_hears_it_arrive() {
             "--max-duration",
             "100s",
         ])
+        // the supervisor's states and the planner's holds in the failure
+        // message: this real-time trip is the one that has ended short
+        .env(
+            "RUST_LOG",
+            "warn,opennav::safety=info,opennav::daemon::backoff=info,opennav::daemon::control_task=info",
+        )
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
