@@ -97,6 +97,14 @@ pub fn agreement(intent: &Intent, label: Option<&str>, english: Option<&str>) ->
 /// most 1 % wrong targets acted on.
 pub const SURE_MARGIN_PER_FRAME: f64 = 2.0;
 
+/// The sure margin of a bare target ("door", "sofa please"): a word said
+/// alone has no lead to confirm it, and "stop" said in noise loses its S
+/// and comes out as a bare "door" with margins up to 2.7 per frame (396
+/// espeak-ng stops at 20 and 10 dB SNR, four noise draws other than the
+/// bench's). A bare target with less than this margin is asked back, so
+/// such a stop leaves a chair at rest where it is.
+pub const SURE_MARGIN_BARE_PER_FRAME: f64 = 2.8;
+
 /// Silence or filler the grammar's path puts between its words beyond
 /// this (frames) means it skipped speech it could not fit: a sentence
 /// outside the grammar.
@@ -110,6 +118,8 @@ pub struct Evidence<'a> {
     /// The heard target's acoustic margin per frame over the best reading
     /// without it (None: not a target, or no rival reading).
     pub margin_per_frame: Option<f64>,
+    /// The target was heard alone, without a lead ("door", "door please").
+    pub bare: bool,
     /// The share of the grammar's N best readings that mean the same.
     pub nbest_agreement: f64,
     /// Frames of silence or filler between the path's first and last word.
@@ -118,13 +128,19 @@ pub struct Evidence<'a> {
 
 /// The confidence in what the grammar heard (0..1): the larger of the free
 /// English agreement and the acoustic evidence — the target's margin over
-/// its best rival (`SURE_MARGIN_PER_FRAME` is 0.5), scaled by how many of
-/// the N best readings agree, and nothing when the path skipped speech.
+/// its best rival (`SURE_MARGIN_PER_FRAME` is 0.5, for a bare target
+/// `SURE_MARGIN_BARE_PER_FRAME`), scaled by how many of the N best
+/// readings agree, and nothing when the path skipped speech.
 pub fn confidence(intent: &Intent, label: Option<&str>, e: &Evidence) -> f64 {
     let english = agreement(intent, label, e.english);
+    let sure = if e.bare {
+        SURE_MARGIN_BARE_PER_FRAME
+    } else {
+        SURE_MARGIN_PER_FRAME
+    };
     let acoustic = match (intent, e.margin_per_frame) {
         (Intent::Go, Some(m)) if e.inner_silence_frames <= MAX_INNER_SILENCE_FRAMES => {
-            e.nbest_agreement.clamp(0.0, 1.0) * (m / (2.0 * SURE_MARGIN_PER_FRAME)).clamp(0.0, 1.0)
+            e.nbest_agreement.clamp(0.0, 1.0) * (m / (2.0 * sure)).clamp(0.0, 1.0)
         }
         _ => 0.0,
     };
@@ -262,6 +278,7 @@ mod tests {
             margin_per_frame: Some(m),
             nbest_agreement: agree,
             inner_silence_frames: sil,
+            bare: false,
         };
         let go = |ev: &Evidence| confidence(&Intent::Go, Some("door"), ev);
         assert_eq!(go(&e(SURE_MARGIN_PER_FRAME, 1.0, 0)), 0.5);
@@ -276,6 +293,15 @@ mod tests {
             ..Default::default()
         };
         assert_eq!(go(&heard), 1.0);
+        // a bare word needs the larger margin: "stop" that lost its S is
+        // heard as a bare "door" with the margin a command has
+        let bare = |m: f64| Evidence {
+            bare: true,
+            ..e(m, 1.0, 0)
+        };
+        assert!(go(&bare(2.7)) < 0.5, "{}", go(&bare(2.7)));
+        assert!(go(&e(2.7, 1.0, 0)) > 0.5);
+        assert_eq!(go(&bare(SURE_MARGIN_BARE_PER_FRAME)), 0.5);
         // the margin says nothing about a yes
         assert_eq!(confidence(&Intent::Yes, None, &e(10.0, 1.0, 0)), 0.0);
     }

@@ -228,6 +228,7 @@ pub fn hear(
         &intent::Evidence {
             english: h.as_ref().and_then(|h| h.english.as_deref()),
             margin_per_frame,
+            bare: label.as_deref().is_some_and(bare),
             nbest_agreement,
             inner_silence_frames: h.as_ref().map_or(0, |h| h.inner_silence_frames),
         },
