@@ -592,8 +592,8 @@ impl Control {
             })
             .collect();
         let view = self.view;
-        let event = self.goal.update(now, tracker, pose, &obstacles_odom, &|p| {
-            view.is_some_and(|v| v.sees(&pose, p))
+        let event = self.goal.update(now, tracker, pose, &obstacles_odom, &|t| {
+            t.expected_seen && view.is_some_and(|v| v.sees(&pose, &t.center_m))
         });
         // a search turn held by something in the turn's circle: as good as
         // done from here; the keeper looks further, somewhere with room

@@ -13,11 +13,11 @@ use tokio_util::sync::CancellationToken;
 
 use crate::estimation::ekf::PoseHistory;
 use crate::estimation::fusion::Estimator;
-use crate::estimation::obstacle_map::{CellKind, FootprintM, ObstacleMap};
+use crate::estimation::obstacle_map::{CellKind, FootprintM, MapView, ObstacleMap};
 use crate::estimation::tracker::Tracker;
 use crate::estimation::view::CameraView;
 use crate::msg::{MapObstacles, Object3D, Obstacles, Odometry, Stamp, Stamped, WheelTicks};
-use crate::perception::depth_obstacles::DepthScan;
+use crate::perception::depth_obstacles::{DepthScan, NearestDepth};
 
 /// Counters for the report.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
@@ -67,6 +67,9 @@ pub struct Estimation {
     /// The depth camera's memory (None: no depth obstacles).
     pub map: Option<(ObstacleMap, FootprintM)>,
     pending_scans: VecDeque<Stamped<DepthScan>>,
+    /// The latest depth frames' nearest surfaces, for the views of the
+    /// same frames: what hides a track.
+    nearest: VecDeque<Stamped<NearestDepth>>,
     /// The newest frame placed into the map.
     map_stamp: Option<Stamp>,
     pub stats: EstimationStats,
@@ -82,20 +85,38 @@ impl Estimation {
             pending: VecDeque::new(),
             map: None,
             pending_scans: VecDeque::new(),
+            nearest: VecDeque::new(),
             map_stamp: None,
             stats: EstimationStats::default(),
         }
     }
 
-    /// Remember the depth camera's cells (`cell_m`, `radius_m`), clearing
-    /// those under `footprint`.
-    pub fn with_obstacle_map(mut self, cell_m: f64, radius_m: f64, footprint: FootprintM) -> Self {
-        self.map = Some((ObstacleMap::new(cell_m, radius_m), footprint));
+    /// Remember the depth camera's cells (`d`'s cell size and memory
+    /// radius), clearing those under `footprint`; with the camera's view,
+    /// a cell a frame saw part of keeps what that frame could not see.
+    pub fn with_obstacle_map(
+        mut self,
+        d: &crate::perception::depth_obstacles::DepthObstacleSettings,
+        footprint: FootprintM,
+    ) -> Self {
+        let mut map = ObstacleMap::new(d.cell_m, d.memory_radius_m);
+        if let Some(camera) = self.view {
+            map = map.with_view(MapView {
+                camera,
+                max_range_m: d.max_range_m,
+            });
+        }
+        self.map = Some((map, footprint));
         self
     }
 
     /// Queues a depth frame's cells; returns the memory when it changed.
-    pub fn on_depth_scan(&mut self, scan: Stamped<DepthScan>) -> Option<Stamped<MapObstacles>> {
+    pub fn on_depth_scan(&mut self, mut scan: Stamped<DepthScan>) -> Option<Stamped<MapObstacles>> {
+        if self.nearest.len() == MAX_PENDING_VIEWS {
+            self.nearest.pop_front();
+        }
+        let nearest = std::mem::take(&mut scan.value.nearest);
+        self.nearest.push_back(Stamped::new(scan.stamp, nearest));
         if self.pending_scans.len() == MAX_PENDING_VIEWS {
             self.pending_scans.pop_front();
             self.stats.depth_frames_without_pose += 1;
@@ -210,8 +231,19 @@ impl Estimation {
     fn place(&mut self, stamp: Stamp, pose: crate::msg::Pose2, objects: Vec<Object3D>) {
         let objects = crate::perception::boxes::objects_in_odom(pose, objects);
         let view = self.view;
-        self.tracker
-            .update(stamp, &objects, |p| view.is_some_and(|v| v.sees(&pose, p)));
+        // the same frame's depth: a track behind something is not missed
+        let nearest = self.nearest.iter().rev().find(|n| n.stamp == stamp);
+        let base_from_odom = pose.to_isometry3().inverse();
+        self.tracker.update(stamp, &objects, |t| {
+            let in_view = view.is_some_and(|v| v.sees(&pose, &t.center_m));
+            in_view
+                && !nearest.is_some_and(|n| {
+                    let c = base_from_odom
+                        * nalgebra::Point3::new(t.center_m[0], t.center_m[1], t.center_m[2]);
+                    let half_diagonal_m = 0.5 * t.size_m[0].hypot(t.size_m[1]);
+                    n.value.hides(&[c.x, c.y, c.z], half_diagonal_m)
+                })
+        });
         self.stats.views_placed += 1;
     }
 }

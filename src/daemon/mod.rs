@@ -538,8 +538,7 @@ pub async fn run(
                     Some(d) => {
                         let sf = &settings.safety;
                         est.with_obstacle_map(
-                            d.cell_m,
-                            d.memory_radius_m,
+                            &d,
                             FootprintM {
                                 front_m: sf.front_offset_m,
                                 rear_m: sf.rear_offset_m,

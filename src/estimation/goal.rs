@@ -7,7 +7,7 @@ use std::time::Duration;
 
 use serde::Serialize;
 
-use super::tracker::{approach_pose, ApproachPose, Tracker};
+use super::tracker::{approach_pose, ApproachPose, Track, Tracker};
 use crate::msg::{wrap_angle, Pose2, Stamp, VelocityCmd};
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -358,9 +358,9 @@ impl GoalKeeper {
     }
 
     /// One update at `now` with the tracks, the chair's pose (odom), the
-    /// obstacle points (odom) and whether a point (odom) is in the
-    /// camera's view now: a goal outside the view (too close for the
-    /// camera, behind the chair while it turns) is not "lost" for being
+    /// obstacle points (odom) and whether a track should be seen now: a
+    /// goal outside the view (too close for the camera, behind the chair
+    /// while it turns) or hidden behind something is not "lost" for being
     /// unseen; the tracker drops tracks missed where they should be seen.
     pub fn update(
         &mut self,
@@ -368,7 +368,7 @@ impl GoalKeeper {
         tracker: &Tracker,
         chair: Pose2,
         obstacles_odom: &[[f64; 2]],
-        visible: &dyn Fn(&[f64; 3]) -> bool,
+        visible: &dyn Fn(&Track) -> bool,
     ) -> Option<GoalEvent> {
         let s = self.settings;
         let from = [chair.x_m, chair.y_m];
@@ -391,7 +391,7 @@ impl GoalKeeper {
                         .min_by(|a, b| a.0.total_cmp(&b.0))
                         .map(|(_, t)| t)
                 })
-                .filter(|t| t.last_seen.age_at(now) <= s.unseen_after || !visible(&t.center_m))
+                .filter(|t| t.last_seen.age_at(now) <= s.unseen_after || !visible(t))
         };
         match self.state.clone() {
             GoalState::None | GoalState::Reached { .. } => None,
@@ -683,6 +683,54 @@ mod tests {
             GoalState::Tracking { track, .. } => assert_ne!(*track, first),
             s => panic!("{s:?}"),
         }
+    }
+
+    /// A goal hidden behind something (a door's jamb while the chair
+    /// passes it) is driven to as before, however long it stays hidden;
+    /// in view and not hidden, it is held and then lost.
+    #[test]
+    fn a_hidden_goal_is_not_held_or_lost() {
+        let mut tracker = Tracker::new(crate::config::Settings::defaults().tracker);
+        let mut g = GoalKeeper::new(crate::config::Settings::defaults().goal_settings());
+        g.set_prompt("chair");
+        let should_see = |t: &Track| t.expected_seen;
+        for k in 0..3 {
+            tracker.update(t(k as f64 * 0.1), &[chair_obj(3.0)], |_| true);
+            g.update(
+                t(k as f64 * 0.1),
+                &tracker,
+                Pose2::default(),
+                &[],
+                &should_see,
+            );
+        }
+        assert!(matches!(g.state(), GoalState::Tracking { .. }));
+        // hidden for 20 s: the tracker keeps it, the keeper drives on
+        for k in 3..200 {
+            let now = t(k as f64 * 0.1);
+            tracker.update(now, &[], |_| false);
+            let ev = g.update(now, &tracker, Pose2::default(), &[], &should_see);
+            assert_eq!(ev, None, "at {now:?}");
+        }
+        assert!(
+            matches!(g.state(), GoalState::Tracking { .. }),
+            "{:?}",
+            g.state()
+        );
+        // in view again and not found: held, then lost
+        let mut events = Vec::new();
+        for k in 200..320 {
+            let now = t(k as f64 * 0.1);
+            tracker.update(now, &[], |_| true);
+            events.extend(g.update(now, &tracker, Pose2::default(), &[], &should_see));
+        }
+        assert!(
+            matches!(
+                events.as_slice(),
+                [GoalEvent::OutOfView { .. }, GoalEvent::Lost { .. }]
+            ),
+            "{events:?}"
+        );
     }
 
     #[test]

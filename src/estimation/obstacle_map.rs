@@ -9,6 +9,7 @@
 
 use std::collections::BTreeMap;
 
+use crate::estimation::view::CameraView;
 use crate::msg::Pose2;
 use crate::perception::depth_obstacles::DepthScan;
 
@@ -21,28 +22,56 @@ pub enum CellKind {
 /// Cells in `odom`, each with the points the latest frame that saw it put
 /// there (a depth frame's cell is its points farthest along ±x and ±y:
 /// on the surface and out to its edges, not the cell's centre), at most
-/// [`MAX_POINTS_PER_CELL`], again its extremes.
+/// [`MAX_POINTS_PER_CELL`], again its extremes. With the camera's view
+/// known, a cell a frame saw only part of keeps the points that frame
+/// could not have seen, each at the lowest height its cell was seen at: a
+/// box's near edge that dropped below the image as the chair came closer
+/// stays where it was seen (replacing them made the remembered edge
+/// recede by up to a cell, and a turn on the spot came within 7 mm of a
+/// box in scene 1 of `opennav sim --seed 1`); what the frame could see is
+/// replaced, so depth noise does not pile up at a cell's edges, nor does
+/// a table's top that a nearer frame sees again.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ObstacleMap {
     cell_m: f64,
     radius_m: f64,
     cells: Cells,
+    view: Option<MapView>,
 }
 
-/// Each cell's kind and points.
-type Cells = BTreeMap<(i32, i32), (CellKind, Vec<[f64; 2]>)>;
+/// What a depth frame could see, for [`ObstacleMap::with_view`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MapView {
+    pub camera: CameraView,
+    /// Points farther than this from base_link are not in a frame
+    /// (metres).
+    pub max_range_m: f64,
+}
+
+impl MapView {
+    /// Whether the frame taken from `pose` could have seen the point `p`
+    /// (odom, at the height its cell was seen lowest): had it still been
+    /// there, that frame would have put it in the cell again.
+    fn could_see(&self, pose: &Pose2, p: &[f64; 3]) -> bool {
+        (p[0] - pose.x_m).hypot(p[1] - pose.y_m) <= self.max_range_m && self.camera.sees(pose, p)
+    }
+}
+
+/// Each cell's kind and points: x, y (odom) and the height at which the
+/// point's cell was seen lowest (a drop-off's: the floor, 0).
+type Cells = BTreeMap<(i32, i32), (CellKind, Vec<[f64; 3]>)>;
 
 const MAX_POINTS_PER_CELL: usize = 4;
 
 /// The points farthest along −x, +x, −y and +y (distinct).
-fn extremes(points: &[[f64; 2]]) -> Vec<[f64; 2]> {
+fn extremes(points: &[[f64; 3]]) -> Vec<[f64; 3]> {
     let by = |i: usize, max: bool| {
         points
             .iter()
             .copied()
             .reduce(|a, b| if (b[i] > a[i]) == max { b } else { a })
     };
-    let mut out: Vec<[f64; 2]> = Vec::with_capacity(4);
+    let mut out: Vec<[f64; 3]> = Vec::with_capacity(4);
     for p in [by(0, false), by(0, true), by(1, false), by(1, true)]
         .into_iter()
         .flatten()
@@ -69,7 +98,14 @@ impl ObstacleMap {
             cell_m,
             radius_m,
             cells: BTreeMap::new(),
+            view: None,
         }
+    }
+
+    /// Keeps, in a cell a frame saw part of, the points outside `view`.
+    pub fn with_view(mut self, view: MapView) -> Self {
+        self.view = Some(view);
+        self
     }
 
     fn cell(&self, p: [f64; 2]) -> Option<(i32, i32)> {
@@ -93,24 +129,31 @@ impl ObstacleMap {
             }
         }
         // this frame's points by cell: they replace what the cell held
+        // where this frame could see it
         let mut seen = Cells::new();
-        for (list, kind) in [
-            (&scan.drop_offs_base, CellKind::DropOff),
-            (&scan.obstacles_base, CellKind::Obstacle),
-        ] {
-            for q in list {
-                let p = to_odom(q);
-                if let Some(k) = self.cell(p) {
-                    let e = seen.entry(k).or_insert((kind, Vec::new()));
-                    if e.0 != kind {
-                        // an obstacle over a drop-off: the obstacle
-                        *e = (kind, Vec::new());
-                    }
-                    e.1.push(p);
+        let drop_offs = scan.drop_offs_base.iter().map(|q| ([q[0], q[1]], 0.0));
+        let obstacles = scan.obstacles_base.iter().map(|q| ([q[0], q[1]], q[2]));
+        let points = drop_offs
+            .map(|(q, z)| (q, z, CellKind::DropOff))
+            .chain(obstacles.map(|(q, z)| (q, z, CellKind::Obstacle)));
+        for (q, z_m, kind) in points {
+            let p = to_odom(&q);
+            if let Some(k) = self.cell(p) {
+                let e = seen.entry(k).or_insert((kind, Vec::new()));
+                if e.0 != kind {
+                    // an obstacle over a drop-off: the obstacle
+                    *e = (kind, Vec::new());
                 }
+                e.1.push([p[0], p[1], z_m as f64]);
             }
         }
         for (k, (kind, mut points)) in seen {
+            if let (Some(view), Some((old_kind, old))) = (&self.view, self.cells.get(&k)) {
+                // (a cell where the floor was seen now is gone already)
+                if *old_kind == kind {
+                    points.extend(old.iter().filter(|p| !view.could_see(&pose, p)));
+                }
+            }
             if points.len() > MAX_POINTS_PER_CELL {
                 points = extremes(&points);
             }
@@ -123,7 +166,7 @@ impl ObstacleMap {
     pub fn forget(&mut self, pose: Pose2, f: FootprintM) {
         let (c, s) = (pose.theta_rad.cos(), pose.theta_rad.sin());
         let r = self.radius_m;
-        let keep = |p: &[f64; 2]| {
+        let keep = |p: &[f64; 3]| {
             let (dx, dy) = (p[0] - pose.x_m, p[1] - pose.y_m);
             if dx.hypot(dy) > r {
                 return false;
@@ -143,7 +186,7 @@ impl ObstacleMap {
         self.cells
             .values()
             .filter(|(k, _)| *k == kind)
-            .flat_map(|(_, p)| p.iter().copied())
+            .flat_map(|(_, p)| p.iter().map(|q| [q[0], q[1]]))
             .collect()
     }
 
@@ -174,11 +217,17 @@ mod tests {
         }
     }
 
+    /// Obstacle points seen as low as 5 cm.
     fn scan(obstacles: &[[f32; 2]], floor: &[[f32; 2]]) -> DepthScan {
+        scan_at(obstacles, 0.05, floor)
+    }
+
+    fn scan_at(obstacles: &[[f32; 2]], z_m: f32, floor: &[[f32; 2]]) -> DepthScan {
         DepthScan {
-            obstacles_base: obstacles.to_vec(),
+            obstacles_base: obstacles.iter().map(|p| [p[0], p[1], z_m]).collect(),
             drop_offs_base: Vec::new(),
             floor_base: floor.to_vec(),
+            ..Default::default()
         }
     }
 
@@ -234,6 +283,72 @@ mod tests {
         let p = m.points(CellKind::Obstacle);
         assert_eq!(p.len(), 1, "{p:?}");
         assert!(p[0][0] > 0.55);
+    }
+
+    /// A level camera 1 m up at base_link's origin, 640×480, f 615: the
+    /// image's bottom edge meets 5 cm above the floor 2.43 m ahead.
+    fn level_view() -> MapView {
+        use nalgebra::{Isometry3, Matrix3, Rotation3, UnitQuaternion, Vector3};
+        let r = Rotation3::from_matrix_unchecked(Matrix3::new(
+            0.0, 0.0, 1.0, -1.0, 0.0, 0.0, 0.0, -1.0, 0.0,
+        ));
+        MapView {
+            camera: CameraView {
+                base_from_camera: Isometry3::from_parts(
+                    Vector3::new(0.0, 0.0, 1.0).into(),
+                    UnitQuaternion::from_rotation_matrix(&r),
+                ),
+                intrinsics: crate::msg::Intrinsics {
+                    width: 640,
+                    height: 480,
+                    fx: 615.0,
+                    fy: 615.0,
+                    cx: 320.0,
+                    cy: 240.0,
+                },
+                min_range_m: 0.3,
+                max_range_m: 5.0,
+            },
+            max_range_m: 3.0,
+        }
+    }
+
+    /// A frame that sees only the far part of a cell (its near edge below
+    /// the image) keeps the near edge; a frame that could see the near
+    /// edge and did not replaces it (no pile-up of depth noise).
+    #[test]
+    fn a_cell_keeps_what_the_frame_could_not_see_of_it() {
+        let v = level_view();
+        let mut m = ObstacleMap::new(0.05, 4.0).with_view(v);
+        let back = at(-0.5, 0.0, 0.0);
+        // from 0.5 m back the whole cell [2.40, 2.45) is in view
+        m.insert(back, &scan(&[[2.91, 0.02], [2.945, 0.03]], &[]), F);
+        assert_eq!(m.points(CellKind::Obstacle).len(), 2);
+        // from the origin its near edge is below the image
+        let origin = at(0.0, 0.0, 0.0);
+        assert!(!v.could_see(&origin, &[2.41, 0.02, 0.05]));
+        assert!(v.could_see(&origin, &[2.445, 0.03, 0.05]));
+        m.insert(origin, &scan(&[[2.445, 0.03]], &[]), F);
+        let p = m.points(CellKind::Obstacle);
+        assert_eq!(p.len(), 2, "the near edge stays: {p:?}");
+        assert!(p.iter().any(|q| (q[0] - 2.41).abs() < 1e-6), "{p:?}");
+        // seen again from back, where the near edge is in view: replaced
+        m.insert(back, &scan(&[[2.945, 0.03]], &[]), F);
+        let p = m.points(CellKind::Obstacle);
+        assert_eq!(p.len(), 1, "{p:?}");
+        assert!((p[0][0] - 2.445).abs() < 1e-6, "{p:?}");
+        // a cell seen no lower than 0.5 m (a table's top) is in view from
+        // the origin even where its floor-band part would not be: replaced
+        let mut m = ObstacleMap::new(0.05, 4.0).with_view(v);
+        m.insert(back, &scan_at(&[[2.91, 0.02], [2.945, 0.03]], 0.5, &[]), F);
+        assert!(v.could_see(&origin, &[2.41, 0.02, 0.5]));
+        m.insert(origin, &scan_at(&[[2.445, 0.03]], 0.5, &[]), F);
+        assert_eq!(m.points(CellKind::Obstacle).len(), 1);
+        // without a view, the latest frame's points replace the cell's
+        let mut m = ObstacleMap::new(0.05, 4.0);
+        m.insert(back, &scan(&[[2.91, 0.02], [2.945, 0.03]], &[]), F);
+        m.insert(origin, &scan(&[[2.445, 0.03]], &[]), F);
+        assert_eq!(m.points(CellKind::Obstacle).len(), 1);
     }
 
     /// A frame's points replace what their cell held; a cell keeps at

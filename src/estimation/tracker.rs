@@ -47,6 +47,10 @@ pub struct Track {
     pub score: f32,
     pub first_seen: Stamp,
     pub last_seen: Stamp,
+    /// Whether the latest view should have shown it: seen in it, or in
+    /// the view and not hidden behind something (the goal keeper does not
+    /// call a goal lost for being hidden).
+    pub expected_seen: bool,
     last_update: Stamp,
 }
 
@@ -92,14 +96,10 @@ impl Tracker {
     }
 
     /// One view's objects (already in odom, stamped `stamp`); `visible`
-    /// says whether a point in odom was in view (tracks that should have
-    /// been seen but were not lose confidence).
-    pub fn update(
-        &mut self,
-        stamp: Stamp,
-        objects: &[Object3D],
-        visible: impl Fn(&[f64; 3]) -> bool,
-    ) {
+    /// says whether a track should have been seen in it (in view, not
+    /// hidden: tracks that should have been seen but were not lose
+    /// confidence).
+    pub fn update(&mut self, stamp: Stamp, objects: &[Object3D], visible: impl Fn(&Track) -> bool) {
         let p = self.params;
         self.newest_view = self.newest_view.max(Some(stamp));
         // predict: uncertainty grows with time
@@ -147,10 +147,15 @@ impl Tracker {
             t.confirmed |= t.hits >= p.confirm_hits;
             t.score = t.score.max(o.score);
             t.last_seen = stamp;
+            t.expected_seen = true;
         }
         // misses where the track should have been seen
         for (ti, t) in self.tracks.iter_mut().enumerate() {
-            if !trk_used[ti] && visible(&t.center_m) {
+            if trk_used[ti] {
+                continue;
+            }
+            t.expected_seen = visible(t);
+            if t.expected_seen {
                 t.misses += 1;
                 t.confidence -= p.miss_decay;
             }
@@ -174,6 +179,7 @@ impl Tracker {
                 score: o.score,
                 first_seen: stamp,
                 last_seen: stamp,
+                expected_seen: true,
                 last_update: stamp,
             });
             self.next_id += 1;
@@ -400,7 +406,11 @@ mod tests {
         let before = tr.tracks()[0].confidence;
         tr.update(s(0.3), &[], |_| false);
         assert_eq!(tr.tracks()[0].confidence, before);
-        for k in 0..10 {
+        assert!(!tr.tracks()[0].expected_seen);
+        tr.update(s(0.4), &[], |_| true);
+        assert!(tr.tracks()[0].expected_seen);
+        assert!(tr.tracks()[0].confidence < before);
+        for k in 1..10 {
             tr.update(s(0.4 + 0.1 * k as f64), &[], |_| true);
         }
         assert!(tr.tracks().is_empty());

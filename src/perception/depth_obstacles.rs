@@ -73,9 +73,99 @@ impl Default for DepthObstacleSettings {
 /// a floor cell as its centre.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct DepthScan {
-    pub obstacles_base: Vec<[f32; 2]>,
+    /// Obstacle points: x, y and the lowest height of the obstacle points
+    /// in their cell (the height at which the cell can be seen at all).
+    pub obstacles_base: Vec<[f32; 3]>,
     pub drop_offs_base: Vec<[f32; 2]>,
     pub floor_base: Vec<[f32; 2]>,
+    /// The nearest surface in each block of the frame: what hides what.
+    pub nearest: NearestDepth,
+}
+
+/// The frame's nearest depth per [`NEAREST_BLOCK_PX`]-pixel block (the
+/// sampled pixels above the floor band, metres along the optical axis;
+/// infinite where there were none), with the camera that took it: whether
+/// an object the tracker remembers is hidden behind something in this
+/// frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct NearestDepth {
+    pub base_from_depth: Isometry3<f64>,
+    pub k: Intrinsics,
+    pub cols: usize,
+    pub rows: usize,
+    pub nearest_m: Vec<f32>,
+}
+
+/// The blocks of [`NearestDepth`], px.
+pub const NEAREST_BLOCK_PX: usize = 16;
+
+/// A surface this much nearer than an object's box (beyond its
+/// half-diagonal) hides it, m (depth noise at 5 m is a few centimetres).
+pub const HIDES_BY_M: f64 = 0.15;
+
+/// No frame: no blocks, nothing hidden.
+impl Default for NearestDepth {
+    fn default() -> Self {
+        NearestDepth {
+            base_from_depth: Isometry3::identity(),
+            k: Intrinsics {
+                width: 0,
+                height: 0,
+                fx: 1.0,
+                fy: 1.0,
+                cx: 0.0,
+                cy: 0.0,
+            },
+            cols: 0,
+            rows: 0,
+            nearest_m: Vec::new(),
+        }
+    }
+}
+
+impl NearestDepth {
+    fn new(k: &Intrinsics, base_from_depth: &Isometry3<f64>, w: usize, h: usize) -> Self {
+        let (cols, rows) = (w.div_ceil(NEAREST_BLOCK_PX), h.div_ceil(NEAREST_BLOCK_PX));
+        NearestDepth {
+            base_from_depth: *base_from_depth,
+            k: *k,
+            cols,
+            rows,
+            nearest_m: vec![f32::INFINITY; cols * rows],
+        }
+    }
+
+    fn add(&mut self, u: usize, v: usize, depth_m: f32) {
+        let i = (v / NEAREST_BLOCK_PX) * self.cols + u / NEAREST_BLOCK_PX;
+        if let Some(n) = self.nearest_m.get_mut(i) {
+            *n = n.min(depth_m);
+        }
+    }
+
+    /// Whether something in the frame stands in front of a box whose
+    /// centre is `center_base` (base_link at the frame's stamp) and whose
+    /// half-diagonal is `half_diagonal_m`: the nearest surface in the
+    /// block its centre falls in is more than that and [`HIDES_BY_M`]
+    /// nearer than the centre. False outside the image or where the block
+    /// had no depth.
+    pub fn hides(&self, center_base: &[f64; 3], half_diagonal_m: f64) -> bool {
+        let q = self.base_from_depth.inverse()
+            * Point3::new(center_base[0], center_base[1], center_base[2]);
+        if q.z <= 0.0 {
+            return false;
+        }
+        let u = self.k.fx * q.x / q.z + self.k.cx;
+        let v = self.k.fy * q.y / q.z + self.k.cy;
+        if !(u >= 0.0 && v >= 0.0) {
+            return false;
+        }
+        let (bu, bv) = (u as usize / NEAREST_BLOCK_PX, v as usize / NEAREST_BLOCK_PX);
+        if bu >= self.cols || bv >= self.rows {
+            return false;
+        }
+        let nearest = self.nearest_m[bv * self.cols + bu] as f64;
+        nearest.is_finite() && nearest < q.z - half_diagonal_m - HIDES_BY_M
+    }
 }
 
 type Cell = (i32, i32);
@@ -101,6 +191,7 @@ pub fn scan(
     let mut drops: BTreeMap<Cell, Extremes> = BTreeMap::new();
     let mut floor: BTreeMap<Cell, Extremes> = BTreeMap::new();
     let (w, h) = (depth.width().min(k.width), depth.height().min(k.height));
+    let mut nearest = NearestDepth::new(k, base_from_depth, w, h);
     let data = depth.data();
     for v in (0..h).step_by(stride) {
         for u in (0..w).step_by(stride) {
@@ -108,6 +199,7 @@ pub fn scan(
             if !is_valid_depth(d) {
                 continue;
             }
+            let depth_m = d;
             let d = d as f64;
             let p_cam = Point3::new(
                 (u as f64 - k.cx) / k.fx * d,
@@ -115,6 +207,11 @@ pub fn scan(
                 d,
             );
             let p = base_from_depth * p_cam;
+            // what stands above the floor hides what is behind it, at any
+            // range; the floor hides nothing standing on it
+            if p.z > s.floor_band_m {
+                nearest.add(u, v, depth_m);
+            }
             if p.x * p.x + p.y * p.y > s.max_range_m * s.max_range_m {
                 continue;
             }
@@ -140,7 +237,7 @@ pub fn scan(
                 continue;
             };
             if let Some(c) = cell_of(at.0, at.1, s.cell_m) {
-                map.entry(c).or_default().add([at.0, at.1]);
+                map.entry(c).or_default().add([at.0, at.1], p.z);
             }
         }
     }
@@ -152,6 +249,17 @@ pub fn scan(
         let mut out = Vec::with_capacity(m.len() * 2);
         for e in m.into_values().filter(|e| e.count >= s.min_hits.max(1)) {
             e.points_into(&mut out);
+        }
+        out
+    };
+    let keep_with_height = |m: BTreeMap<Cell, Extremes>| -> Vec<[f32; 3]> {
+        let mut out = Vec::with_capacity(m.len() * 2);
+        let mut cell = Vec::with_capacity(4);
+        for e in m.into_values().filter(|e| e.count >= s.min_hits.max(1)) {
+            cell.clear();
+            e.points_into(&mut cell);
+            let z = e.low_z_m as f32;
+            out.extend(cell.iter().map(|p| [p[0], p[1], z]));
         }
         out
     };
@@ -168,25 +276,30 @@ pub fn scan(
             .collect()
     };
     DepthScan {
-        obstacles_base: keep(obstacles),
+        obstacles_base: keep_with_height(obstacles),
         drop_offs_base: keep(drops),
         floor_base: floor_cells(floor),
+        nearest,
     }
 }
 
-/// A cell's point count and its points farthest along −x, +x, −y, +y.
+/// A cell's point count, its points farthest along −x, +x, −y, +y and
+/// the lowest height among its points.
 #[derive(Debug, Clone, Copy, Default)]
 struct Extremes {
     count: usize,
     /// min x, max x, min y, max y
     points: [[f64; 2]; 4],
+    low_z_m: f64,
 }
 
 impl Extremes {
-    fn add(&mut self, p: [f64; 2]) {
+    fn add(&mut self, p: [f64; 2], z_m: f64) {
         if self.count == 0 {
             self.points = [p; 4];
+            self.low_z_m = z_m;
         } else {
+            self.low_z_m = self.low_z_m.min(z_m);
             let e = &mut self.points;
             if p[0] < e[0][0] {
                 e[0] = p;
@@ -277,7 +390,7 @@ mod tests {
         DepthImage::new(k.width, k.height, d).expect("image")
     }
 
-    fn any_in(cells: &[[f32; 2]], x: (f64, f64), y: (f64, f64)) -> bool {
+    fn any_in<const N: usize>(cells: &[[f32; N]], x: (f64, f64), y: (f64, f64)) -> bool {
         cells.iter().any(|c| {
             (c[0] as f64) >= x.0
                 && (c[0] as f64) <= x.1
@@ -364,6 +477,54 @@ mod tests {
                 "obstacle outside the box at {c:?}"
             );
         }
+        // each point carries its cell's lowest height: on the box, above
+        // the floor band; the front face is seen down to the band's top
+        let band = DepthObstacleSettings::default().floor_band_m;
+        for c in &s.obstacles_base {
+            let z = c[2] as f64;
+            assert!(z > band && z <= 0.3 + 1e-6, "height {z} of {c:?}");
+        }
+        let front_low = s
+            .obstacles_base
+            .iter()
+            .filter(|c| (c[0] as f64) < 1.55)
+            .map(|c| c[2] as f64)
+            .fold(f64::INFINITY, f64::min);
+        assert!(front_low < band + 0.03, "front face lowest {front_low}");
+    }
+
+    /// The frame's nearest surfaces: a point behind the box (as the
+    /// camera sees it) is hidden, one beside it is not, nor the box's own
+    /// centre, nor a point outside the image.
+    #[test]
+    fn a_nearer_surface_hides_what_is_behind_it() {
+        let t = base_from_camera(30.0);
+        let b = [1.5, 1.9, -0.2, 0.2];
+        let s = scan(
+            &render(&t, |_, _| 0.0, Some((b, 0.3))),
+            &k(),
+            &t,
+            &DepthObstacleSettings::default(),
+        );
+        let n = &s.nearest;
+        assert!(n.cols > 0 && n.rows > 0);
+        // on the line from the camera (0.9 m up) over the box's top edge
+        // (1.5, 0, 0.3) on to 2 m ahead, 6 cm up: behind the box
+        let (eye, top) = ([0.3, 0.0, 0.9], [1.5, 0.0, 0.3]);
+        let behind = [
+            eye[0] + 1.4 * (top[0] - eye[0]),
+            0.0,
+            eye[2] + 1.4 * (top[2] - eye[2]),
+        ];
+        assert!(n.hides(&behind, 0.2), "{behind:?}");
+        // the box itself (its centre 0.2 m behind its front face)
+        assert!(!n.hides(&[1.7, 0.0, 0.15], 0.28));
+        // beside the box, on the floor's level
+        assert!(!n.hides(&[2.25, 1.2, 0.05], 0.2));
+        // behind the camera
+        assert!(!n.hides(&[-2.0, 0.0, 0.5], 0.2));
+        // no frame: nothing is hidden
+        assert!(!NearestDepth::default().hides(&behind, 0.2));
     }
 
     #[test]
@@ -405,7 +566,11 @@ mod tests {
         d[v * k.width + u] = p_cam.z as f32;
         let img = DepthImage::new(k.width, k.height, d).expect("image");
         let s = scan(&img, &k, &t, &DepthObstacleSettings::default());
-        assert_eq!(s, DepthScan::default());
+        assert!(s.obstacles_base.is_empty() && s.drop_offs_base.is_empty());
+        assert!(s.floor_base.is_empty());
+        // the one pixel is the only depth its frame had
+        let known = s.nearest.nearest_m.iter().filter(|d| d.is_finite());
+        assert_eq!(known.count(), 1);
         let one = DepthObstacleSettings {
             min_hits: 1,
             ..Default::default()
