@@ -129,6 +129,8 @@ pub struct Control {
     pub back_off: BackOff,
     /// Since when the chair, going to the object, is held by an obstacle.
     goal_held_since: Option<Stamp>,
+    /// Standing still on the way with nothing holding the chair.
+    stand_still: held::StandStill,
     /// The MPC's last predicted path (odom), for the live view.
     pub planned_path: Vec<[f64; 2]>,
     /// The chair asked "Did you say the X?" (an unsure utterance).
@@ -154,6 +156,9 @@ pub struct Control {
 /// goes (before it would back off and try again).
 pub const ARRIVE_HELD_AFTER: std::time::Duration = std::time::Duration::from_secs(2);
 pub const NEAR_ENOUGH_M: f64 = 0.3;
+/// Standing still this long on the way with nothing holding the chair
+/// counts as held (then [`ARRIVE_HELD_AFTER`] as for a hold).
+pub const STAND_STILL_FOR: std::time::Duration = std::time::Duration::from_secs(2);
 
 /// Held on the way this long without a break (no detour, no room to back
 /// off): the person is told, once per hold; the chair keeps trying.
@@ -212,6 +217,7 @@ impl Control {
             turn_held_since: None,
             back_off: BackOff::default(),
             goal_held_since: None,
+            stand_still: held::StandStill::default(),
             planned_path: Vec::new(),
             asked_goal: None,
             acknowledged: false,
@@ -646,10 +652,15 @@ impl Control {
         // (for something in the way, or asked whether it is clear behind
         // and not answered: the last turn to face the object could wait
         // for a "yes" that never comes)
-        let goal_held = matches!(self.goal.state(), GoalState::Tracking { .. })
+        let tracking = matches!(self.goal.state(), GoalState::Tracking { .. });
+        let stood_still = self
+            .stand_still
+            .update(now, pose, tracking, STAND_STILL_FOR);
+        let goal_held = tracking
             && (self.supervisor.state()
                 == SupervisorState::Stopped(crate::msg::StopReason::Obstacle)
-                || self.asked_rear.is_some());
+                || self.asked_rear.is_some()
+                || stood_still);
         if !goal_held {
             self.goal_held_since = None;
         }

@@ -106,3 +106,80 @@ impl Control {
         }
     }
 }
+
+/// The chair standing still on the way to a goal with nothing holding it:
+/// the planner's commands have come to nothing (its obstacle model keeps
+/// it short of the place beside the object). Near enough, that is an
+/// arrival as when the supervisor holds it; it was a silent stand-still
+/// before (the real-time living-room trip stood 0.13 m short for 22 s).
+/// Pure: time and pose passed in.
+#[derive(Debug, Clone, Default)]
+pub(super) struct StandStill {
+    since: Option<(Stamp, crate::msg::Pose2)>,
+}
+
+/// Moving less than this from where it stood is standing still (m, rad).
+pub(super) const STILL_WITHIN_M: f64 = 0.02;
+pub(super) const STILL_WITHIN_RAD: f64 = 0.05;
+
+impl StandStill {
+    /// Whether the chair, `driving` to a goal, has stood within
+    /// [`STILL_WITHIN_M`] and [`STILL_WITHIN_RAD`] of one pose for at least
+    /// `long`.
+    pub(super) fn update(
+        &mut self,
+        now: Stamp,
+        pose: crate::msg::Pose2,
+        driving: bool,
+        long: std::time::Duration,
+    ) -> bool {
+        if !driving {
+            self.since = None;
+            return false;
+        }
+        match self.since {
+            Some((t, p))
+                if (p.x_m - pose.x_m).hypot(p.y_m - pose.y_m) <= STILL_WITHIN_M
+                    && crate::msg::wrap_angle(p.theta_rad - pose.theta_rad).abs()
+                        <= STILL_WITHIN_RAD =>
+            {
+                t.age_at(now) >= long
+            }
+            _ => {
+                self.since = Some((now, pose));
+                false
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::msg::Pose2;
+    use std::time::Duration;
+
+    #[test]
+    fn standing_still_while_driving_counts_after_the_time_and_moving_resets_it() {
+        let at = |s: f64| Stamp::from_secs_f64(s);
+        let pose = |x: f64, th: f64| Pose2 {
+            x_m: x,
+            y_m: 0.0,
+            theta_rad: th,
+        };
+        let long = Duration::from_secs(2);
+        let mut s = StandStill::default();
+        assert!(!s.update(at(0.0), pose(0.0, 0.0), true, long));
+        assert!(!s.update(at(1.9), pose(0.015, 0.03), true, long));
+        assert!(s.update(at(2.0), pose(0.01, 0.0), true, long));
+        // it moved: the time starts again
+        assert!(!s.update(at(2.1), pose(0.05, 0.0), true, long));
+        assert!(!s.update(at(4.0), pose(0.05, 0.0), true, long));
+        assert!(s.update(at(4.1), pose(0.05, 0.0), true, long));
+        // turning on the spot is moving
+        assert!(!s.update(at(4.2), pose(0.05, 0.1), true, long));
+        // not driving to a goal: never
+        assert!(!s.update(at(9.0), pose(0.05, 0.1), false, long));
+        assert!(!s.update(at(9.1), pose(0.05, 0.1), true, long));
+    }
+}

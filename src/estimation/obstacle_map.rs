@@ -288,27 +288,8 @@ mod tests {
     /// A level camera 1 m up at base_link's origin, 640×480, f 615: the
     /// image's bottom edge meets 5 cm above the floor 2.43 m ahead.
     fn level_view() -> MapView {
-        use nalgebra::{Isometry3, Matrix3, Rotation3, UnitQuaternion, Vector3};
-        let r = Rotation3::from_matrix_unchecked(Matrix3::new(
-            0.0, 0.0, 1.0, -1.0, 0.0, 0.0, 0.0, -1.0, 0.0,
-        ));
         MapView {
-            camera: CameraView {
-                base_from_camera: Isometry3::from_parts(
-                    Vector3::new(0.0, 0.0, 1.0).into(),
-                    UnitQuaternion::from_rotation_matrix(&r),
-                ),
-                intrinsics: crate::msg::Intrinsics {
-                    width: 640,
-                    height: 480,
-                    fx: 615.0,
-                    fy: 615.0,
-                    cx: 320.0,
-                    cy: 240.0,
-                },
-                min_range_m: 0.3,
-                max_range_m: 5.0,
-            },
+            camera: crate::estimation::view::level_test_view(0.0),
             max_range_m: 3.0,
         }
     }

@@ -51,33 +51,39 @@ impl CameraView {
     }
 }
 
+/// A level D435i-like colour camera (640×480, fx 615: ±27.5° … ±35°
+/// wide), 1 m up and `ahead_m` in front of base_link, for tests.
+#[cfg(test)]
+pub(crate) fn level_test_view(ahead_m: f64) -> CameraView {
+    // optical frame (z forward, x right, y down) in base_link
+    let r = nalgebra::Rotation3::from_matrix_unchecked(nalgebra::Matrix3::new(
+        0.0, 0.0, 1.0, -1.0, 0.0, 0.0, 0.0, -1.0, 0.0,
+    ));
+    CameraView {
+        base_from_camera: Isometry3::from_parts(
+            nalgebra::Vector3::new(ahead_m, 0.0, 1.0).into(),
+            nalgebra::UnitQuaternion::from_rotation_matrix(&r),
+        ),
+        intrinsics: Intrinsics {
+            width: 640,
+            height: 480,
+            fx: 615.0,
+            fy: 615.0,
+            cx: 320.0,
+            cy: 240.0,
+        },
+        min_range_m: 0.3,
+        max_range_m: 5.0,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use nalgebra::Vector3;
 
     /// A D435i-like colour camera (640×480, fx 615): ±27.5° … ±35° wide.
     fn d435_view() -> CameraView {
-        // optical frame (z forward, x right, y down) in base_link, 1 m up
-        let r = nalgebra::Rotation3::from_matrix_unchecked(nalgebra::Matrix3::new(
-            0.0, 0.0, 1.0, -1.0, 0.0, 0.0, 0.0, -1.0, 0.0,
-        ));
-        CameraView {
-            base_from_camera: Isometry3::from_parts(
-                Vector3::new(0.3, 0.0, 1.0).into(),
-                nalgebra::UnitQuaternion::from_rotation_matrix(&r),
-            ),
-            intrinsics: Intrinsics {
-                width: 640,
-                height: 480,
-                fx: 615.0,
-                fy: 615.0,
-                cx: 320.0,
-                cy: 240.0,
-            },
-            min_range_m: 0.3,
-            max_range_m: 5.0,
-        }
+        level_test_view(0.3)
     }
 
     #[test]

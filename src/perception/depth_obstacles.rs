@@ -459,16 +459,22 @@ mod tests {
         );
     }
 
-    #[test]
-    fn a_low_box_under_the_lasers_is_an_obstacle_where_it_stands() {
+    /// A 0.3 m box 1.5–1.9 m ahead, 0.4 m wide, seen by the camera 0.9 m
+    /// up and pitched 30° down.
+    fn low_box_scan() -> DepthScan {
         let t = base_from_camera(30.0);
         let b = [1.5, 1.9, -0.2, 0.2];
-        let s = scan(
+        scan(
             &render(&t, |_, _| 0.0, Some((b, 0.3))),
             &k(),
             &t,
             &DepthObstacleSettings::default(),
-        );
+        )
+    }
+
+    #[test]
+    fn a_low_box_under_the_lasers_is_an_obstacle_where_it_stands() {
+        let s = low_box_scan();
         assert!(any_in(&s.obstacles_base, (1.45, 1.95), (-0.25, 0.25)));
         // nothing outside the box (its faces, within a cell)
         for c in &s.obstacles_base {
@@ -498,14 +504,7 @@ mod tests {
     /// centre, nor a point outside the image.
     #[test]
     fn a_nearer_surface_hides_what_is_behind_it() {
-        let t = base_from_camera(30.0);
-        let b = [1.5, 1.9, -0.2, 0.2];
-        let s = scan(
-            &render(&t, |_, _| 0.0, Some((b, 0.3))),
-            &k(),
-            &t,
-            &DepthObstacleSettings::default(),
-        );
+        let s = low_box_scan();
         let n = &s.nearest;
         assert!(n.cols > 0 && n.rows > 0);
         // on the line from the camera (0.9 m up) over the box's top edge
