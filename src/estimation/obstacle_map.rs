@@ -9,6 +9,8 @@
 
 use std::collections::BTreeMap;
 
+use nalgebra::Isometry3;
+
 use crate::estimation::view::CameraView;
 use crate::msg::Pose2;
 use crate::perception::depth_obstacles::DepthScan;
@@ -52,8 +54,23 @@ impl MapView {
     /// Whether the frame taken from `pose` could have seen the point `p`
     /// (odom, at the height its cell was seen lowest): had it still been
     /// there, that frame would have put it in the cell again.
+    #[cfg(test)]
     fn could_see(&self, pose: &Pose2, p: &[f64; 3]) -> bool {
-        (p[0] - pose.x_m).hypot(p[1] - pose.y_m) <= self.max_range_m && self.camera.sees(pose, p)
+        self.could_see_from(pose, &self.camera.camera_from_odom(pose), p)
+    }
+
+    /// Whether the frame taken from `pose` (the camera at
+    /// `camera_from_odom`, made once for the frame) could have seen the
+    /// point `p` (odom, at the height its cell was seen lowest): had it
+    /// still been there, that frame would have put it in the cell again.
+    fn could_see_from(
+        &self,
+        pose: &Pose2,
+        camera_from_odom: &Isometry3<f64>,
+        p: &[f64; 3],
+    ) -> bool {
+        (p[0] - pose.x_m).hypot(p[1] - pose.y_m) <= self.max_range_m
+            && self.camera.sees_from(camera_from_odom, p)
     }
 }
 
@@ -147,11 +164,18 @@ impl ObstacleMap {
                 e.1.push([p[0], p[1], z_m as f64]);
             }
         }
+        // the camera's transform at this frame, made once when needed
+        let mut camera_from_odom: Option<Isometry3<f64>> = None;
         for (k, (kind, mut points)) in seen {
             if let (Some(view), Some((old_kind, old))) = (&self.view, self.cells.get(&k)) {
                 // (a cell where the floor was seen now is gone already)
                 if *old_kind == kind {
-                    points.extend(old.iter().filter(|p| !view.could_see(&pose, p)));
+                    let camera_from_odom =
+                        camera_from_odom.get_or_insert_with(|| view.camera.camera_from_odom(&pose));
+                    points.extend(
+                        old.iter()
+                            .filter(|p| !view.could_see_from(&pose, camera_from_odom, p)),
+                    );
                 }
             }
             if points.len() > MAX_POINTS_PER_CELL {

@@ -33,7 +33,17 @@ impl CameraView {
     /// Whether a point in `odom` is inside the image and the range with the
     /// chair at `pose` (`odom`).
     pub fn sees(&self, pose: &Pose2, point_odom: &[f64; 3]) -> bool {
-        let camera_from_odom = (pose.to_isometry3() * self.base_from_camera).inverse();
+        self.sees_from(&self.camera_from_odom(pose), point_odom)
+    }
+
+    /// The camera's optical frame from `odom` with the chair at `pose`.
+    pub fn camera_from_odom(&self, pose: &Pose2) -> Isometry3<f64> {
+        (pose.to_isometry3() * self.base_from_camera).inverse()
+    }
+
+    /// [`CameraView::sees`] with the pose's transform made once
+    /// ([`CameraView::camera_from_odom`]), for many points of one frame.
+    pub fn sees_from(&self, camera_from_odom: &Isometry3<f64>, point_odom: &[f64; 3]) -> bool {
         let q = camera_from_odom * Point3::new(point_odom[0], point_odom[1], point_odom[2]);
         if !(q.z > self.min_range_m && q.z < self.max_range_m) {
             return false;
