@@ -589,11 +589,12 @@ impl Control {
             omega_radps,
             ..
         } = odo.value;
+        let odom_from_base = pose.to_isometry3();
         let obstacles_odom: Vec<[f64; 2]> = o
             .points_base
             .iter()
             .map(|q| {
-                let p = pose.to_isometry3() * nalgebra::Point3::new(q[0] as f64, q[1] as f64, 0.0);
+                let p = odom_from_base * nalgebra::Point3::new(q[0] as f64, q[1] as f64, 0.0);
                 [p.x, p.y]
             })
             .collect();

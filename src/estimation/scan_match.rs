@@ -104,6 +104,10 @@ struct Grid {
     starts: Vec<u32>,
     /// (index in the input, point), cell by cell.
     sorted: Vec<(u32, [f64; 2])>,
+    /// Per cell, the Chebyshev distance in cells to the nearest cell with
+    /// a point (saturating): a search skips the rings of cells nearer
+    /// than that, which are empty.
+    empty_rings: Vec<u16>,
 }
 
 /// Cells at most; a wider spread of points gets coarser cells (the
@@ -154,6 +158,7 @@ impl Grid {
             sorted[fill[c] as usize] = (i as u32, *p);
             fill[c] += 1;
         }
+        let empty_rings = empty_rings(&starts, nx, ny);
         Grid {
             cell,
             origin: lo,
@@ -161,6 +166,7 @@ impl Grid {
             ny,
             starts,
             sorted,
+            empty_rings,
         }
     }
 
@@ -199,9 +205,26 @@ impl Grid {
         if !(fx.is_finite() && fy.is_finite()) {
             return None;
         }
-        let (cx, cy) = (fx.floor() as i64, fy.floor() as i64);
-        let (nx, ny) = (self.nx as i64, self.ny as i64);
         let rings = (max_d / self.cell).ceil() as i64 + 1;
+        // farther than the search reaches from every cell (and the cell
+        // arithmetic below stays far from i64's ends)
+        let (nx, ny) = (self.nx as i64, self.ny as i64);
+        let far = |f: f64, n: i64| f < -((rings + 1) as f64) || f > (n + rings + 1) as f64;
+        if far(fx, nx) || far(fy, ny) {
+            return None;
+        }
+        let (cx, cy) = (fx.floor() as i64, fy.floor() as i64);
+        // the first ring that can hold a point: q's cell clamped to the
+        // grid is `out` rings away, and the nearest cell with a point is
+        // at least its empty rings less that from q (triangle inequality
+        // of the Chebyshev distance)
+        let (kx, ky) = (cx.clamp(0, nx - 1), cy.clamp(0, ny - 1));
+        let out = (cx - kx).abs().max((cy - ky).abs());
+        let empty = self.empty_rings[ky as usize * self.nx + kx as usize] as i64;
+        let first = out.max(empty - out);
+        if first > rings {
+            return None;
+        }
         let mut best: Option<(u32, f64)> = None;
         let visit = |x0: i64, x1: i64, y: i64, best: &mut Option<(u32, f64)>| {
             let (x0, x1) = (x0.max(0), x1.min(nx - 1));
@@ -220,7 +243,7 @@ impl Grid {
                 }
             }
         };
-        for k in 0..=rings {
+        for k in first..=rings {
             // the ring of cells at Chebyshev distance k from q's cell
             // (clipped to the grid)
             visit(cx - k, cx + k, cy - k, &mut best);
@@ -241,6 +264,61 @@ impl Grid {
         }
         best.map(|(i, d2)| (i as usize, d2))
     }
+}
+
+/// Per cell of an `nx` × `ny` grid whose cell `c` holds
+/// `starts[c + 1] - starts[c]` points: the Chebyshev distance in cells to
+/// the nearest cell with a point, saturating at `u16::MAX` (two raster
+/// passes with the 3×3 neighbourhood, exact for this metric).
+fn empty_rings(starts: &[u32], nx: usize, ny: usize) -> Vec<u16> {
+    let mut e: Vec<u16> = (0..nx * ny)
+        .map(|c| {
+            if starts[c + 1] > starts[c] {
+                0
+            } else {
+                u16::MAX
+            }
+        })
+        .collect();
+    for y in 0..ny {
+        for x in 0..nx {
+            let i = y * nx + x;
+            let mut v = e[i];
+            if x > 0 {
+                v = v.min(e[i - 1].saturating_add(1));
+            }
+            if y > 0 {
+                v = v.min(e[i - nx].saturating_add(1));
+                if x > 0 {
+                    v = v.min(e[i - nx - 1].saturating_add(1));
+                }
+                if x + 1 < nx {
+                    v = v.min(e[i - nx + 1].saturating_add(1));
+                }
+            }
+            e[i] = v;
+        }
+    }
+    for y in (0..ny).rev() {
+        for x in (0..nx).rev() {
+            let i = y * nx + x;
+            let mut v = e[i];
+            if x + 1 < nx {
+                v = v.min(e[i + 1].saturating_add(1));
+            }
+            if y + 1 < ny {
+                v = v.min(e[i + nx].saturating_add(1));
+                if x + 1 < nx {
+                    v = v.min(e[i + nx + 1].saturating_add(1));
+                }
+                if x > 0 {
+                    v = v.min(e[i + nx - 1].saturating_add(1));
+                }
+            }
+            e[i] = v;
+        }
+    }
+    e
 }
 
 /// The unit normal of the reference surface at each point (the line
@@ -640,5 +718,50 @@ mod tests {
             e.to_string().contains("reference scan has 10 points"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn the_grid_finds_the_nearest_point_as_a_search_of_all_points_does() {
+        // walls and clutter with empty stretches between them, queries
+        // inside and outside the points' box, near and far
+        let mut rng = crate::sim::scene::SplitMix64::new(3);
+        let mut pts: Vec<[f64; 2]> = Vec::new();
+        for _ in 0..6 {
+            let (x0, y0, a) = (
+                rng.range(-4.0, 4.0),
+                rng.range(-4.0, 4.0),
+                rng.range(0.0, 3.2),
+            );
+            for j in 0..80 {
+                let s = j as f64 * 0.02;
+                pts.push([x0 + s * a.cos(), y0 + s * a.sin()]);
+            }
+        }
+        for _ in 0..40 {
+            pts.push([rng.range(-5.0, 5.0), rng.range(-5.0, 5.0)]);
+        }
+        // a point twice: ties go to the lower index
+        pts.push(pts[17]);
+        let grid = Grid::new(&pts, 0.03);
+        let mut found = 0;
+        for q in 0..4000 {
+            let q = if q == 0 {
+                pts[17]
+            } else {
+                [rng.range(-7.0, 7.0), rng.range(-7.0, 7.0)]
+            };
+            for max_d in [0.05, 0.3, 1.0, 2.5] {
+                let brute = pts
+                    .iter()
+                    .enumerate()
+                    .map(|(i, p)| (i, (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2)))
+                    .filter(|(_, d2)| *d2 <= max_d * max_d)
+                    .min_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)));
+                assert_eq!(grid.nearest(&q, max_d), brute, "q {q:?} within {max_d}");
+                found += usize::from(brute.is_some());
+            }
+        }
+        assert!(found > 3000, "{found}");
+        assert_eq!(grid.nearest(&[1e300, 0.0], 1.0), None);
     }
 }

@@ -81,9 +81,19 @@ fn nearness(c: &VelocityCmd, crawl_mps: f64, points_base: &[[f32; 2]]) -> f64 {
         let (x, y, th) = predicted(c, crawl_mps, HORIZON_S * (i + 1) as f64 / SAMPLES as f64);
         (x + FRONT_M * th.cos(), y + FRONT_M * th.sin())
     });
+    // a point outside the fronts' box widened by NEAR_M is farther than
+    // NEAR_M from every front: it cannot change the cost
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for &(fx, fy) in &fronts {
+        lo = [lo[0].min(fx - NEAR_M), lo[1].min(fy - NEAR_M)];
+        hi = [hi[0].max(fx + NEAR_M), hi[1].max(fy + NEAR_M)];
+    }
     let mut nearest_sq = f64::INFINITY;
     for p in points_base {
         let (px, py) = (p[0] as f64, p[1] as f64);
+        if px < lo[0] || px > hi[0] || py < lo[1] || py > hi[1] {
+            continue;
+        }
         for &(fx, fy) in &fronts {
             let (dx, dy) = (px - fx, py - fy);
             nearest_sq = nearest_sq.min(dx * dx + dy * dy);
@@ -102,9 +112,24 @@ pub fn candidates(
     points_base: &[[f32; 2]],
 ) -> Vec<(VelocityCmd, f64)> {
     let crawl = l.v_forward_max_mps / 3.0;
+    let v_max = l.v_forward_max_mps;
+    // Only points within NEAR_M of some candidate's front can cost
+    // anything: a front point is never farther from base_link than the
+    // fastest way's length plus FRONT_M (an arc's chord is no longer than
+    // the arc), so the rest are left out once here, not per candidate.
+    let reach_m = v_max.abs().max(crawl.abs()) * HORIZON_S + FRONT_M + NEAR_M;
+    let reach_sq = reach_m * reach_m;
+    let near_points: Vec<[f32; 2]> = points_base
+        .iter()
+        .filter(|p| {
+            let (x, y) = (p[0] as f64, p[1] as f64);
+            x * x + y * y <= reach_sq
+        })
+        .copied()
+        .collect();
+    let points_base = &near_points[..];
     let still =
         cost(aim_base, (0.0, 0.0, 0.0)) + nearness(&VelocityCmd::default(), 0.0, points_base);
-    let v_max = l.v_forward_max_mps;
     let w_max = l.omega_max_radps;
     let mut out = Vec::new();
     // forward arcs at four speeds (the slowest above the supervisor's
@@ -224,5 +249,54 @@ mod tests {
         assert!(cs.iter().all(|(_, c)| *c < still - MIN_GAIN_M));
         // never a reverse: backing off has its own rules (the trail)
         assert!(cs.iter().all(|(c, _)| c.v_mps >= 0.0));
+    }
+
+    #[test]
+    fn leaving_out_far_points_changes_no_cost() {
+        // the cost of every candidate against a cloud of points near and
+        // far, as the full search over every point and front gives
+        let mut rng = crate::sim::scene::SplitMix64::new(5);
+        let pts: Vec<[f32; 2]> = (0..600)
+            .map(|_| [rng.range(-3.0, 3.0) as f32, rng.range(-3.0, 3.0) as f32])
+            .collect();
+        let crawl = L.v_forward_max_mps / 3.0;
+        let mut costly = 0;
+        for v in [0.0, 0.06, 0.1, 0.2, 0.3] {
+            for k in -6..=6 {
+                let c = VelocityCmd {
+                    v_mps: v,
+                    omega_radps: L.omega_max_radps * k as f64 / 6.0,
+                };
+                let mut nearest_sq = f64::INFINITY;
+                for i in 0..8 {
+                    let (x, y, th) = predicted(&c, crawl, HORIZON_S * (i + 1) as f64 / 8.0);
+                    let (fx, fy) = (x + FRONT_M * th.cos(), y + FRONT_M * th.sin());
+                    for p in &pts {
+                        let (dx, dy) = (p[0] as f64 - fx, p[1] as f64 - fy);
+                        nearest_sq = nearest_sq.min(dx * dx + dy * dy);
+                    }
+                }
+                let brute = NEAR_COST_PER_M * (NEAR_M - nearest_sq.sqrt()).max(0.0);
+                assert_eq!(nearness(&c, crawl, &pts), brute, "{c:?}");
+                costly += usize::from(brute > 0.0);
+            }
+        }
+        assert!(costly > 10, "{costly}");
+        // and the candidates with the far points left out as without them
+        let far: Vec<[f32; 2]> = pts
+            .iter()
+            .filter(|p| p[0].hypot(p[1]) > 1.6)
+            .copied()
+            .collect();
+        let near: Vec<[f32; 2]> = pts
+            .iter()
+            .filter(|p| p[0].hypot(p[1]) <= 1.6)
+            .copied()
+            .collect();
+        assert!(!far.is_empty());
+        assert_eq!(
+            candidates([2.0, 1.0], &L, &pts),
+            candidates([2.0, 1.0], &L, &near)
+        );
     }
 }

@@ -190,11 +190,20 @@ impl GridMap {
         self.camera[i] || (self.known[i] && self.evidence[i] > 0)
     }
 
-    fn nudge(&mut self, i: usize, by: i8) {
+    /// A laser's return is there (known, occupied evidence).
+    fn laser_blocked(&self, i: usize) -> bool {
+        self.known[i] && self.evidence[i] > 0
+    }
+
+    /// Adds evidence to cell `i`; its blocked state before, if this
+    /// changed it.
+    fn nudge(&mut self, i: usize, by: i8) -> Option<bool> {
+        let was = self.is_blocked(i);
         self.known[i] = true;
         self.evidence[i] = self.evidence[i]
             .saturating_add(by)
             .clamp(-EVIDENCE_MAX, EVIDENCE_MAX);
+        (was != self.is_blocked(i)).then_some(was)
     }
 
     /// The cells a ray from `o` along the unit `d` crosses up to `len`,
@@ -250,6 +259,10 @@ impl GridMap {
             ]
         };
         let mut cells: Vec<usize> = Vec::new();
+        // the cells whose blocked state a nudge changed, with their state
+        // before (a cell one ray ends in and others cross can flip back
+        // and forth within one scan)
+        let mut flipped: Vec<(usize, bool)> = Vec::new();
         for ray in rays_base.iter().filter(|r| !r.blind) {
             let o = to_odom([ray.origin_m[0] as f64, ray.origin_m[1] as f64]);
             let d = [
@@ -270,14 +283,21 @@ impl GridMap {
             let end = self.cell([o[0] + d[0] * len, o[1] + d[1] * len]);
             let hit_cell = if hit { end } else { None };
             for &i in &cells {
-                if Some(i) == hit_cell {
-                    self.nudge(i, HIT);
-                } else {
-                    self.nudge(i, -MISS);
+                let by = if Some(i) == hit_cell { HIT } else { -MISS };
+                if let Some(was) = self.nudge(i, by) {
+                    flipped.push((i, was));
                 }
             }
         }
-        self.dist_dirty = true;
+        // the distance field depends only on which cells are blocked: it
+        // is out of date only when one of them ends the scan changed (the
+        // seen box growing alone leaves it as it is: the cells it adds are
+        // beyond the cap of every blocked cell, at the cap already)
+        flipped.sort_by_key(|f| f.0);
+        flipped.dedup_by_key(|f| f.0);
+        if flipped.iter().any(|&(i, was)| was != self.is_blocked(i)) {
+            self.dist_dirty = true;
+        }
     }
 
     /// The camera at `origin` (odom) looking along `yaw_rad` with a
@@ -312,18 +332,31 @@ impl GridMap {
     /// The depth camera's remembered obstacles and drop-offs (odom),
     /// replacing the previous set.
     pub fn set_camera(&mut self, obstacles_odom: &[[f64; 2]], drop_offs_odom: &[[f64; 2]]) {
-        for &i in &self.camera_cells {
+        let new_cells: Vec<usize> = obstacles_odom
+            .iter()
+            .chain(drop_offs_odom)
+            .filter_map(|p| self.cell(*p))
+            .collect();
+        // a cell the camera adds or takes away changes what is blocked
+        // unless a laser's return blocks it anyway
+        let added = new_cells
+            .iter()
+            .any(|&i| !self.camera[i] && !self.laser_blocked(i));
+        let old_cells = std::mem::replace(&mut self.camera_cells, new_cells);
+        for &i in &old_cells {
             self.camera[i] = false;
         }
-        self.camera_cells.clear();
-        for p in obstacles_odom.iter().chain(drop_offs_odom) {
-            if let Some(i) = self.cell(*p) {
-                self.camera[i] = true;
-                self.camera_cells.push(i);
-                self.seen(i);
-            }
+        for k in 0..self.camera_cells.len() {
+            let i = self.camera_cells[k];
+            self.camera[i] = true;
+            self.seen(i);
         }
-        self.dist_dirty = true;
+        let removed = old_cells
+            .iter()
+            .any(|&i| !self.camera[i] && !self.laser_blocked(i));
+        if added || removed {
+            self.dist_dirty = true;
+        }
     }
 
     /// Widens the seen box to cell `i`.
@@ -816,5 +849,61 @@ mod tests {
         // 0.8 m from the wall (and no farther than it needs)
         assert!(p[1] <= -0.25 && p[1] >= -0.45, "{p:?}");
         assert!(map.room_to_turn([0.0, 0.0], 0.3, 3.0).is_none());
+    }
+
+    #[test]
+    fn the_distance_field_is_redone_only_when_a_blocked_cell_changes_and_matches_a_fresh_one() {
+        // laser scans from a moving pose and a camera set that changes,
+        // shrinks and stays: the field is marked out of date exactly when
+        // the blocked cells changed, and after each step the kept field
+        // equals one computed from scratch
+        let ray = |a: f64, range_m: Option<f32>| LaserRay {
+            origin_m: [0.3, 0.0],
+            dir: [a.cos() as f32, a.sin() as f32],
+            blind: false,
+            range_m,
+        };
+        let mut map = GridMap::new(MapSettings::default(), [0.0, 0.0]);
+        let mut redone = 0;
+        let mut was_blocked = vec![false; map.dist.len()];
+        for step in 0..30 {
+            // a new pose every sixth step, the same scan in between
+            let at = (step / 6) as f64;
+            let pose = Pose2 {
+                x_m: 0.1 * at,
+                y_m: 0.02 * at,
+                theta_rad: 0.05 * at,
+            };
+            let rays: Vec<LaserRay> = (0..181)
+                .map(|j| {
+                    let a = (j as f64 - 90.0).to_radians();
+                    let range = if j % 7 == 0 {
+                        None
+                    } else {
+                        Some(2.0 + (a * 3.0).sin() as f32)
+                    };
+                    ray(a, range)
+                })
+                .collect();
+            map.add_scan(pose, &rays);
+            let camera: Vec<[f64; 2]> = match step % 3 {
+                0 => wall_with_door(0.85),
+                _ => wall_with_door(0.85)[..100].to_vec(),
+            };
+            map.set_camera(&camera, &[]);
+            let blocked: Vec<bool> = (0..map.dist.len()).map(|i| map.is_blocked(i)).collect();
+            assert_eq!(map.dist_dirty, blocked != was_blocked, "step {step}");
+            was_blocked = blocked;
+            redone += usize::from(map.dist_dirty);
+            map.update_distances();
+            let mut fresh = map.clone();
+            fresh.dist = vec![fresh.dist_cap_m; fresh.dist.len()];
+            fresh.dist_dirty = true;
+            fresh.update_distances();
+            assert!(map.dist == fresh.dist, "step {step}");
+        }
+        // with the same scan and camera set again, some steps changed
+        // nothing blocked
+        assert!((1..30).contains(&redone), "{redone}");
     }
 }

@@ -181,11 +181,35 @@ impl Room {
             })
             .collect();
         order.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        // each object's pixel rectangle: a ray can hit a box only through
+        // a pixel inside its corners' projection (all corners in front of
+        // the camera; otherwise the whole image), with a pixel's margin
+        let camera_from_world = r.transpose();
+        let rects: Vec<PixelRect> = order
+            .iter()
+            .map(|&(_, idx)| {
+                let b = &self.objects[idx];
+                let mut rect = PixelRect::EMPTY;
+                for c in 0..8 {
+                    let corner = Vector3::new(
+                        if c & 1 == 0 { b.min_m[0] } else { b.max_m[0] },
+                        if c & 2 == 0 { b.min_m[1] } else { b.max_m[1] },
+                        if c & 4 == 0 { b.min_m[2] } else { b.max_m[2] },
+                    );
+                    let p = camera_from_world * (corner - o);
+                    if p.z.is_nan() || p.z <= 1e-6 {
+                        return PixelRect::ALL;
+                    }
+                    rect.grow(k.fx * p.x / p.z + k.cx, k.fy * p.y / p.z + k.cy);
+                }
+                rect.widened(1.0)
+            })
+            .collect();
         for v in 0..h {
             for u in 0..w {
                 let d_cam = Vector3::new((u as f64 - k.cx) / k.fx, (v as f64 - k.cy) / k.fy, 1.0);
                 let d = r * d_cam;
-                let (t, face, id) = self.cast(&o, &d, &order);
+                let (t, face, id) = self.cast(&o, &d, &order, &rects, [u as f64, v as f64]);
                 let i = v * w + u;
                 if !t.is_finite() {
                     continue;
@@ -222,6 +246,8 @@ impl Room {
         o: &Vector3<f64>,
         d: &Vector3<f64>,
         order: &[(f64, usize)],
+        rects: &[PixelRect],
+        pixel: [f64; 2],
     ) -> (f64, usize, i32) {
         let d_norm = d.norm();
         // leaving the room from inside
@@ -259,9 +285,12 @@ impl Room {
                 }
             }
         }
-        for &(dist_m, idx) in order {
+        for (&(dist_m, idx), rect) in order.iter().zip(rects) {
             if dist_m >= best.0 * d_norm {
                 break;
+            }
+            if !rect.contains(pixel) {
+                continue;
             }
             let ob = &self.objects[idx];
             let (mut t0, mut t1, mut axis) = (0.0f64, f64::INFINITY, 0usize);
@@ -364,6 +393,40 @@ fn box_surface(min: [f64; 3], max: [f64; 3], s: f64, hidden: [[bool; 2]; 3]) -> 
     out
 }
 
+/// A rectangle of pixel coordinates (u, v), bounds included.
+#[derive(Debug, Clone, Copy)]
+struct PixelRect {
+    lo: [f64; 2],
+    hi: [f64; 2],
+}
+
+impl PixelRect {
+    const EMPTY: PixelRect = PixelRect {
+        lo: [f64::INFINITY; 2],
+        hi: [f64::NEG_INFINITY; 2],
+    };
+    const ALL: PixelRect = PixelRect {
+        lo: [f64::NEG_INFINITY; 2],
+        hi: [f64::INFINITY; 2],
+    };
+
+    fn grow(&mut self, u: f64, v: f64) {
+        self.lo = [self.lo[0].min(u), self.lo[1].min(v)];
+        self.hi = [self.hi[0].max(u), self.hi[1].max(v)];
+    }
+
+    fn widened(self, by: f64) -> PixelRect {
+        PixelRect {
+            lo: [self.lo[0] - by, self.lo[1] - by],
+            hi: [self.hi[0] + by, self.hi[1] + by],
+        }
+    }
+
+    fn contains(&self, p: [f64; 2]) -> bool {
+        p[0] >= self.lo[0] && p[0] <= self.hi[0] && p[1] >= self.lo[1] && p[1] <= self.hi[1]
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -462,5 +525,68 @@ mod tests {
         let cloud = room.ground_truth_cloud(0.1);
         assert!(cloud.iter().any(|(_, s, i)| *s == 14 && *i == 0));
         assert!(cloud.iter().any(|(_, s, i)| *s == 0 && *i == -100));
+    }
+
+    #[test]
+    fn skipping_objects_outside_their_pixel_rectangle_changes_no_pixel() {
+        // random boxes, some beside or behind the camera, seen from
+        // random poses inside the room: each pixel as a cast against every
+        // object (no rectangles, no order) gives
+        let mut rng = crate::sim::scene::SplitMix64::new(7);
+        let k = Intrinsics {
+            width: 96,
+            height: 72,
+            fx: 60.0,
+            fy: 60.0,
+            cx: 47.5,
+            cy: 35.5,
+        };
+        let mut hits = 0;
+        for _ in 0..20 {
+            let objects = (0..12)
+                .map(|_| {
+                    let min = [
+                        rng.range(0.0, 5.0),
+                        rng.range(0.0, 4.0),
+                        rng.range(0.0, 1.0),
+                    ];
+                    let size = [
+                        rng.range(0.1, 1.2),
+                        rng.range(0.1, 1.2),
+                        rng.range(0.1, 1.5),
+                    ];
+                    obj(1, "box", min, size, [100, 100, 100])
+                })
+                .collect();
+            let room = Room {
+                size_m: [6.0, 5.0, 2.8],
+                objects,
+                pits: vec![],
+            };
+            let eye = Vector3::new(
+                rng.range(0.5, 5.5),
+                rng.range(0.5, 4.5),
+                rng.range(0.3, 1.5),
+            );
+            let pose = look_direction(eye, rng.range(-3.1, 3.1), rng.range(-0.6, 0.2));
+            let rendered = room.render(&k, &pose).unwrap();
+            let r = pose.rotation.to_rotation_matrix();
+            let o = pose.translation.vector;
+            let all: Vec<(f64, usize)> = (0..room.objects.len()).map(|i| (0.0, i)).collect();
+            let everywhere = vec![PixelRect::ALL; all.len()];
+            for v in 0..k.height {
+                for u in 0..k.width {
+                    let d =
+                        r * Vector3::new((u as f64 - k.cx) / k.fx, (v as f64 - k.cy) / k.fy, 1.0);
+                    let (t, _, id) = room.cast(&o, &d, &all, &everywhere, [u as f64, v as f64]);
+                    let i = v * k.width + u;
+                    assert_eq!(rendered.instance[i], id, "pixel ({u}, {v})");
+                    assert_eq!(rendered.depth.data()[i], t as f32, "pixel ({u}, {v})");
+                    hits += usize::from(id >= 0);
+                }
+            }
+        }
+        // the boxes were in view
+        assert!(hits > 10_000, "{hits}");
     }
 }

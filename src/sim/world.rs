@@ -136,12 +136,47 @@ fn box_distance(lo: [f64; 2], hi: [f64; 2], p: [f64; 2]) -> f64 {
     }
 }
 
+/// A wall or a side of an object in the lasers' plane: its two ends, m.
+type Segment = ([f64; 2], [f64; 2]);
+
 /// Distance along the ray from `o` in direction `a` to the nearest
 /// segment, or None.
 pub fn ray_cast(o: [f64; 2], a: f64, segs: &[([f64; 2], [f64; 2])]) -> Option<f64> {
+    let near: Vec<(f64, Segment)> = segs.iter().map(|s| (0.0, *s)).collect();
+    ray_cast_nearest_first(o, a, &near)
+}
+
+/// The segments with their distance from `o`, nearest first: the casts
+/// of one scan from `o` stop at the first segment farther than their hit.
+fn by_distance(o: [f64; 2], segs: &[([f64; 2], [f64; 2])]) -> Vec<(f64, Segment)> {
+    let mut near: Vec<(f64, Segment)> = segs
+        .iter()
+        .map(|&(p, q)| {
+            let (ex, ey) = (q[0] - p[0], q[1] - p[1]);
+            let len2 = ex * ex + ey * ey;
+            let t = if len2 > 0.0 {
+                (((o[0] - p[0]) * ex + (o[1] - p[1]) * ey) / len2).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            let d = (p[0] + t * ex - o[0]).hypot(p[1] + t * ey - o[1]);
+            (d, (p, q))
+        })
+        .collect();
+    near.sort_by(|a, b| a.0.total_cmp(&b.0));
+    near
+}
+
+/// [`ray_cast`] over segments each with a lower bound of its distance
+/// from `o`, in increasing order: a segment whose bound lies beyond the
+/// hit so far (by more than rounding) cannot be hit nearer.
+fn ray_cast_nearest_first(o: [f64; 2], a: f64, segs: &[(f64, Segment)]) -> Option<f64> {
     let (dx, dy) = (a.cos(), a.sin());
     let mut best: Option<f64> = None;
-    for (p, q) in segs {
+    for (dist_m, (p, q)) in segs {
+        if best.is_some_and(|b| dist_m - 1e-6 > b) {
+            break;
+        }
         let (ex, ey) = (q[0] - p[0], q[1] - p[1]);
         let den = dx * ey - dy * ex;
         if den.abs() < 1e-12 {
@@ -361,11 +396,11 @@ impl SimWorld {
             self.truth.x_m + c * t.x - s * t.y,
             self.truth.y_m + s * t.x + c * t.y,
         ];
-        let segs = segments_at(&self.room, t.z);
+        let segs = by_distance(origin, &segments_at(&self.room, t.z));
         let values: Vec<u32> = (p.amin..=p.amax)
             .map(|step| {
                 let a = self.truth.theta_rad + laser_yaw + p.step_angle_rad(step);
-                match ray_cast(origin, a, &segs) {
+                match ray_cast_nearest_first(origin, a, &segs) {
                     Some(r) if r * 1000.0 <= p.dmax_mm as f64 => {
                         ((r * 1000.0).round() as u32).max(p.dmin_mm)
                     }
@@ -472,6 +507,38 @@ mod tests {
 
     fn world() -> SimWorld {
         SimWorld::living_room(DiffDriveParams::paper_chair())
+    }
+
+    #[test]
+    fn casting_nearest_segments_first_finds_what_casting_against_all_does() {
+        let mut rng = crate::sim::scene::SplitMix64::new(11);
+        let segs: Vec<([f64; 2], [f64; 2])> = (0..120)
+            .map(|_| {
+                let p = [rng.range(-5.0, 5.0), rng.range(-5.0, 5.0)];
+                let a = rng.range(-3.2, 3.2);
+                let l = rng.range(0.0, 1.5);
+                (p, [p[0] + l * a.cos(), p[1] + l * a.sin()])
+            })
+            .collect();
+        let mut hits = 0;
+        for _ in 0..50 {
+            let o = [rng.range(-4.0, 4.0), rng.range(-4.0, 4.0)];
+            let sorted = by_distance(o, &segs);
+            for k in 0..360 {
+                let a = (k as f64).to_radians();
+                let brute = segs
+                    .iter()
+                    .filter_map(|s| ray_cast(o, a, std::slice::from_ref(s)))
+                    .min_by(f64::total_cmp);
+                assert_eq!(
+                    ray_cast_nearest_first(o, a, &sorted),
+                    brute,
+                    "from {o:?} at {k}°"
+                );
+                hits += usize::from(brute.is_some());
+            }
+        }
+        assert!(hits > 10_000, "{hits}");
     }
 
     #[test]
