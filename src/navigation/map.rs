@@ -284,6 +284,11 @@ impl GridMap {
             let hit_cell = if hit { end } else { None };
             for &i in &cells {
                 let by = if Some(i) == hit_cell { HIT } else { -MISS };
+                // a free cell as sure as it gets stays as it is (and is
+                // known: only a nudge gives evidence); most of a ray's
+                if by < 0 && self.evidence[i] == -EVIDENCE_MAX {
+                    continue;
+                }
                 if let Some(was) = self.nudge(i, by) {
                     flipped.push((i, was));
                 }
