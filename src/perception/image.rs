@@ -40,25 +40,32 @@ pub fn letterbox_chw(img: &RgbImage, size: usize, pad_value: u8) -> (Vec<f32>, L
     let top = (dh - 0.1).round().max(0.0) as usize;
     let left = (dw - 0.1).round().max(0.0) as usize;
 
-    let plane = size * size;
-    let mut out = vec![pad_value as f32 / 255.0; 3 * plane];
-    let resized = resize_bilinear(img, new_w, new_h);
-    for y in 0..new_h {
-        let row = &resized[y * new_w * 3..(y + 1) * new_w * 3];
-        let oy = y + top;
-        if oy >= size {
-            break;
+    // each plane written once, row by row: padding, the resized row,
+    // padding (the image's own size needs no resize and no copy); byte
+    // values through a table of their /255 floats (the same values)
+    let lut: [f32; 256] = std::array::from_fn(|b| b as f32 / 255.0);
+    let pad = pad_value as f32 / 255.0;
+    let resized: std::borrow::Cow<[u8]> = if new_w == w && new_h == h {
+        std::borrow::Cow::Borrowed(img.data())
+    } else {
+        std::borrow::Cow::Owned(resize_bilinear(img, new_w, new_h))
+    };
+    let (shown_w, shown_h) = (new_w.min(size - left), new_h.min(size - top));
+    let mut out: Vec<f32> = Vec::with_capacity(3 * size * size);
+    for c in 0..3 {
+        out.resize(out.len() + top * size, pad);
+        for row in resized.chunks_exact(new_w * 3).take(shown_h) {
+            out.resize(out.len() + left, pad);
+            out.extend(
+                row[..shown_w * 3]
+                    .iter()
+                    .skip(c)
+                    .step_by(3)
+                    .map(|&b| lut[b as usize]),
+            );
+            out.resize(out.len() + size - left - shown_w, pad);
         }
-        for x in 0..new_w {
-            let ox = x + left;
-            if ox >= size {
-                break;
-            }
-            let o = oy * size + ox;
-            out[o] = row[x * 3] as f32 / 255.0;
-            out[plane + o] = row[x * 3 + 1] as f32 / 255.0;
-            out[2 * plane + o] = row[x * 3 + 2] as f32 / 255.0;
-        }
+        out.resize((c + 1) * size * size, pad);
     }
     (
         out,
@@ -125,6 +132,35 @@ mod tests {
         // a box maps back
         let b = lb.to_original([0.0, 160.0, 640.0, 480.0]);
         assert_eq!(b, [0.0, 0.0, 1280.0, 640.0]);
+    }
+
+    #[test]
+    fn letterbox_writes_what_pixel_by_pixel_placing_writes() {
+        // the resized (tall, wide, small) and the unresized image, against
+        // the padded tensor filled pixel by pixel
+        for (w, h) in [(640, 480), (300, 500), (1000, 330), (640, 640), (17, 9)] {
+            let data: Vec<u8> = (0..w * h * 3)
+                .map(|i| ((i * 37 + i / 7) % 256) as u8)
+                .collect();
+            let img = RgbImage::new(w, h, data).unwrap();
+            let (t, lb) = letterbox_chw(&img, 640, 114);
+            let (nw, nh) = (
+                ((w as f32 * lb.scale).round() as usize).clamp(1, 640),
+                ((h as f32 * lb.scale).round() as usize).clamp(1, 640),
+            );
+            let resized = resize_bilinear(&img, nw, nh);
+            let mut want = vec![114.0f32 / 255.0; 3 * 640 * 640];
+            let (top, left) = (lb.pad_top as usize, lb.pad_left as usize);
+            for y in 0..nh {
+                for x in 0..nw {
+                    for c in 0..3 {
+                        want[c * 640 * 640 + (y + top) * 640 + x + left] =
+                            resized[(y * nw + x) * 3 + c] as f32 / 255.0;
+                    }
+                }
+            }
+            assert!(t == want, "{w}x{h}");
+        }
     }
 
     #[test]

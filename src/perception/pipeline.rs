@@ -182,7 +182,17 @@ impl Pipeline {
         depth: Option<&DepthImage>,
     ) -> Result<ViewResult, PipelineError> {
         let t0 = Instant::now();
-        let registered = depth.map(|d| self.depth_in_color(color, d)).transpose()?;
+        // depth already in the colour camera is checked and borrowed, a
+        // separate depth camera's image registered
+        let registered: Option<std::borrow::Cow<DepthImage>> =
+            match (depth, &self.calibration.depth) {
+                (Some(d), Some(_)) => Some(std::borrow::Cow::Owned(self.depth_in_color(color, d)?)),
+                (Some(d), None) => {
+                    check_sizes(&self.calibration, color, d)?;
+                    Some(std::borrow::Cow::Borrowed(d))
+                }
+                (None, _) => None,
+            };
         let t = Instant::now();
         let detections = self.detector.detect(color)?;
         let detector_ms = ms(t);
@@ -216,8 +226,22 @@ pub fn depth_in_color(
     color: &RgbImage,
     depth: &DepthImage,
 ) -> Result<DepthImage, PipelineError> {
-    let (dw, dh) = calibration.depth_size();
+    check_sizes(calibration, color, depth)?;
+    Ok(match &calibration.depth {
+        Some((dk, color_from_depth)) => {
+            register_depth_to_color(depth, dk, color_from_depth, &calibration.color)?
+        }
+        None => depth.clone(),
+    })
+}
 
+/// The frame's images have the calibration's sizes.
+fn check_sizes(
+    calibration: &RgbdCalibration,
+    color: &RgbImage,
+    depth: &DepthImage,
+) -> Result<(), PipelineError> {
+    let (dw, dh) = calibration.depth_size();
     if (depth.width(), depth.height()) != (dw, dh) {
         return Err(PipelineError::Input(format!(
             "depth image is {}x{}, calibration expects {dw}x{dh}",
@@ -235,10 +259,7 @@ pub fn depth_in_color(
             c.height
         )));
     }
-    Ok(match &calibration.depth {
-        Some((dk, color_from_depth)) => register_depth_to_color(depth, dk, color_from_depth, c)?,
-        None => depth.clone(),
-    })
+    Ok(())
 }
 
 /// Steps 2–6 for detections already made: a mask per box, then objects in
