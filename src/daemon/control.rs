@@ -697,7 +697,16 @@ impl Control {
         // the rear seen: it refuses a blind reverse), then the planner tries
         // again from there
         let held = state == SupervisorState::Stopped(crate::msg::StopReason::Obstacle);
-        self.tell_if_held(now, target.is_some() && held);
+        self.tell_if_held(
+            now,
+            match (target.is_some(), held, stood_still) {
+                (false, _, _) => None,
+                (true, true, _) => Some(held::Held::Supervisor),
+                // (not while waiting for an answer about the rear)
+                (true, false, true) if self.asked_rear.is_none() => Some(held::Held::StandingStill),
+                (true, false, _) => None,
+            },
+        );
         let rear = || {
             (
                 !self.supervisor.limits.turn_needs_seen_rear || self.rear.view(now, pose).seen,

@@ -85,26 +85,49 @@ impl Control {
         found
     }
 
-    /// Held on the way for [`SAY_HELD_AFTER`] without a break: said once
-    /// (a carer can move what is in the way; the chair goes on by itself
-    /// when the way clears, or stays on "stop").
-    pub(super) fn tell_if_held(&mut self, now: Stamp, held: bool) {
-        if !held {
+    /// Held on the way (by the supervisor, or standing still with nothing
+    /// holding it: the planner's commands came to nothing) for
+    /// [`SAY_HELD_AFTER`] without a break: said once (a carer can move
+    /// what is in the way; the chair goes on by itself when the way
+    /// clears, or stays on "stop").
+    pub(super) fn tell_if_held(&mut self, now: Stamp, held: Option<Held>) {
+        let Some(held) = held else {
             self.held_since = None;
             self.said_held = false;
             return;
-        }
+        };
         let since = *self.held_since.get_or_insert(now);
         if since.age_at(now) >= SAY_HELD_AFTER && !self.said_held {
             self.said_held = true;
-            tracing::warn!("held on the way with no way round");
-            self.say(
-                "Something is in my way and I cannot find a way round it. I will go on when \
-                 it is clear; say stop to stay here."
-                    .into(),
-            );
+            match held {
+                Held::Supervisor => {
+                    tracing::warn!("held on the way with no way round");
+                    self.say(
+                        "Something is in my way and I cannot find a way round it. I will go on \
+                         when it is clear; say stop to stay here."
+                            .into(),
+                    );
+                }
+                Held::StandingStill => {
+                    tracing::warn!("standing still on the way, far from the place");
+                    self.say(
+                        "I have stopped on the way and cannot find how to get nearer. I will \
+                         keep trying; say stop to stay here."
+                            .into(),
+                    );
+                }
+            }
         }
     }
+}
+
+/// What keeps the chair from going on to its goal.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Held {
+    /// The safety supervisor holds it for something in the way.
+    Supervisor,
+    /// It stands still with nothing holding it ([`StandStill`]).
+    StandingStill,
 }
 
 /// The chair standing still on the way to a goal with nothing holding it:
