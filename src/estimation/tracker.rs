@@ -255,9 +255,8 @@ const OWN_POINT_M: f64 = 0.1;
 /// width), m.
 const OWN_FACE_HALF_M: f64 = 0.35;
 
-/// Distance from `p` to the segment `a`–`b`.
 /// The squared distance from `p` to the segment `a`–`b`.
-fn segment_distance_sq(a: [f64; 2], b: [f64; 2], p: [f64; 2]) -> f64 {
+pub(crate) fn segment_distance_sq(a: [f64; 2], b: [f64; 2], p: [f64; 2]) -> f64 {
     let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
     let len2 = dx * dx + dy * dy;
     let t = if len2 > 0.0 {

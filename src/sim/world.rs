@@ -152,14 +152,7 @@ fn by_distance(o: [f64; 2], segs: &[([f64; 2], [f64; 2])]) -> Vec<(f64, Segment)
     let mut near: Vec<(f64, Segment)> = segs
         .iter()
         .map(|&(p, q)| {
-            let (ex, ey) = (q[0] - p[0], q[1] - p[1]);
-            let len2 = ex * ex + ey * ey;
-            let t = if len2 > 0.0 {
-                (((o[0] - p[0]) * ex + (o[1] - p[1]) * ey) / len2).clamp(0.0, 1.0)
-            } else {
-                0.0
-            };
-            let d = (p[0] + t * ex - o[0]).hypot(p[1] + t * ey - o[1]);
+            let d = crate::estimation::tracker::segment_distance_sq(p, q, o).sqrt();
             (d, (p, q))
         })
         .collect();
