@@ -1,0 +1,68 @@
+//! Asking the person whether it is clear behind: a turn on the spot the
+//! supervisor refuses for an unseen rear is asked about after a while,
+//! and their "yes" vouches for the rear the lasers cannot see.
+
+use super::Control;
+use crate::msg::{Obstacles, Stamp, Stamped, SupervisorState};
+
+/// A turn refused for an unseen rear this long: the person is asked.
+pub(super) const ASK_REAR_AFTER: std::time::Duration = std::time::Duration::from_secs(1);
+/// Turns no longer refused for an unseen rear this long: that wait is over.
+pub(super) const REAR_WAIT_OVER_AFTER: std::time::Duration = std::time::Duration::from_secs(1);
+
+impl Control {
+    /// Feeds the rear watch the newest scan (seen from the pose now) and
+    /// the person's "yes"; what it knows of the rear now.
+    pub(super) fn watch_rear(
+        &mut self,
+        now: Stamp,
+        obstacles: Option<&Stamped<Obstacles>>,
+        pose: crate::msg::Pose2,
+    ) -> crate::safety::rear::RearView {
+        if let Some(o) = obstacles.filter(|o| Some(o.stamp) != self.rear_scan) {
+            self.rear_scan = Some(o.stamp);
+            self.rear.on_scan(o.stamp, pose, &o.value.points_base);
+        }
+        if std::mem::take(&mut self.rear_yes) {
+            if let Some(at) = self.asked_rear.take() {
+                self.rear.confirm(now, at);
+            }
+        }
+        self.rear.view(now, pose)
+    }
+
+    /// A turn on the spot refused for an unseen rear for a second: ask
+    /// the person whether it is clear behind (once per wait).
+    pub(super) fn ask_about_rear(
+        &mut self,
+        now: Stamp,
+        state: SupervisorState,
+        pose: Option<crate::msg::Pose2>,
+    ) {
+        if state != SupervisorState::Stopped(crate::msg::StopReason::RearUnseen) {
+            // the wait is over (turned, or no turn needed any more) once
+            // it has been over a while: a chair creeping on between
+            // refused turns (the planner's command switching between a
+            // crawl and a turn) is still waiting, and must still ask
+            let clear = *self.rear_clear_since.get_or_insert(now);
+            if clear.age_at(now) >= REAR_WAIT_OVER_AFTER {
+                // a later one asks again
+                self.rear_blocked_since = None;
+                self.asked_rear = None;
+            }
+            return;
+        }
+        self.rear_clear_since = None;
+        let since = *self.rear_blocked_since.get_or_insert(now);
+        if since.age_at(now) >= ASK_REAR_AFTER && self.asked_rear.is_none() {
+            if let Some(p) = pose {
+                self.asked_rear = Some(p);
+                self.say(
+                    "I need to turn on the spot, and I cannot see behind me. \
+                     Is it clear behind? Say yes to let me turn, or no."
+                        .into(),
+                );
+            }
+        }
+    }
+}
