@@ -1,0 +1,241 @@
+//! Tests of `navigation::map` (split out to keep it readable).
+
+use super::*;
+
+/// A wall along x = 2 (odom) from y = −6 to 6 with a doorway of
+/// `door_m` centred on y = 1, as the camera would report it.
+fn wall_with_door(door_m: f64) -> Vec<[f64; 2]> {
+    let mut pts = Vec::new();
+    let mut y: f64 = -6.0;
+    while y <= 6.0 {
+        if (y - 1.0).abs() > door_m / 2.0 {
+            for dx in [0.0, 0.05] {
+                pts.push([2.0 + dx, y]);
+            }
+        }
+        y += 0.02;
+    }
+    pts
+}
+
+#[test]
+fn a_path_goes_through_the_middle_of_a_doorway() {
+    let mut map = GridMap::new(MapSettings::default(), [0.0, 0.0]);
+    map.set_camera(&wall_with_door(0.85), &[]);
+    let p = map
+        .path([0.0, -2.0], [4.0, -2.0], 0.1)
+        .expect("a way through");
+    // where it crosses the wall
+    let at_wall = p
+        .points
+        .iter()
+        .find(|q| (q[0] - 2.0).abs() < 0.05)
+        .expect("crosses x = 2");
+    assert!(
+        (at_wall[1] - 1.0).abs() <= 0.06,
+        "crossed at y = {}",
+        at_wall[1]
+    );
+    // round the wall's end is far longer than the doorway
+    assert!(p.length_m < 9.5, "{}", p.length_m);
+    // a gap narrower than the chair: round the wall's end
+    let mut closed = GridMap::new(MapSettings::default(), [0.0, 0.0]);
+    closed.set_camera(&wall_with_door(0.6), &[]);
+    let q = closed
+        .path([0.0, -2.0], [4.0, -2.0], 0.1)
+        .expect("round the wall");
+    assert!(
+        q.points
+            .iter()
+            .all(|p| !((p[0] - 2.0).abs() < 0.05 && (p[1] - 1.0).abs() < 0.5)),
+        "a 0.6 m gap is not a doorway for a 0.7 m chair"
+    );
+    assert!(
+        q.length_m > p.length_m + 1.0,
+        "{} vs {}",
+        q.length_m,
+        p.length_m
+    );
+}
+
+#[test]
+fn the_carrot_is_ahead_on_the_path() {
+    let p = MapPath {
+        points: vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [1.0, 2.0]],
+        length_m: 3.0,
+    };
+    assert_eq!(p.carrot([0.0, 0.1], 0.5), Some([0.5, 0.0]));
+    assert_eq!(p.carrot([1.0, 0.0], 1.5), Some([1.0, 1.5]));
+    assert_eq!(p.carrot([1.0, 1.9], 5.0), Some([1.0, 2.0]));
+}
+
+fn ring(range_m: Option<f32>, blind: bool) -> Vec<LaserRay> {
+    (0..720)
+        .map(|k| {
+            let a = k as f32 * std::f32::consts::TAU / 720.0;
+            LaserRay {
+                origin_m: [0.0, 0.0],
+                dir: [a.cos(), a.sin()],
+                blind,
+                range_m,
+            }
+        })
+        .collect()
+}
+
+#[test]
+fn rays_clear_space_and_mark_what_they_hit() {
+    let mut map = GridMap::new(MapSettings::default(), [0.0, 0.0]);
+    let pose = Pose2 {
+        x_m: 1.0,
+        y_m: 1.0,
+        theta_rad: 0.3,
+    };
+    map.add_scan(pose, &ring(Some(2.0), false));
+    let cell = |p| map.cell(p).expect("on the map");
+    assert!(map.is_known(cell([1.5, 1.0])) && !map.is_blocked(cell([1.5, 1.0])));
+    // the hit, 2 m away (a cell beside, where the ray's end rounds)
+    assert!(
+        [-0.05, 0.0, 0.05]
+            .iter()
+            .any(|dy| map.is_blocked(cell([2.99, 1.0 + dy]))),
+        "the hit, 2 m away"
+    );
+    assert!(!map.is_known(cell([4.0, 1.0])), "beyond the hit");
+    // blind rays say nothing
+    let mut blind = GridMap::new(MapSettings::default(), [0.0, 0.0]);
+    blind.add_scan(pose, &ring(None, true));
+    assert!(!blind.is_known(blind.cell([1.5, 1.0]).expect("on the map")));
+    // nothing in range: free as far as free_range_m
+    let mut open = GridMap::new(MapSettings::default(), [0.0, 0.0]);
+    open.add_scan(pose, &ring(None, false));
+    let far = open.cell([4.5, 1.0]).expect("on the map");
+    assert!(open.is_known(far) && !open.is_blocked(far));
+}
+
+#[test]
+fn the_frontier_is_the_nearest_edge_of_what_was_seen() {
+    let mut map = GridMap::new(MapSettings::default(), [0.0, 0.0]);
+    // a room seen out to 3 m all round, open on one side: to +x,
+    // the rays find nothing within 2.5 m and the rest hit at 3 m
+    let rays: Vec<LaserRay> = ring(Some(3.0), false)
+        .into_iter()
+        .map(|mut r| {
+            if r.dir[0] > 0.9 {
+                r.range_m = None;
+            }
+            r
+        })
+        .collect();
+    map.settings = MapSettings {
+        free_range_m: 2.5,
+        ..Default::default()
+    };
+    map.add_scan(Pose2::default(), &rays);
+    // not looked at by the camera: everywhere is worth a look, the
+    // nearest place first
+    let near = map
+        .frontier([0.0, 0.0], 1.0, 0.5, &[], 1.0)
+        .expect("a frontier");
+    assert!(near[0].hypot(near[1]) < 1.2, "{near:?}");
+    // the camera turned all round: what is left is beyond the seen
+    map.look([0.0, 0.0], 0.0, std::f64::consts::PI, 4.0);
+    let f = map
+        .frontier([0.0, 0.0], 1.0, 0.5, &[], 1.0)
+        .expect("a frontier");
+    assert!(f[0] > 2.0 && f[1].abs() < 1.2, "{f:?}");
+    // once visited, there is none left that the chair can reach
+    // through seen free space
+    assert!(map.frontier([0.0, 0.0], 1.0, 0.5, &[f], 1.5).is_none());
+}
+
+#[test]
+fn the_camera_looks_at_seen_free_cells_up_to_the_first_obstacle() {
+    let mut map = GridMap::new(MapSettings::default(), [0.0, 0.0]);
+    // a ring of walls 2 m away
+    map.add_scan(Pose2::default(), &ring(Some(2.0), false));
+    map.look([0.0, 0.0], 0.0, 0.5, 4.0);
+    let at = |map: &GridMap, p: [f64; 2]| map.is_looked(map.cell(p).expect("on the map"));
+    // ahead, up to and including the wall; not beyond it, not behind
+    assert!(at(&map, [1.0, 0.0]) && at(&map, [1.99, 0.0]));
+    assert!(!at(&map, [2.5, 0.0]));
+    assert!(!at(&map, [-1.0, 0.0]) && !at(&map, [0.0, 1.0]));
+    // the view's edge: 0.5 rad either side
+    assert!(at(&map, [1.0, 0.5]) && !at(&map, [1.0, 0.6]));
+}
+
+#[test]
+fn room_to_turn_is_the_nearest_place_clear_all_round() {
+    let mut map = GridMap::new(MapSettings::default(), [0.0, 0.0]);
+    // a wall 0.5 m to the left (y = 0.5), open elsewhere to 3 m
+    let rays: Vec<LaserRay> = ring(Some(3.0), false)
+        .into_iter()
+        .map(|mut r| {
+            if r.dir[1] > 0.2 {
+                r.range_m = Some((0.5 / r.dir[1]).min(3.0));
+            }
+            r
+        })
+        .collect();
+    map.add_scan(Pose2::default(), &rays);
+    let p = map.room_to_turn([0.0, 0.0], 0.3, 0.8).expect("a place");
+    // 0.8 m from the wall (and no farther than it needs)
+    assert!(p[1] <= -0.25 && p[1] >= -0.45, "{p:?}");
+    assert!(map.room_to_turn([0.0, 0.0], 0.3, 3.0).is_none());
+}
+
+#[test]
+fn the_distance_field_is_redone_only_when_a_blocked_cell_changes_and_matches_a_fresh_one() {
+    // laser scans from a moving pose and a camera set that changes,
+    // shrinks and stays: the field is marked out of date exactly when
+    // the blocked cells changed, and after each step the kept field
+    // equals one computed from scratch
+    let ray = |a: f64, range_m: Option<f32>| LaserRay {
+        origin_m: [0.3, 0.0],
+        dir: [a.cos() as f32, a.sin() as f32],
+        blind: false,
+        range_m,
+    };
+    let mut map = GridMap::new(MapSettings::default(), [0.0, 0.0]);
+    let mut redone = 0;
+    let mut was_blocked = vec![false; map.dist.len()];
+    for step in 0..30 {
+        // a new pose every sixth step, the same scan in between
+        let at = (step / 6) as f64;
+        let pose = Pose2 {
+            x_m: 0.1 * at,
+            y_m: 0.02 * at,
+            theta_rad: 0.05 * at,
+        };
+        let rays: Vec<LaserRay> = (0..181)
+            .map(|j| {
+                let a = (j as f64 - 90.0).to_radians();
+                let range = if j % 7 == 0 {
+                    None
+                } else {
+                    Some(2.0 + (a * 3.0).sin() as f32)
+                };
+                ray(a, range)
+            })
+            .collect();
+        map.add_scan(pose, &rays);
+        let camera: Vec<[f64; 2]> = match step % 3 {
+            0 => wall_with_door(0.85),
+            _ => wall_with_door(0.85)[..100].to_vec(),
+        };
+        map.set_camera(&camera, &[]);
+        let blocked: Vec<bool> = (0..map.dist.len()).map(|i| map.is_blocked(i)).collect();
+        assert_eq!(map.dist_dirty, blocked != was_blocked, "step {step}");
+        was_blocked = blocked;
+        redone += usize::from(map.dist_dirty);
+        map.update_distances();
+        let mut fresh = map.clone();
+        fresh.dist = vec![fresh.dist_cap_m; fresh.dist.len()];
+        fresh.dist_dirty = true;
+        fresh.update_distances();
+        assert!(map.dist == fresh.dist, "step {step}");
+    }
+    // with the same scan and camera set again, some steps changed
+    // nothing blocked
+    assert!((1..30).contains(&redone), "{redone}");
+}
