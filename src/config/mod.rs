@@ -132,6 +132,7 @@ pub struct GoalSection {
     pub hold_s: f64,
     pub reached_within_m: f64,
     pub search_turn_radps: f64,
+    pub give_up_held_s: f64,
 }
 
 /// The control step's period (the daemon's control task): part of the
@@ -433,6 +434,7 @@ impl Settings {
             hold_for: std::time::Duration::from_secs_f64(g.hold_s),
             reached_within_m: g.reached_within_m,
             search_turn_radps: g.search_turn_radps,
+            give_up_held_after: std::time::Duration::from_secs_f64(g.give_up_held_s),
         }
     }
 

@@ -38,6 +38,9 @@ pub enum Outcome {
     Lost,
     /// A full search turn without seeing the word.
     NotFound,
+    /// Held on the way to the object too long (`goal.give_up_held_s`):
+    /// nothing it tried got it nearer.
+    GaveUp,
     /// A stop from the user (with `exit_on_arrival`).
     Stopped,
     /// The user quit.
@@ -639,7 +642,7 @@ impl Control {
         // the rear seen: it refuses a blind reverse), then the planner tries
         // again from there
         let held = state == SupervisorState::Stopped(crate::msg::StopReason::Obstacle);
-        self.tell_if_held(
+        let gave_up = self.tell_if_held(
             now,
             match (target.is_some(), held, stood_still) {
                 (false, _, _) => None,
@@ -649,6 +652,13 @@ impl Control {
                 (true, false, _) => None,
             },
         );
+        if let Some(e) = gave_up.filter(|_| event.is_none()) {
+            tracing::warn!(event = ?e, ?pose, "held on the way too long: the goal is given up");
+            self.say(e.say());
+            self.supervisor.goal_cleared();
+            self.planner_cmd = None;
+            return self.finish_step(Some(e));
+        }
         let rear = || {
             (
                 !self.supervisor.limits.turn_needs_seen_rear || self.rear.view(now, pose).seen,
@@ -759,6 +769,7 @@ impl Control {
                 }
                 Some(GoalEvent::Lost { .. }) => Some(Outcome::Lost),
                 Some(GoalEvent::NotFound { .. }) => Some(Outcome::NotFound),
+                Some(GoalEvent::GaveUp { .. }) => Some(Outcome::GaveUp),
                 _ => None,
             };
             if let Some(o) = outcome {

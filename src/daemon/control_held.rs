@@ -89,35 +89,66 @@ impl Control {
     /// holding it: the planner's commands came to nothing) for
     /// [`SAY_HELD_AFTER`] without a break: said once (a carer can move
     /// what is in the way; the chair goes on by itself when the way
-    /// clears, or stays on "stop").
-    pub(super) fn tell_if_held(&mut self, now: Stamp, held: Option<Held>) {
+    /// clears, or stays on "stop"). Held for the goal's
+    /// `give_up_held_after` without a break, driving to an object: the
+    /// goal is given up (the event to say and end the trip with).
+    pub(super) fn tell_if_held(
+        &mut self,
+        now: Stamp,
+        held: Option<Held>,
+    ) -> Option<crate::estimation::goal::GoalEvent> {
         let Some(held) = held else {
             self.held_since = None;
             self.said_held = false;
-            return;
+            return None;
         };
         let since = *self.held_since.get_or_insert(now);
-        if since.age_at(now) >= SAY_HELD_AFTER && !self.said_held {
+        let held_for = since.age_at(now);
+        if held_for >= SAY_HELD_AFTER && !self.said_held {
             self.said_held = true;
+            // driving to an object, the wait has an end
+            let until = match self.goal.state() {
+                crate::estimation::goal::GoalState::Tracking { .. } => format!(
+                    " for {:.0} more seconds",
+                    self.goal
+                        .settings
+                        .give_up_held_after
+                        .saturating_sub(held_for)
+                        .as_secs_f64()
+                ),
+                _ => String::new(),
+            };
             match held {
                 Held::Supervisor => {
                     tracing::warn!("held on the way with no way round");
-                    self.say(
-                        "Something is in my way and I cannot find a way round it. I will go on \
-                         when it is clear; say stop to stay here."
-                            .into(),
-                    );
+                    let wait = if until.is_empty() {
+                        "go on when it is clear".to_string()
+                    } else {
+                        format!("wait{until} for it to clear")
+                    };
+                    self.say(format!(
+                        "Something is in my way and I cannot find a way round it. I will \
+                         {wait}; say stop to stay here."
+                    ));
                 }
                 Held::StandingStill => {
                     tracing::warn!("standing still on the way, far from the place");
-                    self.say(
+                    self.say(format!(
                         "I have stopped on the way and cannot find how to get nearer. I will \
-                         keep trying; say stop to stay here."
-                            .into(),
-                    );
+                         keep trying{until}; say stop to stay here."
+                    ));
                 }
             }
         }
+        if held_for >= self.goal.settings.give_up_held_after {
+            let e = self.goal.give_up(held_for.as_secs_f64());
+            if e.is_some() {
+                self.held_since = None;
+                self.said_held = false;
+            }
+            return e;
+        }
+        None
     }
 }
 

@@ -687,3 +687,66 @@ fn held_or_standing_still_on_the_way_is_said_once_after_the_time() {
     assert_eq!(s.len(), 1, "{s:?}");
     assert!(s[0].contains("Something is in my way"), "{s:?}");
 }
+
+#[test]
+fn held_on_the_way_to_an_object_without_a_break_it_gives_the_goal_up_and_stops() {
+    let give_up = crate::config::Settings::defaults()
+        .goal_settings()
+        .give_up_held_after;
+    let give_up_ms = give_up.as_millis() as u64;
+    for exit_on_arrival in [true, false] {
+        let mut c = control(exit_on_arrival);
+        c.on_input(UserInput::Goto("chair".into()));
+        let mut tracker = Tracker::new(crate::config::Settings::defaults().tracker);
+        let chair = chair_at(3.0);
+        let mut said = Vec::new();
+        let mut gave_up_at = None;
+        // a box 0.7 m ahead holds the way to the place beside the chair
+        // (1.85 m ahead); no floor behind to back onto, no way round
+        for k in 0..=(give_up_ms + 2_000) / 50 {
+            let now = at(50 * k);
+            tracker.update(now, std::slice::from_ref(&chair), |_| true);
+            let out = step_with_points(&mut c, 50 * k, &tracker, vec![[0.7, 0.0], [4.0, 0.0]]);
+            // (the search turn's first steps until the track is confirmed)
+            if k > 5 {
+                assert_eq!(out.cmd.cmd, VelocityCmd::default(), "step {k}");
+            }
+            if out.said.iter().any(|s| s.contains("blocked for")) {
+                assert!(gave_up_at.is_none(), "given up twice: {said:?}");
+                gave_up_at = Some(50 * k);
+                assert_eq!(
+                    out.done,
+                    exit_on_arrival.then_some(Outcome::GaveUp),
+                    "{said:?}"
+                );
+            }
+            said.extend(out.said);
+        }
+        assert!(said.iter().any(|s| s == "Going to the chair."), "{said:?}");
+        // told first, with how long it will wait
+        let told = said
+            .iter()
+            .position(|s| s.contains("cannot find a way round it"))
+            .unwrap_or_else(|| panic!("not told: {said:?}"));
+        assert!(
+            said[told].contains(&format!(
+                "wait for {} more seconds",
+                (give_up - SAY_HELD_AFTER).as_secs()
+            )),
+            "{said:?}"
+        );
+        // then given up after the hold (which began a few steps in, once
+        // the track was confirmed and the supervisor held the way)
+        let at_ms = gave_up_at.unwrap_or_else(|| panic!("not given up: {said:?}"));
+        assert!(
+            (give_up_ms..=give_up_ms + 500).contains(&at_ms),
+            "given up at {at_ms} ms"
+        );
+        assert_eq!(
+            said.last().map(String::as_str),
+            Some("I cannot get to the chair: my way has been blocked for 40 seconds. Stopped."),
+            "{said:?}"
+        );
+        assert_eq!(*c.goal_state(), GoalState::None);
+    }
+}

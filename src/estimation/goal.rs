@@ -30,6 +30,10 @@ pub struct GoalSettings {
     /// While searching, the chair turns on the spot at this rate so the
     /// camera sweeps the room, rad/s (one full turn, then "not found").
     pub search_turn_radps: f64,
+    /// Held on the way to the object this long without a break (nothing
+    /// it tries gets it nearer): the goal is given up, the chair stops and
+    /// says so.
+    pub give_up_held_after: Duration,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -132,6 +136,12 @@ pub enum GoalEvent {
     NotFound {
         label: String,
     },
+    /// Held on the way for [`GoalSettings::give_up_held_after`] without a
+    /// break: the goal is dropped, the chair stops.
+    GaveUp {
+        label: String,
+        held_s: f64,
+    },
     /// A turn to look around is done: what is known around, nearest first.
     LookedAround {
         seen: Vec<String>,
@@ -160,6 +170,10 @@ impl GoalEvent {
                 format!("Arrived: this is as near the {label} as I can safely go.")
             }
             GoalEvent::NotFound { label } => format!("I cannot find a {label} here. Stopped."),
+            GoalEvent::GaveUp { label, held_s } => format!(
+                "I cannot get to the {label}: my way has been blocked for {held_s:.0} seconds. \
+                 Stopped."
+            ),
             GoalEvent::LookingFurther { label } => {
                 format!("I cannot see a {label} from here. Looking further.")
             }
@@ -293,6 +307,18 @@ impl GoalKeeper {
             track: *track,
         };
         Some(GoalEvent::ReachedNear { label, off_m })
+    }
+
+    /// Held on the way for `held_s` (the caller times it against
+    /// [`GoalSettings::give_up_held_after`]): a goal being driven to is
+    /// dropped; None in any other state.
+    pub fn give_up(&mut self, held_s: f64) -> Option<GoalEvent> {
+        let GoalState::Tracking { label, .. } = &self.state else {
+            return None;
+        };
+        let label = label.clone();
+        self.state = GoalState::None;
+        Some(GoalEvent::GaveUp { label, held_s })
     }
 
     /// The next place to search (odom), or None: no place is left, and the
@@ -796,5 +822,31 @@ mod tests {
         assert!(matches!(g.state(), GoalState::Reached { .. }));
         // once reached, no second arrival
         assert_eq!(g.arrive_near(short(0.0), 0.3), None);
+    }
+
+    #[test]
+    fn only_a_goal_being_driven_to_is_given_up() {
+        let mut tracker = Tracker::new(crate::config::Settings::defaults().tracker);
+        let mut g = GoalKeeper::new(crate::config::Settings::defaults().goal_settings());
+        // no goal, or searching: nothing to give up
+        assert_eq!(g.give_up(50.0), None);
+        g.set_prompt("chair");
+        assert_eq!(g.give_up(50.0), None);
+        assert!(matches!(g.state(), GoalState::Searching { .. }));
+        for k in 0..3 {
+            tracker.update(t(k as f64 * 0.1), &[chair_obj(3.0)], |_| true);
+            g.update(t(k as f64 * 0.1), &tracker, Pose2::default(), &[], &|_| {
+                true
+            });
+        }
+        assert!(matches!(g.state(), GoalState::Tracking { .. }));
+        let e = g.give_up(41.2).expect("given up");
+        assert_eq!(
+            e.say(),
+            "I cannot get to the chair: my way has been blocked for 41 seconds. Stopped."
+        );
+        assert_eq!(*g.state(), GoalState::None);
+        assert!(g.approach().is_none());
+        assert_eq!(g.give_up(50.0), None);
     }
 }

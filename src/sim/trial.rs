@@ -238,7 +238,10 @@ pub async fn run(
     let fell = w.fell_steps > 0;
     let said_unreachable = shortest.is_none()
         && w.v_mps.abs() < 0.05
-        && matches!(r.outcome, Outcome::NotFound | Outcome::Lost | Outcome::Quit);
+        && matches!(
+            r.outcome,
+            Outcome::NotFound | Outcome::Lost | Outcome::Quit | Outcome::GaveUp
+        );
     let success = (reached || said_unreachable) && !collision && !fell;
     let mut files = Vec::new();
     if let (Some(dir), Some(mcap)) = (record, mcap) {
