@@ -87,6 +87,9 @@ pub struct NavigationStats {
     /// Steps whose planned command the supervisor would have held and
     /// that drove a detour instead (`navigation::detour`).
     pub detours: u64,
+    /// Plans of the way on the map that found none (the local planner
+    /// then heads straight for the place).
+    pub no_way: u64,
 }
 
 pub struct Control {
@@ -544,9 +547,21 @@ impl Control {
             })
             .collect();
         let view = self.view;
-        let event = self.goal.update(now, tracker, pose, &obstacles_odom, &|t| {
-            t.expected_seen && view.is_some_and(|v| v.sees(&pose, &t.center_m))
-        });
+        // the place beside the object where the chair fits on the map of
+        // everything it has seen (not only what it sees now)
+        let map = self.route.as_mut().and_then(|r| r.map.as_mut());
+        if let Some(m) = map {
+            m.update_distances();
+        }
+        let map = self.route.as_ref().and_then(|r| r.map.as_ref());
+        let event = self.goal.update_where(
+            now,
+            tracker,
+            pose,
+            &obstacles_odom,
+            &|t| t.expected_seen && view.is_some_and(|v| v.sees(&pose, &t.center_m)),
+            &|p| map.is_none_or(|m| m.fits(p)),
+        );
         // a search turn held by something in the turn's circle: as good as
         // done from here; the keeper looks further, somewhere with room
         let turn_held = matches!(self.goal.state(), GoalState::Searching { .. })
@@ -784,6 +799,7 @@ impl Control {
             doorways_given_up: self.route.as_ref().map_or(0, |r| r.doorways_given_up),
             back_offs: self.back_off.count,
             detours: self.detours,
+            no_way: self.route.as_ref().map_or(0, |r| r.no_way),
         }
     }
 

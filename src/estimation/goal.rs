@@ -7,7 +7,7 @@ use std::time::Duration;
 
 use serde::Serialize;
 
-use super::tracker::{approach_pose, ApproachPose, Track, Tracker};
+use super::tracker::{approach_pose_where, ApproachPose, Track, Tracker};
 use crate::msg::{wrap_angle, Pose2, Stamp, VelocityCmd};
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -396,7 +396,32 @@ impl GoalKeeper {
         obstacles_odom: &[[f64; 2]],
         visible: &dyn Fn(&Track) -> bool,
     ) -> Option<GoalEvent> {
+        self.update_where(now, tracker, chair, obstacles_odom, visible, &|_| true)
+    }
+
+    /// [`GoalKeeper::update`], the place beside the object chosen where
+    /// `fits` admits it (odom: where the chair fits on the map of what it
+    /// has seen) when some side is; where no side is, as without it (what
+    /// the chair sees now decides).
+    pub fn update_where(
+        &mut self,
+        now: Stamp,
+        tracker: &Tracker,
+        chair: Pose2,
+        obstacles_odom: &[[f64; 2]],
+        visible: &dyn Fn(&Track) -> bool,
+        fits: &dyn Fn([f64; 2]) -> bool,
+    ) -> Option<GoalEvent> {
         let s = self.settings;
+        let approach_pose = |t: &Track,
+                             from: [f64; 2],
+                             standoff_m: f64,
+                             obstacles: &[[f64; 2]],
+                             clearance_m: f64| {
+            approach_pose_where(t, from, standoff_m, obstacles, clearance_m, fits).or_else(|| {
+                approach_pose_where(t, from, standoff_m, obstacles, clearance_m, &|_| true)
+            })
+        };
         let from = [chair.x_m, chair.y_m];
         let last_center = self.last_center;
         let in_view = |id: u64, label: &str| {
@@ -513,7 +538,7 @@ impl GoalKeeper {
                     self.state = GoalState::Searching { label };
                     self.search_heading = None;
                     self.search_turned_rad = 0.0;
-                    return self.update(now, tracker, chair, obstacles_odom, visible);
+                    return self.update_where(now, tracker, chair, obstacles_odom, visible, fits);
                 }
                 let there = (target[0] - from[0]).hypot(target[1] - from[1]) <= EXPLORED_WITHIN_M;
                 if there || since.age_at(now) > EXPLORE_FOR {
@@ -848,5 +873,41 @@ mod tests {
         assert_eq!(*g.state(), GoalState::None);
         assert!(g.approach().is_none());
         assert_eq!(g.give_up(50.0), None);
+    }
+
+    #[test]
+    fn the_place_beside_the_object_is_one_the_map_admits_where_there_is_one() {
+        let settings = crate::config::Settings::defaults();
+        let approach_with = |fits: &dyn Fn([f64; 2]) -> bool| {
+            let mut tracker = Tracker::new(settings.tracker);
+            let mut g = GoalKeeper::new(settings.goal_settings());
+            g.set_prompt("chair");
+            for k in 0..3 {
+                tracker.update(t(k as f64 * 0.1), &[chair_obj(3.0)], |_| true);
+                g.update_where(
+                    t(k as f64 * 0.1),
+                    &tracker,
+                    Pose2::default(),
+                    &[],
+                    &|_| true,
+                    fits,
+                );
+            }
+            g.approach().expect("an approach")
+        };
+        // nothing against it: straight on, between the chair and the object
+        let a = approach_with(&|_| true);
+        assert!((a.x_m - 1.6).abs() < 1e-6 && a.y_m.abs() < 1e-6, "{a:?}");
+        // the map has the near side blocked (something seen before, out of
+        // sight now): another side, still facing the object
+        let a = approach_with(&|p| p[0] > 2.0);
+        assert!(a.x_m > 2.0, "{a:?}");
+        assert!(
+            (a.yaw_rad - (0.0 - a.y_m).atan2(3.0 - a.x_m)).abs() < 1e-9,
+            "{a:?}"
+        );
+        // no side the map admits: as without the map
+        let a = approach_with(&|_| false);
+        assert!((a.x_m - 1.6).abs() < 1e-6 && a.y_m.abs() < 1e-6, "{a:?}");
     }
 }

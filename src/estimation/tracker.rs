@@ -275,6 +275,20 @@ pub fn approach_pose(
     obstacles: &[[f64; 2]],
     clearance_m: f64,
 ) -> Option<ApproachPose> {
+    approach_pose_where(track, from, standoff_m, obstacles, clearance_m, &|_| true)
+}
+
+/// [`approach_pose`] among the places `fits` also admits (odom: e.g. where
+/// the chair fits on the map of everything it has seen, not only what it
+/// sees now).
+pub fn approach_pose_where(
+    track: &Track,
+    from: [f64; 2],
+    standoff_m: f64,
+    obstacles: &[[f64; 2]],
+    clearance_m: f64,
+    fits: &dyn Fn([f64; 2]) -> bool,
+) -> Option<ApproachPose> {
     let (cx, cy) = (track.center_m[0], track.center_m[1]);
     let base = (from[1] - cy).atan2(from[0] - cx);
     let reach = |a: f64| {
@@ -332,7 +346,7 @@ pub fn approach_pose(
                     is_own(o) || segment_distance_sq([x, y], edge, *o) >= LINE_OF_SIGHT_M.powi(2)
                 })
             };
-            if free && in_sight() {
+            if free && fits([x, y]) && in_sight() {
                 return Some(ApproachPose {
                     x_m: x,
                     y_m: y,

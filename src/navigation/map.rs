@@ -374,7 +374,7 @@ impl GridMap {
     /// Brings the distance field up to date (two-pass chamfer, 1 and √2)
     /// within the seen box and the cap's reach about it: beyond, no
     /// blocked cell is within the cap (the field stays at the cap there).
-    fn update_distances(&mut self) {
+    pub fn update_distances(&mut self) {
         if !self.dist_dirty {
             return;
         }
@@ -466,6 +466,14 @@ impl GridMap {
     pub fn distance_m(&mut self, i: usize) -> f64 {
         self.update_distances();
         self.dist[i] as f64
+    }
+
+    /// Whether the chair fits at `p` (odom) as a way through the map
+    /// would pass there (off the map: nothing is known against it). The
+    /// distance field must be up to date ([`GridMap::update_distances`]).
+    pub fn fits(&self, p: [f64; 2]) -> bool {
+        self.cell(p)
+            .is_none_or(|i| self.cost_per_m(i, &|_| false).is_some())
     }
 
     /// The cost of a metre through cell `i` (None: the chair does not fit).

@@ -239,3 +239,19 @@ fn the_distance_field_is_redone_only_when_a_blocked_cell_changes_and_matches_a_f
     // nothing blocked
     assert!((1..30).contains(&redone), "{redone}");
 }
+
+#[test]
+fn the_chair_fits_where_a_way_would_pass_and_not_against_a_wall() {
+    let mut map = GridMap::new(MapSettings::default(), [0.0, 0.0]);
+    map.set_camera(&wall_with_door(0.85), &[]);
+    map.update_distances();
+    // far from the wall, in the doorway's middle, and off the map
+    assert!(map.fits([0.0, -2.0]));
+    assert!(map.fits([2.0, 1.0]));
+    assert!(map.fits([100.0, 0.0]));
+    // against the wall, and on it: the chair's half width does not fit
+    assert!(!map.fits([1.8, -2.0]));
+    assert!(!map.fits([2.0, -2.0]));
+    // as a way through the map has it: none ends against the wall
+    assert!(map.path([0.0, -2.0], [1.8, -2.0], 0.1).is_none());
+}

@@ -167,7 +167,11 @@ pub async fn run(
     settings.sim.seed = scene.seed;
     let settings = &settings;
     let mut world = SimWorld::in_room(scene.room.clone(), scene.start, settings.drive_params());
-    world.walkers = scene.walkers.iter().map(|w| (w.clone(), false)).collect();
+    world.walkers = scene
+        .walkers
+        .iter()
+        .map(|w| super::world::Walking::new(w.clone()))
+        .collect();
     let clock: Arc<dyn Clock> = Arc::new(TokioClock::new());
     let (devs, sim) = devices(settings, world, clock.clone()).map_err(|e| e.to_string())?;
     let (tx, rx) = tokio::sync::mpsc::channel(4);

@@ -76,6 +76,9 @@ pub struct Walker {
 
 /// A walking person keeps this far from the chair's footprint, m.
 pub const WALKER_KEEPS_M: f64 = 0.4;
+/// A walking person who has waited this long for the chair (which may be
+/// waiting for them) turns back and gives way, s.
+pub const WALKER_GIVES_WAY_AFTER_S: f64 = 3.0;
 
 #[derive(Debug, Clone)]
 pub struct SimWorld {
@@ -97,8 +100,28 @@ pub struct SimWorld {
     pub now: crate::msg::Stamp,
     /// Where base_link went (world), a point every 5 cm.
     pub trace: Vec<[f64; 2]>,
-    /// People walking, and whether each is on the way back.
-    pub walkers: Vec<(Walker, bool)>,
+    /// People walking.
+    pub walkers: Vec<Walking>,
+}
+
+/// A walking person and where they are in their walk.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Walking {
+    pub walker: Walker,
+    /// On the way back (to `from_m`).
+    pub back: bool,
+    /// How long they have waited for the chair, s.
+    pub waited_s: f64,
+}
+
+impl Walking {
+    pub fn new(walker: Walker) -> Walking {
+        Walking {
+            walker,
+            back: false,
+            waited_s: 0.0,
+        }
+    }
 }
 
 /// 2D segments of everything a laser at `height_m` sees: the walls and the
@@ -287,13 +310,15 @@ impl SimWorld {
     }
 
     /// Moves the walking people on by `dt_s` (each waits while the chair
-    /// is near where they would step).
+    /// is near where they would step, and after
+    /// [`WALKER_GIVES_WAY_AFTER_S`] turns back).
     fn walk(&mut self, dt_s: f64) {
         if self.walkers.is_empty() {
             return;
         }
         let outline = self.outline_world();
-        for (w, back) in self.walkers.iter_mut() {
+        for walking in self.walkers.iter_mut() {
+            let (w, back) = (&walking.walker, &mut walking.back);
             let Some(o) = self.room.objects.get(w.object) else {
                 continue;
             };
@@ -308,12 +333,27 @@ impl SimWorld {
                 here
             };
             let (lo, hi) = (next, [next[0] + w.size_m[0], next[1] + w.size_m[1]]);
-            if outline
-                .iter()
-                .any(|p| box_distance(lo, hi, *p) < WALKER_KEEPS_M)
+            let gap = |lo: [f64; 2], hi: [f64; 2]| {
+                outline
+                    .iter()
+                    .map(|p| box_distance(lo, hi, *p))
+                    .fold(f64::INFINITY, f64::min)
+            };
+            // a step within the keep-out that does not take them away
+            // from the chair waits (one away from it is taken: the chair
+            // may have come nearer than the keep-out to them)
+            let gap_next = gap(lo, hi);
+            if gap_next < WALKER_KEEPS_M
+                && gap_next <= gap(here, [here[0] + w.size_m[0], here[1] + w.size_m[1]])
             {
+                walking.waited_s += dt_s;
+                if walking.waited_s >= WALKER_GIVES_WAY_AFTER_S {
+                    *back = !*back;
+                    walking.waited_s = 0.0;
+                }
                 continue;
             }
+            walking.waited_s = 0.0;
             if let Some(o) = self.room.objects.get_mut(w.object) {
                 o.min_m[0] = lo[0];
                 o.min_m[1] = lo[1];
@@ -577,7 +617,7 @@ mod tests {
             speed_mps: 0.5,
             size_m: [0.45, 0.3, 1.7],
         };
-        w.walkers = vec![(walker.clone(), false)];
+        w.walkers = vec![Walking::new(walker.clone())];
         // 2 m at 0.5 m/s: there in 4 s, and back in another 4
         for _ in 0..400 {
             w.step(0.01, None, &mapping);
@@ -593,19 +633,40 @@ mod tests {
             y_m: 2.5,
             theta_rad: 0.0,
         };
-        for _ in 0..1000 {
+        let gap = |w: &SimWorld| {
+            let o = &w.room.objects[idx];
+            w.outline_world()
+                .iter()
+                .map(|p| box_distance([o.min_m[0], o.min_m[1]], [o.max_m[0], o.max_m[1]], *p))
+                .fold(f64::INFINITY, f64::min)
+        };
+        // (at 0.5 m/s from 1.0 they meet the chair's keep-out at 1.45,
+        // within 1 s)
+        for _ in 0..120 {
             w.step(0.01, None, &mapping);
         }
-        let o = &w.room.objects[idx];
-        let gap = w
-            .outline_world()
-            .iter()
-            .map(|p| box_distance([o.min_m[0], o.min_m[1]], [o.max_m[0], o.max_m[1]], *p))
-            .fold(f64::INFINITY, f64::min);
+        let waiting_at = w.room.objects[idx].min_m[1];
+        for _ in 0..130 {
+            w.step(0.01, None, &mapping);
+        }
+        let g = gap(&w);
         assert!(
-            (WALKER_KEEPS_M - 0.01..WALKER_KEEPS_M + 0.02).contains(&gap),
-            "{gap}"
+            (WALKER_KEEPS_M - 0.01..WALKER_KEEPS_M + 0.02).contains(&g),
+            "{g}"
         );
+        assert_eq!(w.room.objects[idx].min_m[1], waiting_at, "they waited");
+        // the chair waits too: after WALKER_GIVES_WAY_AFTER_S they turn
+        // back and give way
+        for _ in 0..210 {
+            w.step(0.01, None, &mapping);
+        }
+        assert!(w.walkers[0].back, "{:?}", w.walkers[0]);
+        assert!(
+            w.room.objects[idx].min_m[1] < waiting_at - 0.25,
+            "{} vs {waiting_at}",
+            w.room.objects[idx].min_m[1]
+        );
+        assert!(gap(&w) > WALKER_KEEPS_M + 0.25, "{}", gap(&w));
         assert_eq!(w.report.collision_steps, 0);
     }
 
