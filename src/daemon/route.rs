@@ -46,6 +46,11 @@ pub(super) const PASSAGE_SKIP_FOR: std::time::Duration = std::time::Duration::fr
 /// m.
 pub(super) const MIN_DOORWAY_M: f64 = 0.70;
 
+/// Held this far past a doorway's middle (base_link; the chair's rear,
+/// 0.45 m behind it, is out of the wall's half thickness), the passage is
+/// through and the planner takes over, m.
+pub(super) const HAND_BACK_HELD_PAST_M: f64 = 0.5;
+
 /// Replan this often, or when the goal moved this far (s, m).
 pub(super) const REPLAN_EVERY: std::time::Duration = std::time::Duration::from_secs(1);
 pub(super) const REPLAN_MOVED_M: f64 = 0.3;
@@ -236,8 +241,23 @@ impl Router {
             })
             .collect();
         passage.observe(&lasers_odom);
-        let held = state == SupervisorState::Stopped(crate::msg::StopReason::Obstacle);
+        // (a step down beyond the doorway holds it as an obstacle does)
+        let held = matches!(
+            state,
+            SupervisorState::Stopped(
+                crate::msg::StopReason::Obstacle | crate::msg::StopReason::DropOff
+            )
+        );
         *blocked = if held { blocked.or(Some(now)) } else { None };
+        if held && passage.door.local(from).0 > HAND_BACK_HELD_PAST_M {
+            // through, the straight way on held: the planner takes over
+            // from here (a turn or an arc the supervisor admits)
+            tracing::info!(center = ?passage.door.center, along_m = passage.door.local(from).0, "doorway: through, held beyond it");
+            self.passage = None;
+            self.path = None;
+            self.last_plan = None;
+            return None;
+        }
         let give_up = blocked.is_some_and(|b| b.age_at(now) >= PASSAGE_BLOCKED_FOR)
             || since.age_at(now) >= PASSAGE_AT_MOST;
         if give_up {
@@ -312,5 +332,59 @@ mod tests {
         r.carrot(at(period_ms + 50), [0.0, 0.0], [0.0, 3.0], 0.1);
         assert_eq!((r.planned, r.no_way), (3, 2));
         assert!(r.path.is_some());
+    }
+
+    #[test]
+    fn held_past_a_doorway_with_its_rear_out_the_planner_takes_over() {
+        // a wall along x = 2 with a 0.9 m doorway centred on y = 1
+        let wall: Vec<[f64; 2]> = (0..=600)
+            .map(|k| -6.0 + k as f64 * 0.02)
+            .filter(|y| (y - 1.0).abs() > 0.45)
+            .flat_map(|y| [[2.0, y], [2.05, y]])
+            .collect();
+        let start = |r: &mut Router| {
+            let mut map = GridMap::new(r.settings, [0.0, 0.0]);
+            map.set_camera(&wall, &[]);
+            r.map = Some(map);
+            let pose = crate::msg::Pose2 {
+                x_m: 0.6,
+                y_m: 1.0,
+                theta_rad: 0.0,
+            };
+            let cmd = r.through_doorway(
+                at(0),
+                pose,
+                [4.0, 1.0],
+                0.1,
+                SupervisorState::Navigating,
+                &[],
+            );
+            assert!(cmd.is_some(), "passing the doorway");
+            assert_eq!(r.doorways, 1);
+        };
+        let held = SupervisorState::Stopped(crate::msg::StopReason::DropOff);
+        let at_x = |x_m: f64| crate::msg::Pose2 {
+            x_m,
+            y_m: 1.0,
+            theta_rad: 0.0,
+        };
+        // held in the doorway (base_link 0.3 m past its middle): the
+        // passage goes on
+        let mut r = Router::new(MapSettings::default());
+        start(&mut r);
+        assert!(r
+            .through_doorway(at(50), at_x(2.33), [4.0, 1.0], 0.1, held, &[])
+            .is_some());
+        assert!(r.passage.is_some());
+        // held with the chair's rear out of it (0.6 m past): through, the
+        // planner takes over, nothing given up
+        let mut r = Router::new(MapSettings::default());
+        start(&mut r);
+        assert_eq!(
+            r.through_doorway(at(50), at_x(2.63), [4.0, 1.0], 0.1, held, &[]),
+            None
+        );
+        assert!(r.passage.is_none());
+        assert_eq!(r.doorways_given_up, 0);
     }
 }
