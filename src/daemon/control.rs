@@ -554,7 +554,7 @@ impl Control {
             m.update_distances();
         }
         let map = self.route.as_ref().and_then(|r| r.map.as_ref());
-        let event = self.goal.update_where(
+        let event = self.goal.update(
             now,
             tracker,
             pose,

@@ -388,22 +388,11 @@ impl GoalKeeper {
     /// goal outside the view (too close for the camera, behind the chair
     /// while it turns) or hidden behind something is not "lost" for being
     /// unseen; the tracker drops tracks missed where they should be seen.
+    /// The place beside the object is chosen where `fits` admits it (odom:
+    /// where the chair fits on the map of what it has seen) when some side
+    /// is; where no side is, as without it (what the chair sees now
+    /// decides).
     pub fn update(
-        &mut self,
-        now: Stamp,
-        tracker: &Tracker,
-        chair: Pose2,
-        obstacles_odom: &[[f64; 2]],
-        visible: &dyn Fn(&Track) -> bool,
-    ) -> Option<GoalEvent> {
-        self.update_where(now, tracker, chair, obstacles_odom, visible, &|_| true)
-    }
-
-    /// [`GoalKeeper::update`], the place beside the object chosen where
-    /// `fits` admits it (odom: where the chair fits on the map of what it
-    /// has seen) when some side is; where no side is, as without it (what
-    /// the chair sees now decides).
-    pub fn update_where(
         &mut self,
         now: Stamp,
         tracker: &Tracker,
@@ -538,7 +527,7 @@ impl GoalKeeper {
                     self.state = GoalState::Searching { label };
                     self.search_heading = None;
                     self.search_turned_rad = 0.0;
-                    return self.update_where(now, tracker, chair, obstacles_odom, visible, fits);
+                    return self.update(now, tracker, chair, obstacles_odom, visible, fits);
                 }
                 let there = (target[0] - from[0]).hypot(target[1] - from[1]) <= EXPLORED_WITHIN_M;
                 if there || since.age_at(now) > EXPLORE_FOR {
@@ -659,7 +648,11 @@ mod tests {
         let mut ev = Vec::new();
         for k in 0..3 {
             tracker.update(t(k as f64 * 0.1), &[chair_obj(3.0)], |_| true);
-            ev.extend(g.update(t(k as f64 * 0.1), &tracker, chair, &[], &|_| true));
+            ev.extend(
+                g.update(t(k as f64 * 0.1), &tracker, chair, &[], &|_| true, &|_| {
+                    true
+                }),
+            );
         }
         assert!(matches!(&ev[..], [GoalEvent::Acquired { label, .. }] if label == "chair"));
         let a = g.approach().expect("approach");
@@ -668,26 +661,32 @@ mod tests {
         assert!((a.x_m - 1.6).abs() < 1e-6 && a.y_m.abs() < 1e-6, "{a:?}");
         assert!(a.yaw_rad.abs() < 1e-9);
         // out of view: held after 1 s unseen
-        assert_eq!(g.update(t(1.1), &tracker, chair, &[], &|_| true), None);
+        assert_eq!(
+            g.update(t(1.1), &tracker, chair, &[], &|_| true, &|_| true),
+            None
+        );
         assert!(matches!(
-            g.update(t(1.3), &tracker, chair, &[], &|_| true),
+            g.update(t(1.3), &tracker, chair, &[], &|_| true, &|_| true),
             Some(GoalEvent::OutOfView { .. })
         ));
         assert!(g.approach().is_none(), "standing still while holding");
         // seen again within the hold time
         tracker.update(t(3.0), &[chair_obj(3.0)], |_| true);
         assert!(matches!(
-            g.update(t(3.0), &tracker, chair, &[], &|_| true),
+            g.update(t(3.0), &tracker, chair, &[], &|_| true, &|_| true),
             Some(GoalEvent::BackInView { .. })
         ));
         // gone for good: held 5 s, then lost, and the keeper says so
         assert!(matches!(
-            g.update(t(4.1), &tracker, chair, &[], &|_| true),
+            g.update(t(4.1), &tracker, chair, &[], &|_| true, &|_| true),
             Some(GoalEvent::OutOfView { .. })
         ));
-        assert_eq!(g.update(t(9.0), &tracker, chair, &[], &|_| true), None);
+        assert_eq!(
+            g.update(t(9.0), &tracker, chair, &[], &|_| true, &|_| true),
+            None
+        );
         let lost = g
-            .update(t(9.2), &tracker, chair, &[], &|_| true)
+            .update(t(9.2), &tracker, chair, &[], &|_| true, &|_| true)
             .expect("lost");
         assert!(matches!(lost, GoalEvent::Lost { .. }));
         assert!(
@@ -700,15 +699,9 @@ mod tests {
 
     #[test]
     fn a_renumbered_track_near_the_goal_is_still_the_goal() {
-        let mut tracker = Tracker::new(crate::config::Settings::defaults().tracker);
         let mut g = GoalKeeper::new(crate::config::Settings::defaults().goal_settings());
         g.set_prompt("chair");
-        for k in 0..3 {
-            tracker.update(t(k as f64 * 0.1), &[chair_obj(3.0)], |_| true);
-            g.update(t(k as f64 * 0.1), &tracker, Pose2::default(), &[], &|_| {
-                true
-            });
-        }
+        let mut tracker = see_a_chair_ahead(&mut g, &|_| true, &|_| true);
         let first = match g.state() {
             GoalState::Tracking { track, .. } => *track,
             s => panic!("{s:?}"),
@@ -725,9 +718,14 @@ mod tests {
             k += 1;
         }
         assert_eq!(
-            g.update(t(k as f64 * 0.1), &tracker, Pose2::default(), &[], &|_| {
-                true
-            }),
+            g.update(
+                t(k as f64 * 0.1),
+                &tracker,
+                Pose2::default(),
+                &[],
+                &|_| { true },
+                &|_| true
+            ),
             None
         );
         match g.state() {
@@ -741,26 +739,16 @@ mod tests {
     /// in view and not hidden, it is held and then lost.
     #[test]
     fn a_hidden_goal_is_not_held_or_lost() {
-        let mut tracker = Tracker::new(crate::config::Settings::defaults().tracker);
         let mut g = GoalKeeper::new(crate::config::Settings::defaults().goal_settings());
         g.set_prompt("chair");
         let should_see = |t: &Track| t.expected_seen;
-        for k in 0..3 {
-            tracker.update(t(k as f64 * 0.1), &[chair_obj(3.0)], |_| true);
-            g.update(
-                t(k as f64 * 0.1),
-                &tracker,
-                Pose2::default(),
-                &[],
-                &should_see,
-            );
-        }
+        let mut tracker = see_a_chair_ahead(&mut g, &should_see, &|_| true);
         assert!(matches!(g.state(), GoalState::Tracking { .. }));
         // hidden for 20 s: the tracker keeps it, the keeper drives on
         for k in 3..200 {
             let now = t(k as f64 * 0.1);
             tracker.update(now, &[], |_| false);
-            let ev = g.update(now, &tracker, Pose2::default(), &[], &should_see);
+            let ev = g.update(now, &tracker, Pose2::default(), &[], &should_see, &|_| true);
             assert_eq!(ev, None, "at {now:?}");
         }
         assert!(
@@ -773,7 +761,7 @@ mod tests {
         for k in 200..320 {
             let now = t(k as f64 * 0.1);
             tracker.update(now, &[], |_| true);
-            events.extend(g.update(now, &tracker, Pose2::default(), &[], &should_see));
+            events.extend(g.update(now, &tracker, Pose2::default(), &[], &should_see, &|_| true));
         }
         assert!(
             matches!(
@@ -786,15 +774,9 @@ mod tests {
 
     #[test]
     fn reached_when_at_the_approach_pose() {
-        let mut tracker = Tracker::new(crate::config::Settings::defaults().tracker);
         let mut g = GoalKeeper::new(crate::config::Settings::defaults().goal_settings());
         g.set_prompt("chair");
-        for k in 0..3 {
-            tracker.update(t(k as f64 * 0.1), &[chair_obj(3.0)], |_| true);
-            g.update(t(k as f64 * 0.1), &tracker, Pose2::default(), &[], &|_| {
-                true
-            });
-        }
+        let mut tracker = see_a_chair_ahead(&mut g, &|_| true, &|_| true);
         let at = Pose2 {
             x_m: 1.57,
             y_m: 0.02,
@@ -802,24 +784,41 @@ mod tests {
         };
         tracker.update(t(0.4), &[chair_obj(3.0)], |_| true);
         assert!(matches!(
-            g.update(t(0.4), &tracker, at, &[], &|_| true),
+            g.update(t(0.4), &tracker, at, &[], &|_| true, &|_| true),
             Some(GoalEvent::Reached { .. })
         ));
     }
 
+    /// Three sightings of a chair 3 m ahead (its track confirmed) given to
+    /// `g` from the origin, the place beside it where `fits` admits; the
+    /// tracker.
+    fn see_a_chair_ahead(
+        g: &mut GoalKeeper,
+        visible: &dyn Fn(&Track) -> bool,
+        fits: &dyn Fn([f64; 2]) -> bool,
+    ) -> Tracker {
+        let mut tracker = Tracker::new(crate::config::Settings::defaults().tracker);
+        for k in 0..3 {
+            tracker.update(t(k as f64 * 0.1), &[chair_obj(3.0)], |_| true);
+            g.update(
+                t(k as f64 * 0.1),
+                &tracker,
+                Pose2::default(),
+                &[],
+                visible,
+                fits,
+            );
+        }
+        tracker
+    }
+
     #[test]
     fn held_near_the_approach_pose_ends_as_near_as_it_goes() {
-        let mut tracker = Tracker::new(crate::config::Settings::defaults().tracker);
         let mut g = GoalKeeper::new(crate::config::Settings::defaults().goal_settings());
         g.set_prompt("chair");
         // not tracking yet: nothing to arrive at
         assert_eq!(g.arrive_near(Pose2::default(), 10.0), None);
-        for k in 0..3 {
-            tracker.update(t(k as f64 * 0.1), &[chair_obj(3.0)], |_| true);
-            g.update(t(k as f64 * 0.1), &tracker, Pose2::default(), &[], &|_| {
-                true
-            });
-        }
+        see_a_chair_ahead(&mut g, &|_| true, &|_| true);
         let Some(a) = g.approach() else {
             panic!("no approach: {:?}", g.state())
         };
@@ -851,19 +850,13 @@ mod tests {
 
     #[test]
     fn only_a_goal_being_driven_to_is_given_up() {
-        let mut tracker = Tracker::new(crate::config::Settings::defaults().tracker);
         let mut g = GoalKeeper::new(crate::config::Settings::defaults().goal_settings());
         // no goal, or searching: nothing to give up
         assert_eq!(g.give_up(50.0), None);
         g.set_prompt("chair");
         assert_eq!(g.give_up(50.0), None);
         assert!(matches!(g.state(), GoalState::Searching { .. }));
-        for k in 0..3 {
-            tracker.update(t(k as f64 * 0.1), &[chair_obj(3.0)], |_| true);
-            g.update(t(k as f64 * 0.1), &tracker, Pose2::default(), &[], &|_| {
-                true
-            });
-        }
+        see_a_chair_ahead(&mut g, &|_| true, &|_| true);
         assert!(matches!(g.state(), GoalState::Tracking { .. }));
         let e = g.give_up(41.2).expect("given up");
         assert_eq!(
@@ -877,22 +870,10 @@ mod tests {
 
     #[test]
     fn the_place_beside_the_object_is_one_the_map_admits_where_there_is_one() {
-        let settings = crate::config::Settings::defaults();
         let approach_with = |fits: &dyn Fn([f64; 2]) -> bool| {
-            let mut tracker = Tracker::new(settings.tracker);
-            let mut g = GoalKeeper::new(settings.goal_settings());
+            let mut g = GoalKeeper::new(crate::config::Settings::defaults().goal_settings());
             g.set_prompt("chair");
-            for k in 0..3 {
-                tracker.update(t(k as f64 * 0.1), &[chair_obj(3.0)], |_| true);
-                g.update_where(
-                    t(k as f64 * 0.1),
-                    &tracker,
-                    Pose2::default(),
-                    &[],
-                    &|_| true,
-                    fits,
-                );
-            }
+            see_a_chair_ahead(&mut g, &|_| true, fits);
             g.approach().expect("an approach")
         };
         // nothing against it: straight on, between the chair and the object
