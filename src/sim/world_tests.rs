@@ -1,0 +1,195 @@
+//! Tests of `sim::world` (split out to keep it readable).
+
+use super::*;
+
+fn mapping() -> JoystickMapping {
+    JoystickMapping {
+        forward_full_mps: 1.0,
+        reverse_full_mps: 0.5,
+        turn_full_radps: 1.5,
+        deadband: 3,
+    }
+}
+
+fn world() -> SimWorld {
+    SimWorld::living_room(DiffDriveParams::paper_chair())
+}
+
+#[test]
+fn casting_nearest_segments_first_finds_what_casting_against_all_does() {
+    let mut rng = crate::sim::scene::SplitMix64::new(11);
+    let segs: Vec<([f64; 2], [f64; 2])> = (0..120)
+        .map(|_| {
+            let p = [rng.range(-5.0, 5.0), rng.range(-5.0, 5.0)];
+            let a = rng.range(-3.2, 3.2);
+            let l = rng.range(0.0, 1.5);
+            (p, [p[0] + l * a.cos(), p[1] + l * a.sin()])
+        })
+        .collect();
+    let mut hits = 0;
+    for _ in 0..50 {
+        let o = [rng.range(-4.0, 4.0), rng.range(-4.0, 4.0)];
+        let sorted = by_distance(o, &segs);
+        for k in 0..360 {
+            let a = (k as f64).to_radians();
+            let brute = segs
+                .iter()
+                .filter_map(|s| ray_cast(o, a, std::slice::from_ref(s)))
+                .min_by(f64::total_cmp);
+            assert_eq!(
+                ray_cast_nearest_first(o, a, &sorted),
+                brute,
+                "from {o:?} at {k}°"
+            );
+            hits += usize::from(brute.is_some());
+        }
+    }
+    assert!(hits > 10_000, "{hits}");
+}
+
+#[test]
+fn the_start_is_free_and_a_wall_is_where_the_laser_says() {
+    let w = world();
+    assert!(w.clearance() > 0.3, "{}", w.clearance());
+    // a laser at the base, looking along the chair's heading
+    let scan = w.laser_scan(&Isometry3::identity(), 0);
+    let ahead = scan.ranges_m[(SensorParams::URG_04LX.afrt - SensorParams::URG_04LX.amin) as usize]
+        .expect("a return ahead");
+    let truth = ray_cast(
+        [w.truth.x_m, w.truth.y_m],
+        w.truth.theta_rad,
+        &segments_at(&w.room, 0.0),
+    )
+    .expect("hit");
+    assert!((ahead as f64 - truth).abs() < 0.002, "{ahead} vs {truth}");
+}
+
+#[test]
+fn a_walking_person_walks_to_and_fro_and_waits_for_the_chair() {
+    let mut w = world();
+    let mapping = mapping();
+    // across the room's free middle, the chair out of the way
+    w.truth = Pose2 {
+        x_m: 4.6,
+        y_m: 1.9,
+        theta_rad: 0.0,
+    };
+    let idx = w.room.objects.len();
+    w.room.objects.push(crate::sim::room::SimObject {
+        label_id: 0,
+        label: "person".into(),
+        min_m: [3.2, 1.0, 0.0],
+        max_m: [3.65, 1.3, 1.7],
+        color: [0, 0, 0],
+    });
+    let walker = Walker {
+        object: idx,
+        from_m: [3.2, 1.0],
+        to_m: [3.2, 3.0],
+        speed_mps: 0.5,
+        size_m: [0.45, 0.3, 1.7],
+    };
+    w.walkers = vec![Walking::new(walker.clone())];
+    // 2 m at 0.5 m/s: there in 4 s, and back in another 4
+    for _ in 0..400 {
+        w.step(0.01, None, &mapping);
+    }
+    assert!((w.room.objects[idx].min_m[1] - 3.0).abs() < 0.01);
+    for _ in 0..400 {
+        w.step(0.01, None, &mapping);
+    }
+    assert!((w.room.objects[idx].min_m[1] - 1.0).abs() < 0.01);
+    // the chair in their way: they stop short of it
+    w.truth = Pose2 {
+        x_m: 3.425,
+        y_m: 2.5,
+        theta_rad: 0.0,
+    };
+    let gap = |w: &SimWorld| {
+        let o = &w.room.objects[idx];
+        w.outline_world()
+            .iter()
+            .map(|p| box_distance([o.min_m[0], o.min_m[1]], [o.max_m[0], o.max_m[1]], *p))
+            .fold(f64::INFINITY, f64::min)
+    };
+    // (at 0.5 m/s from 1.0 they meet the chair's keep-out at 1.45,
+    // within 1 s)
+    for _ in 0..120 {
+        w.step(0.01, None, &mapping);
+    }
+    let waiting_at = w.room.objects[idx].min_m[1];
+    for _ in 0..130 {
+        w.step(0.01, None, &mapping);
+    }
+    let g = gap(&w);
+    assert!(
+        (WALKER_KEEPS_M - 0.01..WALKER_KEEPS_M + 0.02).contains(&g),
+        "{g}"
+    );
+    assert_eq!(w.room.objects[idx].min_m[1], waiting_at, "they waited");
+    // the chair waits too: after WALKER_GIVES_WAY_AFTER_S they turn
+    // back and give way
+    for _ in 0..210 {
+        w.step(0.01, None, &mapping);
+    }
+    assert!(w.walkers[0].back, "{:?}", w.walkers[0]);
+    assert!(
+        w.room.objects[idx].min_m[1] < waiting_at - 0.25,
+        "{} vs {waiting_at}",
+        w.room.objects[idx].min_m[1]
+    );
+    assert!(gap(&w) > WALKER_KEEPS_M + 0.25, "{}", gap(&w));
+    assert_eq!(w.report.collision_steps, 0);
+}
+
+#[test]
+fn driving_forward_moves_the_chair_and_the_wheels_agree() {
+    let mut w = world();
+    let mapping = mapping();
+    let mut odo = crate::estimation::odometry::WheelOdometry::new(w.drive);
+    odo.update(&w.wheel_ticks());
+    for _ in 0..200 {
+        w.step(0.01, Some((0, 30)), &mapping);
+        odo.update(&w.wheel_ticks());
+    }
+    let moved = (w.truth.x_m - w.start.x_m).hypot(w.truth.y_m - w.start.y_m);
+    assert!((moved - 0.555).abs() < 0.03, "{moved}");
+    let p = odo.pose();
+    assert!((p.x_m - moved).abs() < 0.01 && p.y_m.abs() < 0.01, "{p:?}");
+    // motors stopped: the chair comes to rest
+    for _ in 0..200 {
+        w.step(0.01, None, &mapping);
+    }
+    assert!(w.v_mps.abs() < 1e-3);
+}
+
+#[test]
+fn the_first_contact_says_what_was_touched_and_how_the_chair_moved() {
+    let mut w = world();
+    let mapping = mapping();
+    // a low box 0.3 m ahead of the chair's front
+    let (c, s) = (w.truth.theta_rad.cos(), w.truth.theta_rad.sin());
+    let at = [
+        w.truth.x_m + c * (w.footprint.front_m + 0.4),
+        w.truth.y_m + s * (w.footprint.front_m + 0.4),
+    ];
+    let idx = w.room.objects.len();
+    w.room.objects.push(crate::sim::room::SimObject {
+        label_id: 0,
+        label: "footstool".into(),
+        min_m: [at[0] - 0.1, at[1] - 0.1, 0.0],
+        max_m: [at[0] + 0.1, at[1] + 0.1, 0.25],
+        color: [0, 0, 0],
+    });
+    assert!(w.report.first_contact.is_none());
+    for _ in 0..300 {
+        w.step(0.01, Some((0, 30)), &mapping);
+    }
+    let contact = w
+        .report
+        .first_contact
+        .expect("the chair drove into the box");
+    assert_eq!(contact.object, Some(idx));
+    assert!(contact.v_mps > 0.1 && contact.time_s > 0.5, "{contact:?}");
+    assert!(w.report.collision_steps > 0);
+}
