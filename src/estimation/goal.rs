@@ -7,7 +7,7 @@ use std::time::Duration;
 
 use serde::Serialize;
 
-use super::tracker::{approach_pose_where, ApproachPose, Track, Tracker};
+use super::tracker::{approach_pose, ApproachPose, Track, Tracker};
 use crate::msg::{wrap_angle, Pose2, Stamp, VelocityCmd};
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -402,14 +402,13 @@ impl GoalKeeper {
         fits: &dyn Fn([f64; 2]) -> bool,
     ) -> Option<GoalEvent> {
         let s = self.settings;
-        let approach_pose = |t: &Track,
-                             from: [f64; 2],
-                             standoff_m: f64,
-                             obstacles: &[[f64; 2]],
-                             clearance_m: f64| {
-            approach_pose_where(t, from, standoff_m, obstacles, clearance_m, fits).or_else(|| {
-                approach_pose_where(t, from, standoff_m, obstacles, clearance_m, &|_| true)
-            })
+        let place_beside = |t: &Track,
+                            from: [f64; 2],
+                            standoff_m: f64,
+                            obstacles: &[[f64; 2]],
+                            clearance_m: f64| {
+            approach_pose(t, from, standoff_m, obstacles, clearance_m, fits)
+                .or_else(|| approach_pose(t, from, standoff_m, obstacles, clearance_m, &|_| true))
         };
         let from = [chair.x_m, chair.y_m];
         let last_center = self.last_center;
@@ -491,7 +490,7 @@ impl GoalKeeper {
                 };
                 let id = t.id;
                 self.last_center = Some(t.center_m);
-                match approach_pose(
+                match place_beside(
                     t,
                     from,
                     s.standoff_m + s.front_offset_m,
@@ -548,7 +547,7 @@ impl GoalKeeper {
                     let track = t.id;
                     self.last_center = Some(t.center_m);
                     // re-planned as the track updates
-                    let a = approach_pose(
+                    let a = place_beside(
                         t,
                         from,
                         s.standoff_m + s.front_offset_m,
@@ -587,7 +586,7 @@ impl GoalKeeper {
                 if let Some(t) = in_view(track, &label) {
                     let track = t.id;
                     self.last_center = Some(t.center_m);
-                    if let Some(approach) = approach_pose(
+                    if let Some(approach) = place_beside(
                         t,
                         from,
                         s.standoff_m + s.front_offset_m,

@@ -268,20 +268,12 @@ pub(crate) fn segment_distance_sq(a: [f64; 2], b: [f64; 2], p: [f64; 2]) -> f64 
     ex * ex + ey * ey
 }
 
+/// Where the chair stops beside `track`: `standoff_m` from its edge,
+/// facing it, on the free side nearest the way from `from`, clear of
+/// `obstacles` by `clearance_m` with the object in sight; only places
+/// `fits` admits (odom: e.g. where the chair fits on the map of everything
+/// it has seen; `&|_| true` for any).
 pub fn approach_pose(
-    track: &Track,
-    from: [f64; 2],
-    standoff_m: f64,
-    obstacles: &[[f64; 2]],
-    clearance_m: f64,
-) -> Option<ApproachPose> {
-    approach_pose_where(track, from, standoff_m, obstacles, clearance_m, &|_| true)
-}
-
-/// [`approach_pose`] among the places `fits` also admits (odom: e.g. where
-/// the chair fits on the map of everything it has seen, not only what it
-/// sees now).
-pub fn approach_pose_where(
     track: &Track,
     from: [f64; 2],
     standoff_m: f64,
@@ -463,14 +455,14 @@ mod tests {
     #[test]
     fn approach_pose_faces_the_object_from_the_free_side() {
         let t = one_track("chair", [3.0, 0.0, 0.4], 0.25);
-        let p = approach_pose(&t, [0.0, 0.0], 0.6, &[], 0.4).unwrap();
+        let p = approach_pose(&t, [0.0, 0.0], 0.6, &[], 0.4, &|_| true).unwrap();
         assert!(
             (p.x_m - (3.0 - 0.25 - 0.6)).abs() < 1e-6
                 && p.y_m.abs() < 1e-6
                 && p.yaw_rad.abs() < 1e-9
         );
         // something stands there: the next free direction, still facing it
-        let p = approach_pose(&t, [0.0, 0.0], 0.6, &[[2.15, 0.0]], 0.4).unwrap();
+        let p = approach_pose(&t, [0.0, 0.0], 0.6, &[[2.15, 0.0]], 0.4, &|_| true).unwrap();
         assert!(p.y_m.abs() > 0.1);
         let to_obj = (0.0 - p.y_m).atan2(3.0 - p.x_m);
         assert!((p.yaw_rad - to_obj).abs() < 1e-9);
@@ -481,7 +473,7 @@ mod tests {
                 [3.0 + 0.9 * a.cos(), 0.9 * a.sin()]
             })
             .collect();
-        assert!(approach_pose(&t, [0.0, 0.0], 0.6, &ring, 0.4).is_none());
+        assert!(approach_pose(&t, [0.0, 0.0], 0.6, &ring, 0.4, &|_| true).is_none());
     }
 
     #[test]
@@ -490,15 +482,15 @@ mod tests {
         // towards the chair seen by the lasers 0.3 m inside the box
         let t = one_track("desk", [3.0, 0.0, 0.4], 0.5);
         let face: Vec<[f64; 2]> = (-3..=3).map(|k| [2.8, k as f64 * 0.1]).collect();
-        let p = approach_pose(&t, [0.0, 0.0], 0.6, &face, 0.4).unwrap();
+        let p = approach_pose(&t, [0.0, 0.0], 0.6, &face, 0.4, &|_| true).unwrap();
         assert!((p.x_m - (2.8 - 0.6)).abs() < 1e-6, "{p:?}");
         // its points beside the way in, or nothing seen: the box's edge
         let aside: Vec<[f64; 2]> = vec![[2.8, 0.45]];
-        let p = approach_pose(&t, [0.0, 0.0], 0.6, &aside, 0.4).unwrap();
+        let p = approach_pose(&t, [0.0, 0.0], 0.6, &aside, 0.4, &|_| true).unwrap();
         assert!((p.x_m - (2.5 - 0.6)).abs() < 1e-6, "{p:?}");
         // a point outside the box (0.1 m short of it) is not the object's
         // edge: never beyond the box
-        let p = approach_pose(&t, [0.0, 0.0], 0.6, &[[2.45, 0.0]], 0.3).unwrap();
+        let p = approach_pose(&t, [0.0, 0.0], 0.6, &[[2.45, 0.0]], 0.3, &|_| true).unwrap();
         assert!((p.x_m - (2.5 - 0.6)).abs() < 1e-6, "{p:?}");
     }
 }
