@@ -11,7 +11,14 @@
 //!   Runtime library (scripts/fetch-onnxruntime.sh).
 //! - `yolo11n_model_only`: the same model's inference alone (its own
 //!   session, same settings, a pre-made input): the whole view's ratio
-//!   to it is what perception adds to the model.
+//!   to it is what perception adds to the model. After both, each stage's
+//!   median over 50 views is printed (`whole_view stages`).
+//! - `registration_640`: the MRPT frame's depth registered into its
+//!   colour camera.
+//!
+//! Environment: `OPENNAV_BENCH_PROVIDER` = cpu (default), cuda or
+//! tensorrt (a provider the library lacks is not measured);
+//! `OPENNAV_BENCH_THREADS`, `OPENNAV_BENCH_DETECTOR` (another YOLO11n file).
 //!
 //! Run: `cargo bench --bench perception`
 
@@ -25,6 +32,8 @@ use opennav::msg::{Intrinsics, RgbdCalibration};
 use opennav::perception::detector::{open_detector, Detection, DetectorSettings};
 use opennav::perception::image::letterbox_chw;
 use opennav::perception::pipeline::{objects_from_masks, GeometrySettings, Pipeline};
+use opennav::perception::registration::register_depth_to_color;
+use opennav::perception::runtime::ExecutionProviderKind;
 use opennav::perception::segmenter::DepthBoxSegmenter;
 
 /// A 640×480 scene: a wall at 3.5 m and 10 box-shaped objects in front.
@@ -132,6 +141,19 @@ fn bench_geometry(c: &mut Criterion) {
                 .collect::<Vec<_>>()
         })
     });
+    // depth registered into the colour camera: the real MRPT frame and rig
+    // (a separate depth camera, 640×480 both)
+    let fx = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/mrpt_openni2");
+    let cal = RgbdCalibration::load(&fx.join("calibration.json")).expect("calibration");
+    let mrpt_depth =
+        DepthImage::load_png(&fx.join("depth_mm.png"), cal.depth_scale_m as f32).expect("depth");
+    let (depth_k, color_from_depth) = cal.depth.expect("the MRPT rig has a depth camera");
+    c.bench_function("registration_640", |b| {
+        b.iter(|| {
+            register_depth_to_color(&mrpt_depth, &depth_k, &color_from_depth, &cal.color)
+                .expect("registration")
+        })
+    });
     let img = RgbImage::filled(640, 480, [100, 150, 200]).expect("image");
     c.bench_function("letterbox_640", |b| {
         b.iter(|| letterbox_chw(&img, 640, 114))
@@ -145,6 +167,11 @@ fn shared() -> PathBuf {
 }
 
 fn bench_whole_view(c: &mut Criterion) {
+    // a provider that fails to register is logged (and the view runs on
+    // the CPU): show it
+    let _ = tracing_subscriber::fmt()
+        .with_writer(std::io::stderr)
+        .try_init();
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
     // OPENNAV_BENCH_DETECTOR: another YOLO11n file, e.g. the INT8 one the
     // fixture step makes (tests/fixtures/generated/yolo11n_int8.onnx)
@@ -182,6 +209,30 @@ fn bench_whole_view(c: &mut Criterion) {
         ..Default::default()
     };
     settings.session.intra_threads = threads;
+    // OPENNAV_BENCH_PROVIDER: cpu (default), cuda or tensorrt; a GPU
+    // provider the library lacks is not measured (never a CPU figure under
+    // a GPU name)
+    let provider = std::env::var("OPENNAV_BENCH_PROVIDER").unwrap_or_else(|_| "cpu".into());
+    settings.session.provider = match provider.as_str() {
+        "cpu" => ExecutionProviderKind::Cpu,
+        "cuda" => ExecutionProviderKind::Cuda,
+        "tensorrt" => ExecutionProviderKind::Tensorrt,
+        other => {
+            eprintln!(
+                "\n*** whole_view_yolo11n_depth NOT RUN: OPENNAV_BENCH_PROVIDER={other:?} \
+                 is none of cpu, cuda, tensorrt ***\n"
+            );
+            return;
+        }
+    };
+    if !opennav::perception::runtime::provider_available(settings.session.provider) {
+        eprintln!(
+            "\n*** whole_view_yolo11n_depth NOT RUN: {} has no {provider} provider ***\n",
+            lib.display()
+        );
+        return;
+    }
+    eprintln!("whole_view: provider {provider}, library {}", lib.display());
     let det = open_detector(&model, &settings, None).expect("model");
     let mut p = Pipeline::new(
         det,
@@ -214,6 +265,25 @@ fn bench_whole_view(c: &mut Criterion) {
         })
     });
     group.finish();
+    // where the view's time goes: each stage's median over 50 views
+    let mut stages: Vec<[f64; 5]> = (0..50)
+        .map(|_| {
+            let t = p.process(&color, Some(&depth)).expect("view").timing_ms;
+            [t.registration, t.detector, t.segmenter, t.geometry, t.total]
+        })
+        .collect();
+    let median = |i: usize, stages: &mut Vec<[f64; 5]>| {
+        stages.sort_by(|a, b| a[i].total_cmp(&b[i]));
+        stages[stages.len() / 2][i]
+    };
+    let names = ["registration", "detector", "segmenter", "geometry", "total"];
+    let line: Vec<String> = (0..5)
+        .map(|i| format!("{} {:.3} ms", names[i], median(i, &mut stages)))
+        .collect();
+    eprintln!(
+        "whole_view stages ({provider}, median of 50 views): {}",
+        line.join(", ")
+    );
 }
 
 criterion_group!(benches, bench_geometry, bench_whole_view);

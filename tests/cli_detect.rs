@@ -47,7 +47,7 @@ fn detect_2d_json_schema() {
     assert!(dets[0]["score"].as_f64().expect("score") > 0.9);
     assert_eq!(dets[0]["box_xyxy"].as_array().expect("box").len(), 4);
     assert!(v["objects"].as_array().expect("objects").is_empty());
-    for k in ["detector", "segmenter", "geometry", "total"] {
+    for k in ["registration", "detector", "segmenter", "geometry", "total"] {
         assert!(v["timing_ms"][k].is_number(), "timing_ms.{k}");
     }
 }

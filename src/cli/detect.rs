@@ -169,8 +169,8 @@ pub fn run(mut settings: Settings, args: DetectArgs) -> Result<(), Failure> {
             }
             let t = report.timing_ms;
             println!(
-                "timing: detector {:.1} ms, segmenter {:.1} ms, geometry {:.1} ms, total {:.1} ms",
-                t.detector, t.segmenter, t.geometry, t.total
+                "timing: registration {:.1} ms, detector {:.1} ms, segmenter {:.1} ms, geometry {:.1} ms, total {:.1} ms",
+                t.registration, t.detector, t.segmenter, t.geometry, t.total
             );
         }
     }

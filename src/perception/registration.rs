@@ -27,44 +27,74 @@ pub fn register_depth_to_color(
     let r = color_from_depth.rotation.to_rotation_matrix().into_inner();
     let t = color_from_depth.translation.vector;
     let k = depth_intrinsics;
-    // R's first column times each column's x part
-    let by_column: Vec<[f64; 3]> = (0..dw)
-        .map(|u| {
-            let a = (u as f64 - k.cx) / k.fx;
-            [r[(0, 0)] * a, r[(1, 0)] * a, r[(2, 0)] * a]
-        })
-        .collect();
+    // the colour pixel is (a/c, b/c) with [a, b, c] = P·(z·R·ray + t) and
+    // P = [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]; P·R·ray splits into a
+    // column part and a row part, made once per column and per row
+    let pr = nalgebra::Matrix3::new(
+        color.fx, 0.0, color.cx, 0.0, color.fy, color.cy, 0.0, 0.0, 1.0,
+    ) * r;
+    let pt = [
+        color.fx * t.x + color.cx * t.z,
+        color.fy * t.y + color.cy * t.z,
+        t.z,
+    ];
+    // per column: the column part of P·R·ray, one array per row of P·R
+    // (so that a row's pixels are worked two or four at a time)
+    let column = |i: usize| -> Vec<f64> {
+        (0..dw)
+            .map(|u| pr[(i, 0)] * ((u as f64 - k.cx) / k.fx))
+            .collect()
+    };
+    let (col_a, col_b, col_c) = (column(0), column(1), column(2));
     let (w_lim, h_lim) = (cw as f64 - 0.5, ch as f64 - 0.5);
+    // each pixel's colour index (or NONE) and depth, a row at a time: a
+    // loop without branches, then the scatter keeping the nearest
+    const NONE: u32 = u32::MAX;
+    let mut row_idx = vec![NONE; dw];
+    let mut row_z = vec![0f32; dw];
     for (v, row) in depth.data().chunks_exact(dw.max(1)).take(dh).enumerate() {
         let b = (v as f64 - k.cy) / k.fy;
-        let by_row = [
-            r[(0, 1)] * b + r[(0, 2)],
-            r[(1, 1)] * b + r[(1, 2)],
-            r[(2, 1)] * b + r[(2, 2)],
-        ];
-        for (&z, col) in row.iter().zip(&by_column) {
-            if !is_valid_depth(z) {
-                continue;
-            }
-            let z = z as f64;
-            let pz = z * (col[2] + by_row[2]) + t.z;
-            if pz <= 0.0 {
-                continue;
-            }
-            let px = z * (col[0] + by_row[0]) + t.x;
-            let py = z * (col[1] + by_row[1]) + t.y;
-            let uc = color.fx * px / pz + color.cx;
-            let vc = color.fy * py / pz + color.cy;
+        let row_a = pr[(0, 1)] * b + pr[(0, 2)];
+        let row_b = pr[(1, 1)] * b + pr[(1, 2)];
+        let row_c = pr[(2, 1)] * b + pr[(2, 2)];
+        let columns = col_a.iter().zip(&col_b).zip(&col_c);
+        let outs = row_idx.iter_mut().zip(row_z.iter_mut());
+        for ((&z32, ((&ca, &cb), &cc)), (idx_out, z_out)) in row.iter().zip(columns).zip(outs) {
+            let z = z32 as f64;
+            let pz = z * (cc + row_c) + pt[2];
+            let inv_pz = 1.0 / pz;
+            let uc = (z * (ca + row_a) + pt[0]) * inv_pz;
+            let vc = (z * (cb + row_b) + pt[1]) * inv_pz;
             // the nearest pixel: rounding half away from zero, as
             // f64::round, without its library call (in range, the value
             // plus a half truncates to it)
-            if !(uc > -0.5 && uc < w_lim && vc > -0.5 && vc < h_lim) {
+            let inside = (z32 > 0.0)
+                & (z32 < f32::INFINITY)
+                & (pz > 0.0)
+                & (uc > -0.5)
+                & (uc < w_lim)
+                & (vc > -0.5)
+                & (vc < h_lim);
+            // SAFETY: max/min bring any value, NaN too, into
+            // [0, limit + 1], where the truncation to i32 is defined (a
+            // plain `as` would saturate, one pixel at a time)
+            let (ui, vi) = unsafe {
+                (
+                    ((uc + 0.5).max(0.0).min(w_lim + 1.0)).to_int_unchecked::<i32>(),
+                    ((vc + 0.5).max(0.0).min(h_lim + 1.0)).to_int_unchecked::<i32>(),
+                )
+            };
+            let idx = vi.wrapping_mul(cw as i32).wrapping_add(ui);
+            *idx_out = if inside { idx as u32 } else { NONE };
+            *z_out = pz as f32;
+        }
+        for (&idx, &zc) in row_idx.iter().zip(&row_z) {
+            if idx == NONE {
                 continue;
             }
-            let idx = (vc + 0.5) as usize * cw + (uc + 0.5) as usize;
-            let zc = pz as f32;
-            if zc < out[idx] {
-                out[idx] = zc;
+            let cell = &mut out[idx as usize];
+            if zc < *cell {
+                *cell = zc;
             }
         }
     }

@@ -257,29 +257,28 @@ impl Model {
     }
 }
 
+/// Whether the loaded ONNX Runtime library can run on `kind` (the CPU
+/// always; CUDA and TensorRT only with the GPU build, PyPI
+/// `onnxruntime-gpu`). Call after [`init_runtime`].
+pub fn provider_available(kind: ExecutionProviderKind) -> bool {
+    match kind {
+        ExecutionProviderKind::Cpu => true,
+        ExecutionProviderKind::Cuda => ort::ep::CUDA::is_available().unwrap_or(false),
+        ExecutionProviderKind::Tensorrt => ort::ep::TensorRT::is_available().unwrap_or(false),
+    }
+}
+
 fn register_provider(
     builder: ort::session::builder::SessionBuilder,
     kind: ExecutionProviderKind,
     model: &str,
 ) -> Result<ort::session::builder::SessionBuilder, RuntimeError> {
-    let (available, dispatch) = match kind {
+    let dispatch = match kind {
         ExecutionProviderKind::Cpu => return Ok(builder),
-        ExecutionProviderKind::Cuda => {
-            let ep = ort::ep::CUDA::default();
-            (
-                ort::ep::CUDA::is_available().unwrap_or(false),
-                ep.build().error_on_failure(),
-            )
-        }
-        ExecutionProviderKind::Tensorrt => {
-            let ep = ort::ep::TensorRT::default();
-            (
-                ort::ep::TensorRT::is_available().unwrap_or(false),
-                ep.build().error_on_failure(),
-            )
-        }
+        ExecutionProviderKind::Cuda => ort::ep::CUDA::default().build().error_on_failure(),
+        ExecutionProviderKind::Tensorrt => ort::ep::TensorRT::default().build().error_on_failure(),
     };
-    if !available {
+    if !provider_available(kind) {
         tracing::warn!(
             provider = ?kind,
             model,
