@@ -31,10 +31,12 @@ use opennav::msg::{DepthImage, RgbImage};
 use opennav::msg::{Intrinsics, RgbdCalibration};
 use opennav::perception::detector::{open_detector, Detection, DetectorSettings};
 use opennav::perception::image::letterbox_chw;
-use opennav::perception::pipeline::{objects_from_masks, GeometrySettings, Pipeline};
+use opennav::perception::pipeline::{objects_from_masks, GeometrySettings, Pipeline, Timing};
 use opennav::perception::registration::register_depth_to_color;
 use opennav::perception::runtime::ExecutionProviderKind;
 use opennav::perception::segmenter::DepthBoxSegmenter;
+use serde::de::IntoDeserializer;
+use serde::Deserialize;
 
 /// A 640×480 scene: a wall at 3.5 m and 10 box-shaped objects in front.
 fn scene() -> (DepthImage, Vec<Detection>) {
@@ -213,18 +215,18 @@ fn bench_whole_view(c: &mut Criterion) {
     // provider the library lacks is not measured (never a CPU figure under
     // a GPU name)
     let provider = std::env::var("OPENNAV_BENCH_PROVIDER").unwrap_or_else(|_| "cpu".into());
-    settings.session.provider = match provider.as_str() {
-        "cpu" => ExecutionProviderKind::Cpu,
-        "cuda" => ExecutionProviderKind::Cuda,
-        "tensorrt" => ExecutionProviderKind::Tensorrt,
-        other => {
-            eprintln!(
-                "\n*** whole_view_yolo11n_depth NOT RUN: OPENNAV_BENCH_PROVIDER={other:?} \
-                 is none of cpu, cuda, tensorrt ***\n"
-            );
-            return;
-        }
-    };
+    // the names the config takes (`runtime.execution_provider`)
+    settings.session.provider =
+        match ExecutionProviderKind::deserialize(provider.as_str().into_deserializer()) {
+            Ok(kind) => kind,
+            Err(e) => {
+                let e: serde::de::value::Error = e;
+                eprintln!(
+                    "\n*** whole_view_yolo11n_depth NOT RUN: OPENNAV_BENCH_PROVIDER: {e} ***\n"
+                );
+                return;
+            }
+        };
     if !opennav::perception::runtime::provider_available(settings.session.provider) {
         eprintln!(
             "\n*** whole_view_yolo11n_depth NOT RUN: {} has no {provider} provider ***\n",
@@ -266,19 +268,25 @@ fn bench_whole_view(c: &mut Criterion) {
     });
     group.finish();
     // where the view's time goes: each stage's median over 50 views
-    let mut stages: Vec<[f64; 5]> = (0..50)
-        .map(|_| {
-            let t = p.process(&color, Some(&depth)).expect("view").timing_ms;
-            [t.registration, t.detector, t.segmenter, t.geometry, t.total]
-        })
+    let views: Vec<Timing> = (0..50)
+        .map(|_| p.process(&color, Some(&depth)).expect("view").timing_ms)
         .collect();
-    let median = |i: usize, stages: &mut Vec<[f64; 5]>| {
-        stages.sort_by(|a, b| a[i].total_cmp(&b[i]));
-        stages[stages.len() / 2][i]
+    type Stage = fn(&Timing) -> f64;
+    let median = |stage: Stage| {
+        let mut ms: Vec<f64> = views.iter().map(stage).collect();
+        ms.sort_by(f64::total_cmp);
+        ms[ms.len() / 2]
     };
-    let names = ["registration", "detector", "segmenter", "geometry", "total"];
-    let line: Vec<String> = (0..5)
-        .map(|i| format!("{} {:.3} ms", names[i], median(i, &mut stages)))
+    let stages: [(&str, Stage); 5] = [
+        ("registration", |t| t.registration),
+        ("detector", |t| t.detector),
+        ("segmenter", |t| t.segmenter),
+        ("geometry", |t| t.geometry),
+        ("total", |t| t.total),
+    ];
+    let line: Vec<String> = stages
+        .iter()
+        .map(|(name, stage)| format!("{name} {:.3} ms", median(*stage)))
         .collect();
     eprintln!(
         "whole_view stages ({provider}, median of 50 views): {}",
