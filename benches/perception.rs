@@ -13,6 +13,10 @@
 //!   session, same settings, a pre-made input): the whole view's ratio
 //!   to it is what perception adds to the model. After both, each stage's
 //!   median over 50 views is printed (`whole_view stages`).
+//! - `whole_view_pipelined`: the same views as a stream of frames
+//!   (`Pipeline::process_stream`: the next frame's depth registration and
+//!   letterbox, and the last frame's masks and geometry, beside the
+//!   model): the time per view is the stream's period.
 //! - `registration_640`: the MRPT frame's depth registered into its
 //!   colour camera.
 //!
@@ -247,7 +251,7 @@ fn bench_whole_view(c: &mut Criterion) {
     // the bare model: the same ONNX file in its own session with the same
     // settings, one pre-made 640×640 input, nothing before or after
     let bare = opennav::perception::runtime::Model::load(&model, &settings.session).expect("model");
-    let input = bare.signature.inputs[0].name.clone();
+    let input_name = bare.signature.inputs[0].name.clone();
     let (chw, _) = letterbox_chw(&color, 640, 114);
     let mut bare = bare;
     let mut group = c.benchmark_group("whole_view");
@@ -255,22 +259,78 @@ fn bench_whole_view(c: &mut Criterion) {
     group.bench_function("whole_view_yolo11n_depth", |b| {
         b.iter(|| p.process(&color, Some(&depth)).expect("view"))
     });
+    // a stream of frames, pipelined: the next frame prepared and the last
+    // lifted while the model runs; the time per view is the stream's
+    // period (each frame arrives owned, as from the camera)
+    group.bench_function("whole_view_pipelined", |b| {
+        b.iter_custom(|views| {
+            let frames = (0..views).map(|_| (color.clone(), Some(depth.clone())));
+            let t = std::time::Instant::now();
+            p.process_stream(frames, |v| {
+                v.expect("view");
+                true
+            });
+            t.elapsed()
+        })
+    });
     group.bench_function("yolo11n_model_only", |b| {
         b.iter(|| {
             let t = ort::value::Tensor::from_array((vec![1usize, 3, 640, 640], chw.clone()))
                 .expect("tensor");
             let out = bare
                 .session
-                .run(ort::inputs![input.as_str() => t])
+                .run(ort::inputs![input_name.as_str() => t])
                 .expect("inference");
             out.len()
         })
     });
     group.finish();
-    // where the view's time goes: each stage's median over 50 views
+    // where the view's time goes: each stage's median over 50 views, one
+    // view at a time
     let views: Vec<Timing> = (0..50)
         .map(|_| p.process(&color, Some(&depth)).expect("view").timing_ms)
         .collect();
+    print_stages(&format!("whole_view stages ({provider}"), &views);
+    // and as a pipelined stream: its detector stage is the model and the
+    // decoding (the letterbox made beside the registration), `total` a
+    // view's latency from its frame to its objects
+    let mut views = Vec::new();
+    p.process_stream((0..50).map(|_| (color.clone(), Some(depth.clone()))), |v| {
+        views.push(v.expect("view").timing_ms);
+        true
+    });
+    print_stages(&format!("whole_view_pipelined stages ({provider}"), &views);
+    // the period over one long stream against the bare model over as many
+    // runs, alternated: each view's time where the model is the limit
+    const LONG: u32 = 300;
+    for round in 1..=2 {
+        let t = std::time::Instant::now();
+        p.process_stream(
+            (0..LONG).map(|_| (color.clone(), Some(depth.clone()))),
+            |v| {
+                v.expect("view");
+                true
+            },
+        );
+        let stream_ms = t.elapsed().as_secs_f64() * 1e3 / f64::from(LONG);
+        let t = std::time::Instant::now();
+        for _ in 0..LONG {
+            let input = ort::value::Tensor::from_array((vec![1usize, 3, 640, 640], chw.clone()))
+                .expect("tensor");
+            bare.session
+                .run(ort::inputs![input_name.as_str() => input])
+                .expect("inference");
+        }
+        let model_ms = t.elapsed().as_secs_f64() * 1e3 / f64::from(LONG);
+        eprintln!(
+            "whole_view_pipelined period ({provider}, {LONG} frames, round {round}): {stream_ms:.3} ms a view against the model alone's {model_ms:.3} ms: {:.2}x",
+            stream_ms / model_ms
+        );
+    }
+}
+
+/// Each stage's median over the views, on one line.
+fn print_stages(what: &str, views: &[Timing]) {
     type Stage = fn(&Timing) -> f64;
     let median = |stage: Stage| {
         let mut ms: Vec<f64> = views.iter().map(stage).collect();
@@ -289,7 +349,8 @@ fn bench_whole_view(c: &mut Criterion) {
         .map(|(name, stage)| format!("{name} {:.3} ms", median(*stage)))
         .collect();
     eprintln!(
-        "whole_view stages ({provider}, median of 50 views): {}",
+        "{what}, median of {} views): {}",
+        views.len(),
         line.join(", ")
     );
 }

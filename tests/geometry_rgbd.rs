@@ -155,3 +155,110 @@ fn registration_changes_little_for_this_rig() {
         .fold((f32::MAX, f32::MIN), |(a, b), &z| (a.min(z), b.max(z)));
     assert!(lo > 1.6 && hi < 2.6, "{lo}..{hi}");
 }
+
+/// The MRPT frame mirrored left to right (colour and depth): another view
+/// of the same kind for a stream.
+fn mirrored(color: &RgbImage, depth: &DepthImage) -> (RgbImage, DepthImage) {
+    let (w, h) = (color.width(), color.height());
+    let mut rgb = Vec::with_capacity(w * h * 3);
+    for v in 0..h {
+        for u in (0..w).rev() {
+            rgb.extend_from_slice(&color.data()[(v * w + u) * 3..(v * w + u) * 3 + 3]);
+        }
+    }
+    let (dw, dh) = (depth.width(), depth.height());
+    let mut d = Vec::with_capacity(dw * dh);
+    for v in 0..dh {
+        for u in (0..dw).rev() {
+            d.push(depth.data()[v * dw + u]);
+        }
+    }
+    (
+        RgbImage::new(w, h, rgb).expect("rgb"),
+        DepthImage::new(dw, dh, d).expect("depth"),
+    )
+}
+
+/// Views pipelined across frames (the next frame prepared while the model
+/// runs, the last one lifted) are each frame's own view, in order: the
+/// same detections, objects and drops as one view at a time; a frame with
+/// a depth image of the wrong size gets its error and the stream goes on;
+/// the caller can end it early.
+#[test]
+fn a_pipelined_stream_gives_each_frame_its_own_view() {
+    common::init_ort();
+    let cal = RgbdCalibration::load(&common::mrpt("calibration.json")).expect("calibration");
+    let color = RgbImage::load(&common::mrpt("rgb.png")).expect("rgb");
+    let depth = DepthImage::load_png(&common::mrpt("depth_mm.png"), cal.depth_scale_m as f32)
+        .expect("depth");
+    let (color_m, depth_m) = mirrored(&color, &depth);
+    let settings = DetectorSettings {
+        score_threshold: 0.1,
+        ..Default::default()
+    };
+    let det = open_detector(&common::yolo11n(), &settings, None).expect("model");
+    let mut p = Pipeline::new(
+        det,
+        Box::new(DepthBoxSegmenter::default()),
+        cal.clone(),
+        GeometrySettings::default(),
+    );
+    p.set_prompts(&["book".into(), "chair".into()])
+        .expect("prompt");
+    let small = DepthImage::new(4, 4, vec![1.0; 16]).expect("small depth");
+    let frames: Vec<(RgbImage, Option<DepthImage>)> = vec![
+        (color.clone(), Some(depth.clone())),
+        (color_m.clone(), Some(depth_m.clone())),
+        (color.clone(), Some(small)),
+        (color_m.clone(), None),
+        (color.clone(), Some(depth.clone())),
+    ];
+    let want: Vec<_> = frames
+        .iter()
+        .map(|(c, d)| p.process(c, d.as_ref()).map_err(|e| e.to_string()))
+        .collect();
+    assert!(want[2].is_err(), "the small depth image is refused");
+    let want_err = want[2].as_ref().err().cloned().unwrap_or_default();
+    assert!(want_err.contains("depth image is 4x4"), "{want_err}");
+    let (first, second) = (
+        want[0].as_ref().expect("view"),
+        want[1].as_ref().expect("view"),
+    );
+    assert!(!first.objects.is_empty() && !second.objects.is_empty());
+    assert_ne!(
+        first.detections, second.detections,
+        "the mirrored frame differs"
+    );
+
+    let mut got = Vec::new();
+    p.process_stream(frames.clone().into_iter(), |v| {
+        got.push(v.map_err(|e| e.to_string()));
+        true
+    });
+    assert_eq!(got.len(), frames.len());
+    for (k, (g, w)) in got.iter().zip(&want).enumerate() {
+        match (g, w) {
+            (Ok(g), Ok(w)) => {
+                assert_eq!(g.detections, w.detections, "frame {k}");
+                assert_eq!(g.objects, w.objects, "frame {k}");
+                assert_eq!(g.dropped, w.dropped, "frame {k}");
+                assert_eq!(g.prompts, w.prompts, "frame {k}");
+                assert!(g.timing_ms.total >= g.timing_ms.detector, "frame {k}");
+            }
+            (Err(g), Err(w)) => assert_eq!(g, w, "frame {k}"),
+            _ => panic!("frame {k}: stream {g:?} against one view {w:?}"),
+        }
+    }
+    // frame 3 had no depth: 2D detections only, as one view gives
+    assert!(got[3]
+        .as_ref()
+        .is_ok_and(|v| v.objects.is_empty() && !v.detections.is_empty()));
+
+    // ended by the caller after two views: no third
+    let mut seen = 0;
+    p.process_stream(frames.into_iter().cycle().take(50), |_| {
+        seen += 1;
+        seen < 2
+    });
+    assert_eq!(seen, 2);
+}

@@ -350,3 +350,7 @@ pub fn lift_detections(
         },
     })
 }
+
+#[path = "stream.rs"]
+mod stream;
+pub use stream::StreamFrame;

@@ -31,6 +31,10 @@ pub enum DetectorError {
     Text(#[from] TextEmbeddingError),
     #[error("prompt: {0}")]
     Prompt(String),
+    #[error("the {backend} detector takes the image itself, not an input made beforehand")]
+    NotPrepared { backend: &'static str },
+    #[error("an input made for a {made}×{made} model given to one of {wanted}×{wanted}")]
+    PreparedSize { made: usize, wanted: usize },
     #[error("{model}: output `{output}` has shape {shape:?}, expected {expected}")]
     Output {
         model: String,
@@ -92,6 +96,56 @@ pub trait Detector: Send {
     fn set_prompts(&mut self, prompts: &[String]) -> Result<PromptReport, DetectorError>;
     /// Detections for the active prompts, sorted by descending score.
     fn detect(&mut self, image: &RgbImage) -> Result<Vec<Detection>, DetectorError>;
+    /// The side of the square letterboxed input (grey 114 padding, as
+    /// Ultralytics) when that is all the model takes of the image (YOLO,
+    /// YOLO-World): views pipelined across frames
+    /// ([`Pipeline::process_stream`](crate::perception::pipeline::Pipeline::process_stream))
+    /// make the next frame's input on another thread while the model runs.
+    /// None: the detector takes the image itself.
+    fn letterbox_side(&self) -> Option<usize> {
+        None
+    }
+    /// [`detect`](Self::detect) on an image made into the model's input
+    /// beforehand ([`PreparedImage::letterboxed`] at
+    /// [`letterbox_side`](Self::letterbox_side)): the same detections.
+    fn detect_prepared(&mut self, input: PreparedImage) -> Result<Vec<Detection>, DetectorError> {
+        let _ = input;
+        Err(DetectorError::NotPrepared {
+            backend: self.backend(),
+        })
+    }
+}
+
+/// An image made into a YOLO model's input ahead of the model: its
+/// letterboxed colour planes (CHW, 0..1) and where the image lies in them.
+pub struct PreparedImage {
+    pub chw: Vec<f32>,
+    pub letterbox: Letterbox,
+    /// The square input's side, pixels.
+    pub side: usize,
+}
+
+impl PreparedImage {
+    pub fn letterboxed(image: &RgbImage, side: usize) -> PreparedImage {
+        let (chw, letterbox) = super::image::letterbox_chw(image, side, yolo::PAD_VALUE);
+        PreparedImage {
+            chw,
+            letterbox,
+            side,
+        }
+    }
+
+    /// The input for a model of this side.
+    pub(crate) fn check_side(&self, wanted: usize) -> Result<(), DetectorError> {
+        if self.side == wanted && self.chw.len() == 3 * wanted * wanted {
+            Ok(())
+        } else {
+            Err(DetectorError::PreparedSize {
+                made: self.side,
+                wanted,
+            })
+        }
+    }
 }
 
 /// Splits a prompt line ("chair, person; door handle") into prompts:

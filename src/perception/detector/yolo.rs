@@ -9,9 +9,11 @@
 use ort::value::Tensor;
 
 use super::vocab::{parse_class_names, resolve_prompt};
-use super::{decode_yolo_head, Detection, Detector, DetectorError, DetectorSettings, PromptReport};
+use super::{
+    decode_yolo_head, Detection, Detector, DetectorError, DetectorSettings, PreparedImage,
+    PromptReport,
+};
 use crate::msg::RgbImage;
-use crate::perception::image::letterbox_chw;
 use crate::perception::runtime::Model;
 
 /// Letterbox padding value (grey 114), as Ultralytics.
@@ -150,13 +152,25 @@ impl Detector for ClosedVocabularyYolo {
         if self.active.is_empty() {
             return Ok(Vec::new());
         }
+        self.detect_prepared(PreparedImage::letterboxed(image, self.input_size))
+    }
+
+    fn letterbox_side(&self) -> Option<usize> {
+        Some(self.input_size)
+    }
+
+    fn detect_prepared(&mut self, input: PreparedImage) -> Result<Vec<Detection>, DetectorError> {
+        if self.active.is_empty() {
+            return Ok(Vec::new());
+        }
+        input.check_side(self.input_size)?;
         let name = self.model.name();
         let err = |e: ort::Error| crate::perception::runtime::RuntimeError::Inference {
             model: name.clone(),
             reason: e.to_string(),
         };
         let out_name = self.model.signature.outputs[0].name.clone();
-        let (chw, lb) = letterbox_chw(image, self.input_size, PAD_VALUE);
+        let PreparedImage { chw, letterbox, .. } = input;
         let s = self.input_size;
         let tensor = Tensor::from_array((vec![1usize, 3, s, s], chw)).map_err(err)?;
         let outputs = self
@@ -184,7 +198,7 @@ impl Detector for ClosedVocabularyYolo {
             channels,
             anchors,
             &self.active,
-            &lb,
+            &letterbox,
             &self.settings,
         ))
     }

@@ -5,10 +5,12 @@
 use ort::value::Tensor;
 
 use super::text::TextEmbedder;
-use super::yolo::{image_input, PAD_VALUE};
-use super::{decode_yolo_head, Detection, Detector, DetectorError, DetectorSettings, PromptReport};
+use super::yolo::image_input;
+use super::{
+    decode_yolo_head, Detection, Detector, DetectorError, DetectorSettings, PreparedImage,
+    PromptReport,
+};
 use crate::msg::RgbImage;
-use crate::perception::image::letterbox_chw;
 use crate::perception::runtime::Model;
 
 pub struct YoloWorld {
@@ -117,12 +119,24 @@ impl Detector for YoloWorld {
         if self.active.is_empty() {
             return Ok(Vec::new());
         }
+        self.detect_prepared(PreparedImage::letterboxed(image, self.input_size))
+    }
+
+    fn letterbox_side(&self) -> Option<usize> {
+        Some(self.input_size)
+    }
+
+    fn detect_prepared(&mut self, input: PreparedImage) -> Result<Vec<Detection>, DetectorError> {
+        if self.active.is_empty() {
+            return Ok(Vec::new());
+        }
+        input.check_side(self.input_size)?;
         let name = self.model.name();
         let err = |e: ort::Error| crate::perception::runtime::RuntimeError::Inference {
             model: name.clone(),
             reason: e.to_string(),
         };
-        let (chw, lb) = letterbox_chw(image, self.input_size, PAD_VALUE);
+        let PreparedImage { chw, letterbox, .. } = input;
         let s = self.input_size;
         let img = Tensor::from_array((vec![1usize, 3, s, s], chw)).map_err(err)?;
         let txt = Tensor::from_array((vec![1usize, self.k, self.dim], self.txt_feats.clone()))
@@ -151,7 +165,7 @@ impl Detector for YoloWorld {
             channels,
             anchors,
             &self.active,
-            &lb,
+            &letterbox,
             &self.settings,
         ))
     }
