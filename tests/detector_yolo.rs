@@ -206,3 +206,26 @@ fn the_int8_model_finds_the_fp32_models_boxes() {
     }
     assert!(compared >= 12, "only {compared} boxes compared");
 }
+
+/// The warm-up runs the model on a blank input whatever the prompts (none
+/// set yet), and the views after it are the views without it.
+#[test]
+fn warm_up_runs_the_model_and_changes_no_view() {
+    common::init_ort();
+    let settings = DetectorSettings {
+        score_threshold: 0.5,
+        ..Default::default()
+    };
+    let image = RgbImage::load(&common::shared().join("data/images/bus.jpg")).expect("image");
+    let prompts = vec!["bus".to_string(), "person".to_string()];
+    let mut cold = open_detector(&common::yolo11n(), &settings, None).expect("model opens");
+    cold.set_prompts(&prompts).expect("prompts");
+    let want = cold.detect(&image).expect("detect");
+    assert!(want.len() >= 4, "{want:#?}");
+
+    let mut warm = open_detector(&common::yolo11n(), &settings, None).expect("model opens");
+    warm.warm_up().expect("warm-up before any prompt");
+    warm.set_prompts(&prompts).expect("prompts");
+    warm.warm_up().expect("warm-up with prompts");
+    assert_eq!(warm.detect(&image).expect("detect"), want);
+}

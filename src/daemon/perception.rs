@@ -91,6 +91,30 @@ pub async fn run(
         == tokio::runtime::RuntimeFlavor::CurrentThread;
     let mut failing_since: Option<crate::msg::Stamp> = None;
     let mut view_times = crate::actuation::DurationHistogram::with_bins(100e-6, 10_000);
+    // the model run once before the first frame, so that the first word's
+    // view does not wait for the runtime's start (on a GPU about 1.5 s); a
+    // model that cannot run is a fault of the task, now rather than at
+    // the first word
+    let warm_up = move || {
+        let took = pipeline.warm_up();
+        (pipeline, took)
+    };
+    let (p, took) = if inline {
+        warm_up()
+    } else {
+        tokio::task::spawn_blocking(warm_up)
+            .await
+            .map_err(|e| format!("the perception thread failed: {e}"))?
+    };
+    pipeline = p;
+    match took {
+        Ok(ms) => tracing::info!(
+            detector = pipeline.detector.backend(),
+            took_ms = ms,
+            "perception: the detector's model warmed up"
+        ),
+        Err(e) => return Err(format!("perception: the detector cannot run: {e}")),
+    }
     loop {
         tokio::select! {
             biased;

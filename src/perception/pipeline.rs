@@ -169,6 +169,14 @@ impl Pipeline {
         Ok(self.prompts.clone())
     }
 
+    /// The detector's model run once on a blank input before the first
+    /// view (see [`Detector::warm_up`]); returns how long it took, ms.
+    pub fn warm_up(&mut self) -> Result<f64, PipelineError> {
+        let t = Instant::now();
+        self.detector.warm_up()?;
+        Ok(ms(t))
+    }
+
     /// Depth in the colour camera: registered when the rig has a separate
     /// depth camera, checked for size otherwise.
     pub fn depth_in_color(

@@ -105,6 +105,14 @@ pub trait Detector: Send {
     fn letterbox_side(&self) -> Option<usize> {
         None
     }
+    /// Runs the model once on a blank input, whatever the prompts, so that
+    /// the first view does not pay the runtime's start (on a GPU: the
+    /// CUDA context and cuDNN's search for convolution algorithms, about
+    /// 1.5 s). Changes nothing a later view sees. Detectors without a
+    /// cost to hide do nothing.
+    fn warm_up(&mut self) -> Result<(), DetectorError> {
+        Ok(())
+    }
     /// [`detect`](Self::detect) on an image made into the model's input
     /// beforehand ([`PreparedImage::letterboxed`] at
     /// [`letterbox_side`](Self::letterbox_side)): the same detections.

@@ -155,6 +155,25 @@ impl Detector for ClosedVocabularyYolo {
         self.detect_prepared(PreparedImage::letterboxed(image, self.input_size))
     }
 
+    fn warm_up(&mut self) -> Result<(), DetectorError> {
+        let name = self.model.name();
+        let s = self.input_size;
+        // the letterbox's grey, as a view's padding
+        let grey = vec![f32::from(PAD_VALUE) / 255.0; 3 * s * s];
+        let run = |session: &mut ort::session::Session| -> Result<(), ort::Error> {
+            let tensor = Tensor::from_array((vec![1usize, 3, s, s], grey))?;
+            session.run(ort::inputs![self.input_name.as_str() => tensor])?;
+            Ok(())
+        };
+        run(&mut self.model.session).map_err(|e| {
+            crate::perception::runtime::RuntimeError::Inference {
+                model: name,
+                reason: e.to_string(),
+            }
+            .into()
+        })
+    }
+
     fn letterbox_side(&self) -> Option<usize> {
         Some(self.input_size)
     }
