@@ -117,6 +117,12 @@ pub enum GoalEvent {
     BackInView {
         label: String,
     },
+    /// Held too long out of view: looked for again from where the chair
+    /// is (at most [`SEARCH_AGAIN_AT_MOST`] times a word).
+    SearchingAgain {
+        label: String,
+        held_s: f64,
+    },
     /// Held too long out of view: dropped, the chair stops.
     Lost {
         label: String,
@@ -162,6 +168,9 @@ impl GoalEvent {
             }
             GoalEvent::OutOfView { label } => format!("I lost sight of the {label}; waiting."),
             GoalEvent::BackInView { label } => format!("I see the {label} again."),
+            GoalEvent::SearchingAgain { label, held_s } => format!(
+                "I lost sight of the {label} for {held_s:.0} seconds. Looking for it again."
+            ),
             GoalEvent::Lost { label, held_s } => {
                 format!("I could not find the {label} again after {held_s:.0} seconds. Stopped.")
             }
@@ -209,7 +218,15 @@ pub struct GoalKeeper {
     search_since: Option<Stamp>,
     /// The track "no free place beside it" was said of.
     said_no_approach: Option<u64>,
+    /// Searches begun again for this word after losing sight of it.
+    searched_again: u32,
 }
+
+/// A word's object lost from sight (held out of view for
+/// [`GoalSettings::hold_for`]) is looked for again this many times before
+/// the goal is dropped: a false detection the chair set off towards, or the
+/// object hidden as the chair moved, need not end the trip.
+pub const SEARCH_AGAIN_AT_MOST: u32 = 2;
 
 /// At most this many places searched after the first turn.
 pub const MAX_EXPLORATIONS: usize = 6;
@@ -237,6 +254,7 @@ impl GoalKeeper {
             searched: Vec::new(),
             search_since: None,
             said_no_approach: None,
+            searched_again: 0,
         }
     }
 
@@ -251,6 +269,7 @@ impl GoalKeeper {
         self.searched.clear();
         self.search_since = None;
         self.said_no_approach = None;
+        self.searched_again = 0;
         self.state = GoalState::Searching {
             label: label.trim().to_lowercase(),
         };
@@ -602,6 +621,23 @@ impl GoalKeeper {
                     }
                 }
                 let held = since.age_at(now);
+                if held > s.hold_for && self.explores && self.searched_again < SEARCH_AGAIN_AT_MOST
+                {
+                    // a search of its own from here: turn, then further
+                    self.searched_again += 1;
+                    self.searched.clear();
+                    self.search_heading = None;
+                    self.search_turned_rad = 0.0;
+                    self.search_since = Some(now);
+                    self.said_no_approach = None;
+                    self.state = GoalState::Searching {
+                        label: label.clone(),
+                    };
+                    return Some(GoalEvent::SearchingAgain {
+                        label,
+                        held_s: held.as_secs_f64(),
+                    });
+                }
                 if held > s.hold_for {
                     self.state = GoalState::None;
                     return Some(GoalEvent::Lost {

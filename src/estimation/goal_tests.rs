@@ -154,6 +154,90 @@ fn a_hidden_goal_is_not_held_or_lost() {
     );
 }
 
+/// Searching across rooms (the daemon's keeper), an object lost from
+/// sight is looked for again from where the chair is — a search turn of
+/// its own, with its own time — [`SEARCH_AGAIN_AT_MOST`] times; found
+/// again it is driven to; lost once more after that, the goal is dropped.
+#[test]
+fn a_lost_object_is_searched_for_again_before_the_goal_is_dropped() {
+    let mut g = GoalKeeper::new(crate::config::Settings::defaults().goal_settings());
+    g.explores = true;
+    g.set_prompt("chair");
+    let mut tracker = see_a_chair_ahead(&mut g, &|_| true, &|_| true);
+    assert!(matches!(g.state(), GoalState::Tracking { .. }));
+    let clock = std::cell::Cell::new(0.2);
+    let tick = || {
+        clock.set(clock.get() + 0.1);
+        t(clock.get())
+    };
+    let lose = |g: &mut GoalKeeper, tracker: &mut Tracker| {
+        let mut events = Vec::new();
+        for _ in 0..120 {
+            let now = tick();
+            tracker.update(now, &[], |_| true);
+            events.extend(g.update(now, tracker, Pose2::default(), &[], &|_| true, &|_| true));
+            if !matches!(
+                g.state(),
+                GoalState::Tracking { .. } | GoalState::Holding { .. }
+            ) {
+                break;
+            }
+        }
+        events
+    };
+    for again in 1..=SEARCH_AGAIN_AT_MOST {
+        let events = lose(&mut g, &mut tracker);
+        assert!(
+            matches!(
+                events.as_slice(),
+                [GoalEvent::OutOfView { .. }, GoalEvent::SearchingAgain { label, held_s }]
+                    if label == "chair" && *held_s > 5.0
+            ),
+            "search {again}: {events:?}"
+        );
+        assert_eq!(
+            events[1].say(),
+            "I lost sight of the chair for 5 seconds. Looking for it again."
+        );
+        assert!(matches!(g.state(), GoalState::Searching { .. }));
+        assert!(!g.wants_place(), "a search turn first");
+        assert!(g.search_command().is_some_and(|c| c.omega_radps != 0.0));
+        // seen again: driven to
+        let mut found = Vec::new();
+        for _ in 0..5 {
+            let now = tick();
+            tracker.update(now, &[chair_obj(3.0)], |_| true);
+            found.extend(g.update(now, &tracker, Pose2::default(), &[], &|_| true, &|_| true));
+        }
+        assert!(
+            matches!(found.as_slice(), [GoalEvent::Acquired { .. }]),
+            "{found:?}"
+        );
+    }
+    let events = lose(&mut g, &mut tracker);
+    assert!(
+        matches!(
+            events.as_slice(),
+            [GoalEvent::OutOfView { .. }, GoalEvent::Lost { .. }]
+        ),
+        "{events:?}"
+    );
+    assert_eq!(g.state(), &GoalState::None);
+    // a new word starts afresh
+    g.set_prompt("chair");
+    for _ in 0..5 {
+        let now = tick();
+        tracker.update(now, &[chair_obj(3.0)], |_| true);
+        g.update(now, &tracker, Pose2::default(), &[], &|_| true, &|_| true);
+    }
+    assert!(matches!(g.state(), GoalState::Tracking { .. }));
+    let events = lose(&mut g, &mut tracker);
+    assert!(
+        matches!(events.last(), Some(GoalEvent::SearchingAgain { .. })),
+        "{events:?}"
+    );
+}
+
 #[test]
 fn reached_when_at_the_approach_pose() {
     let mut g = GoalKeeper::new(crate::config::Settings::defaults().goal_settings());
