@@ -85,6 +85,11 @@ fn intrinsics() -> Intrinsics {
 }
 
 fn bench_geometry(c: &mut Criterion) {
+    // as the opennav binary does at start; OPENNAV_BENCH_TRIM_HEAP=1: the
+    // allocator's own policy, for comparison
+    if std::env::var_os("OPENNAV_BENCH_TRIM_HEAP").is_none() {
+        opennav::memory::keep_freed_heap();
+    }
     let (depth, dets) = scene();
     let seg = DepthBoxSegmenter::default();
     let masks: Vec<_> = dets

@@ -187,6 +187,10 @@ fn init_logs() {
 
 pub fn main() -> ExitCode {
     init_logs();
+    // each view's arrays from pages already mapped (see the function)
+    if !opennav::memory::keep_freed_heap() {
+        tracing::debug!("the allocator keeps its own policy for freed memory");
+    }
     let cli = Cli::parse();
     match dispatch(cli) {
         Ok(()) => ExitCode::SUCCESS,
