@@ -45,6 +45,30 @@ pub fn own_memory() -> Option<MemoryUse> {
         .ok()
 }
 
+/// Keeps freed heap memory in the process instead of handing it back to
+/// the kernel (glibc's `M_TRIM_THRESHOLD` at 256 MiB, and blocks up to
+/// 64 MiB from the heap rather than each its own mapping): each view's
+/// point arrays (~170 kB an object) are then pages already mapped, not
+/// fresh ones the kernel must fault in and zero — 8–10 % of steps 3–6
+/// (`geometry_10_masks`). The resident peak is what it was; memory freed
+/// stays resident up to it. True when the allocator took both settings;
+/// false elsewhere than glibc (nothing to do there).
+pub fn keep_freed_heap() -> bool {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    {
+        // SAFETY: mallopt only sets the allocator's parameters, valid at
+        // any time; both values are within what glibc accepts
+        unsafe {
+            libc::mallopt(libc::M_TRIM_THRESHOLD, 256 << 20) == 1
+                && libc::mallopt(libc::M_MMAP_THRESHOLD, 32 << 20) == 1
+        }
+    }
+    #[cfg(not(all(target_os = "linux", target_env = "gnu")))]
+    {
+        false
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -86,29 +110,5 @@ mod tests {
     fn this_process_has_a_resident_size() {
         let m = own_memory().expect("/proc/self/status on Linux");
         assert!(m.rss_mb > 1.0 && m.peak_rss_mb >= m.rss_mb, "{m:?}");
-    }
-}
-
-/// Keeps freed heap memory in the process instead of handing it back to
-/// the kernel (glibc's `M_TRIM_THRESHOLD` at 256 MiB, and blocks up to
-/// 64 MiB from the heap rather than each its own mapping): each view's
-/// point arrays (~170 kB an object) are then pages already mapped, not
-/// fresh ones the kernel must fault in and zero — 8–10 % of steps 3–6
-/// (`geometry_10_masks`). The resident peak is what it was; memory freed
-/// stays resident up to it. True when the allocator took both settings;
-/// false elsewhere than glibc (nothing to do there).
-pub fn keep_freed_heap() -> bool {
-    #[cfg(all(target_os = "linux", target_env = "gnu"))]
-    {
-        // SAFETY: mallopt only sets the allocator's parameters, valid at
-        // any time; both values are within what glibc accepts
-        unsafe {
-            libc::mallopt(libc::M_TRIM_THRESHOLD, 256 << 20) == 1
-                && libc::mallopt(libc::M_MMAP_THRESHOLD, 32 << 20) == 1
-        }
-    }
-    #[cfg(not(all(target_os = "linux", target_env = "gnu")))]
-    {
-        false
     }
 }
