@@ -84,24 +84,31 @@ fn back_projection_reproduces_mrpt_cloud() {
     assert_eq!(valid, r.u.len());
 }
 
-#[test]
-fn books_on_the_shelf_in_3d() {
+/// The whole pipeline (YOLO11n, the depth segmenter) on the MRPT rig, and
+/// its frame.
+fn mrpt_pipeline(score_threshold: f32) -> (Pipeline, RgbImage, DepthImage) {
     common::init_ort();
     let cal = RgbdCalibration::load(&common::mrpt("calibration.json")).expect("calibration");
     let color = RgbImage::load(&common::mrpt("rgb.png")).expect("rgb");
     let depth = DepthImage::load_png(&common::mrpt("depth_mm.png"), cal.depth_scale_m as f32)
         .expect("depth");
     let settings = DetectorSettings {
-        score_threshold: 0.15,
+        score_threshold,
         ..Default::default()
     };
     let det = open_detector(&common::yolo11n(), &settings, None).expect("model");
-    let mut p = Pipeline::new(
+    let p = Pipeline::new(
         det,
         Box::new(DepthBoxSegmenter::default()),
-        cal.clone(),
+        cal,
         GeometrySettings::default(),
     );
+    (p, color, depth)
+}
+
+#[test]
+fn books_on_the_shelf_in_3d() {
+    let (mut p, color, depth) = mrpt_pipeline(0.15);
     p.set_prompts(&["book".into()]).expect("prompt");
     let view = p.process(&color, Some(&depth)).expect("view");
     assert!(view.detections.len() >= 3, "{:#?}", view.detections);
@@ -186,23 +193,8 @@ fn mirrored(color: &RgbImage, depth: &DepthImage) -> (RgbImage, DepthImage) {
 /// the caller can end it early.
 #[test]
 fn a_pipelined_stream_gives_each_frame_its_own_view() {
-    common::init_ort();
-    let cal = RgbdCalibration::load(&common::mrpt("calibration.json")).expect("calibration");
-    let color = RgbImage::load(&common::mrpt("rgb.png")).expect("rgb");
-    let depth = DepthImage::load_png(&common::mrpt("depth_mm.png"), cal.depth_scale_m as f32)
-        .expect("depth");
+    let (mut p, color, depth) = mrpt_pipeline(0.1);
     let (color_m, depth_m) = mirrored(&color, &depth);
-    let settings = DetectorSettings {
-        score_threshold: 0.1,
-        ..Default::default()
-    };
-    let det = open_detector(&common::yolo11n(), &settings, None).expect("model");
-    let mut p = Pipeline::new(
-        det,
-        Box::new(DepthBoxSegmenter::default()),
-        cal.clone(),
-        GeometrySettings::default(),
-    );
     p.set_prompts(&["book".into(), "chair".into()])
         .expect("prompt");
     let small = DepthImage::new(4, 4, vec![1.0; 16]).expect("small depth");

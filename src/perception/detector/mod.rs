@@ -95,7 +95,17 @@ pub trait Detector: Send {
     /// Sets the active prompts; the vocabulary may change at any time.
     fn set_prompts(&mut self, prompts: &[String]) -> Result<PromptReport, DetectorError>;
     /// Detections for the active prompts, sorted by descending score.
-    fn detect(&mut self, image: &RgbImage) -> Result<Vec<Detection>, DetectorError>;
+    /// By default the image letterboxed into the model's input and
+    /// [`detect_prepared`](Self::detect_prepared) (the YOLO models); a
+    /// detector that takes the image itself has its own.
+    fn detect(&mut self, image: &RgbImage) -> Result<Vec<Detection>, DetectorError> {
+        match self.letterbox_side() {
+            Some(side) => self.detect_prepared(PreparedImage::letterboxed(image, side)),
+            None => Err(DetectorError::NotPrepared {
+                backend: self.backend(),
+            }),
+        }
+    }
     /// The side of the square letterboxed input (grey 114 padding, as
     /// Ultralytics) when that is all the model takes of the image (YOLO,
     /// YOLO-World): views pipelined across frames

@@ -13,7 +13,6 @@ use super::{
     decode_yolo_head, Detection, Detector, DetectorError, DetectorSettings, PreparedImage,
     PromptReport,
 };
-use crate::msg::RgbImage;
 use crate::perception::runtime::Model;
 
 /// Letterbox padding value (grey 114), as Ultralytics.
@@ -148,12 +147,7 @@ impl Detector for ClosedVocabularyYolo {
         Ok(report)
     }
 
-    fn detect(&mut self, image: &RgbImage) -> Result<Vec<Detection>, DetectorError> {
-        if self.active.is_empty() {
-            return Ok(Vec::new());
-        }
-        self.detect_prepared(PreparedImage::letterboxed(image, self.input_size))
-    }
+    // `detect`: the trait's, through the letterbox below
 
     fn warm_up(&mut self) -> Result<(), DetectorError> {
         let name = self.model.name();
@@ -179,10 +173,10 @@ impl Detector for ClosedVocabularyYolo {
     }
 
     fn detect_prepared(&mut self, input: PreparedImage) -> Result<Vec<Detection>, DetectorError> {
+        input.check_side(self.input_size)?;
         if self.active.is_empty() {
             return Ok(Vec::new());
         }
-        input.check_side(self.input_size)?;
         let name = self.model.name();
         let err = |e: ort::Error| crate::perception::runtime::RuntimeError::Inference {
             model: name.clone(),
