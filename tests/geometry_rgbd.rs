@@ -246,6 +246,35 @@ fn a_pipelined_stream_gives_each_frame_its_own_view() {
         .as_ref()
         .is_ok_and(|v| v.objects.is_empty() && !v.detections.is_empty()));
 
+    // depth already in the colour camera (a rig without a separate depth
+    // camera): the same views, and a wrong size refused as by one view
+    let registered = p.depth_in_color(&color, &depth).expect("registered");
+    p.calibration.depth = None;
+    let frames_registered = vec![
+        (color.clone(), Some(registered.clone())),
+        (
+            color.clone(),
+            Some(DepthImage::new(4, 4, vec![1.0; 16]).expect("small")),
+        ),
+    ];
+    let want: Vec<_> = frames_registered
+        .iter()
+        .map(|(c, d)| {
+            p.process(c, d.as_ref())
+                .map(|v| v.objects)
+                .map_err(|e| e.to_string())
+        })
+        .collect();
+    let mut got = Vec::new();
+    p.process_stream(frames_registered.into_iter(), |v| {
+        got.push(v.map(|v| v.objects).map_err(|e| e.to_string()));
+        true
+    });
+    assert!(want[0].as_ref().is_ok_and(|o| !o.is_empty()), "{want:?}");
+    assert!(want[1].is_err());
+    assert_eq!(got, want);
+    p.calibration = RgbdCalibration::load(&common::mrpt("calibration.json")).expect("calibration");
+
     // ended by the caller after two views: no third
     let mut seen = 0;
     p.process_stream(frames.into_iter().cycle().take(50), |_| {

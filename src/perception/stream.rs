@@ -13,7 +13,9 @@
 use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
 use std::time::Instant;
 
-use super::{depth_in_color, lift_detections, ms, Pipeline, PipelineError, ViewResult};
+use super::{
+    check_sizes, depth_in_color, lift_detections, ms, Pipeline, PipelineError, ViewResult,
+};
 use crate::msg::{DepthImage, Frame, RgbImage};
 use crate::perception::detector::{Detection, PreparedImage};
 
@@ -128,7 +130,13 @@ fn prepare_stage(
                 let color = &color;
                 scope.spawn(move || {
                     let t = Instant::now();
-                    (depth_in_color(calibration, color, &d), ms(t))
+                    // depth already in the colour camera is checked and
+                    // kept as it came (the frame is ours: no copy)
+                    let depth = match calibration.depth {
+                        Some(_) => depth_in_color(calibration, color, &d),
+                        None => check_sizes(calibration, color, &d).map(|()| d),
+                    };
+                    (depth, ms(t))
                 })
             });
             let input = side.map(|s| PreparedImage::letterboxed(&color, s));
