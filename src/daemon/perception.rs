@@ -99,13 +99,7 @@ pub async fn run(
         let took = pipeline.warm_up();
         (pipeline, took)
     };
-    let (p, took) = if inline {
-        warm_up()
-    } else {
-        tokio::task::spawn_blocking(warm_up)
-            .await
-            .map_err(|e| format!("the perception thread failed: {e}"))?
-    };
+    let (p, took) = blocking(inline, warm_up).await?;
     pipeline = p;
     match took {
         Ok(ms) => tracing::info!(
@@ -167,17 +161,7 @@ pub async fn run(
             })();
             (source, pipeline, round)
         };
-        // A multi-threaded runtime (the chair, a real-time simulation): on
-        // a blocking thread. The current-thread runtime of a virtual-time
-        // simulation: right here, so that nothing else runs meanwhile and
-        // the run is deterministic (the clock stands still either way).
-        let (s, p, round) = if inline {
-            work()
-        } else {
-            tokio::task::spawn_blocking(work)
-                .await
-                .map_err(|e| format!("the perception thread failed: {e}"))?
-        };
+        let (s, p, round) = blocking(inline, work).await?;
         source = s;
         pipeline = p;
         let now = clock.now();
@@ -256,5 +240,23 @@ pub async fn run(
                     .map_err(|_| "the estimation task is gone".to_string())?;
             }
         }
+    }
+}
+
+/// Perception's blocking work. A multi-threaded runtime (the chair, a
+/// real-time simulation): on a blocking thread. The current-thread runtime
+/// of a virtual-time simulation (`inline`): right here, so that nothing
+/// else runs meanwhile and the run is deterministic (the clock stands
+/// still either way). A blocking thread that died is an error naming it.
+async fn blocking<T: Send + 'static>(
+    inline: bool,
+    work: impl FnOnce() -> T + Send + 'static,
+) -> Result<T, String> {
+    if inline {
+        Ok(work())
+    } else {
+        tokio::task::spawn_blocking(work)
+            .await
+            .map_err(|e| format!("the perception thread failed: {e}"))
     }
 }
