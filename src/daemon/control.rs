@@ -170,6 +170,10 @@ pub const STAND_STILL_FOR: std::time::Duration = std::time::Duration::from_secs(
 /// off): the person is told, once per hold; the chair keeps trying.
 pub const SAY_HELD_AFTER: std::time::Duration = std::time::Duration::from_secs(10);
 
+/// A search turn goes clockwise when what is left to look at is nearer
+/// that way by this much, rad (counter-clockwise otherwise: at a trip's
+/// start, when all round is left, the way does not depend on a few cells).
+const CLOCKWISE_SHORTER_BY_RAD: f64 = 0.5;
 /// A search turn held this long by an obstacle ends there.
 const TURN_HELD_FOR: std::time::Duration = std::time::Duration::from_secs(3);
 
@@ -552,6 +556,17 @@ impl Control {
         let map = self.route.as_mut().and_then(|r| r.map.as_mut());
         if let Some(m) = map {
             m.update_distances();
+        }
+        // a search turn ends once nothing around is left to look at
+        if let (Some(r), Some(v), GoalState::Searching { .. }) =
+            (self.route.as_ref(), view.as_ref(), self.goal.state())
+        {
+            if let Some(left) = r.left_to_see(pose, v) {
+                self.goal.left_to_see(
+                    left.nothing(),
+                    left.cw_rad + CLOCKWISE_SHORTER_BY_RAD < left.ccw_rad,
+                );
+            }
         }
         let map = self.route.as_ref().and_then(|r| r.map.as_ref());
         let event = self.goal.update(

@@ -7,6 +7,21 @@ use crate::msg::{MapObstacles, Obstacles, Stamp, Stamped, SupervisorState};
 use crate::navigation::doorway::{self, Passage, PassageCmd, PassageSettings};
 use crate::navigation::map::{GridMap, MapPath, MapSettings};
 
+/// What is left for the camera to look at around the chair: the turn on
+/// the spot that brings it all into view, counter-clockwise and clockwise,
+/// rad (both 0: nothing is left outside the view).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct LeftToSee {
+    pub ccw_rad: f64,
+    pub cw_rad: f64,
+}
+
+impl LeftToSee {
+    pub fn nothing(&self) -> bool {
+        self.ccw_rad == 0.0 && self.cw_rad == 0.0
+    }
+}
+
 /// The map and the way to the goal through it.
 pub struct Router {
     pub settings: MapSettings,
@@ -61,6 +76,11 @@ pub(super) const EXPLORE_APART_M: f64 = 1.5;
 /// The camera is taken to have looked this far along the floor, m (the
 /// tracker confirms objects within it).
 pub(super) const LOOK_RANGE_M: f64 = 4.0;
+/// The search turn's check of what is left to look at: bearings a whole
+/// turn is cut into, and where the check starts from the chair's centre
+/// (its corners reach 0.65 m), m.
+pub(super) const LOOK_BINS: usize = 72;
+pub(super) const LOOK_FROM_M: f64 = 0.7;
 /// A search turn held by something in its circle goes on at least this
 /// far away, m.
 pub(super) const ROOM_TO_TURN_MIN_M: f64 = 0.6;
@@ -126,6 +146,39 @@ impl Router {
                 );
             }
         }
+    }
+
+    /// What is left for the camera to look at around the chair at `pose`
+    /// ([`GridMap::unlooked_bearings`] within [`LOOK_RANGE_M`]): the turn
+    /// on the spot each way that brings all of it into view; None without
+    /// a map.
+    pub(super) fn left_to_see(
+        &self,
+        pose: crate::msg::Pose2,
+        view: &crate::estimation::view::CameraView,
+    ) -> Option<LeftToSee> {
+        let map = self.map.as_ref()?;
+        let odom_from_camera = pose.to_isometry3() * view.base_from_camera;
+        let axis = odom_from_camera.rotation * nalgebra::Vector3::z();
+        let yaw = axis.y.atan2(axis.x);
+        let half = view.half_fov_h_rad();
+        let tau = std::f64::consts::TAU;
+        let mut left = LeftToSee::default();
+        let bearings = map.unlooked_bearings(
+            [pose.x_m, pose.y_m],
+            LOOK_FROM_M,
+            view.max_range_m.min(LOOK_RANGE_M),
+            LOOK_BINS,
+        );
+        for (k, _) in bearings.iter().enumerate().filter(|(_, &l)| l) {
+            let off = crate::msg::wrap_angle(tau * k as f64 / LOOK_BINS as f64 - yaw);
+            if off.abs() <= half {
+                continue;
+            }
+            left.ccw_rad = left.ccw_rad.max((off - half).rem_euclid(tau));
+            left.cw_rad = left.cw_rad.max((-off - half).rem_euclid(tau));
+        }
+        Some(left)
     }
 
     /// Whether the map has something within [`TIGHT_M`] of the chair's

@@ -28,7 +28,8 @@ pub struct GoalSettings {
     /// Within this of the approach pose: reached, m.
     pub reached_within_m: f64,
     /// While searching, the chair turns on the spot at this rate so the
-    /// camera sweeps the room, rad/s (one full turn, then "not found").
+    /// camera sweeps the room, rad/s (until nothing around is left to look
+    /// at, [`GoalKeeper::left_to_see`]; one full turn at most).
     pub search_turn_radps: f64,
     /// Held on the way to the object this long without a break (nothing
     /// it tries gets it nearer): the goal is given up, the chair stops and
@@ -208,6 +209,11 @@ pub struct GoalKeeper {
     /// turned since the search began, rad.
     search_heading: Option<f64>,
     search_turned_rad: f64,
+    /// How far the search turn had gone when the map first had nothing
+    /// left to look at around the chair, rad (None: something is left).
+    nothing_left_at_rad: Option<f64>,
+    /// The search turn's way: 1 counter-clockwise, −1 clockwise.
+    search_dir: f64,
     /// After a turn without the word, search further (the daemon's map
     /// gives the places, [`GoalKeeper::explore`]); false: "not found"
     /// after one turn.
@@ -227,6 +233,12 @@ pub struct GoalKeeper {
 /// the goal is dropped: a false detection the chair set off towards, or the
 /// object hidden as the chair moved, need not end the trip.
 pub const SEARCH_AGAIN_AT_MOST: u32 = 2;
+
+/// A search turn goes on this far after the map first has nothing left to
+/// look at around the chair, rad: what came into view last is seen in
+/// enough frames to be confirmed (three at the simulated camera's 2 Hz and
+/// the 0.3 rad/s turn).
+pub const LOOK_SETTLE_RAD: f64 = 0.5;
 
 /// At most this many places searched after the first turn.
 pub const MAX_EXPLORATIONS: usize = 6;
@@ -250,6 +262,8 @@ impl GoalKeeper {
             last_center: None,
             search_heading: None,
             search_turned_rad: 0.0,
+            nothing_left_at_rad: None,
+            search_dir: 1.0,
             explores: false,
             searched: Vec::new(),
             search_since: None,
@@ -266,6 +280,8 @@ impl GoalKeeper {
     pub fn set_prompt(&mut self, label: &str) {
         self.search_heading = None;
         self.search_turned_rad = 0.0;
+        self.nothing_left_at_rad = None;
+        self.search_dir = 1.0;
         self.searched.clear();
         self.search_since = None;
         self.said_no_approach = None;
@@ -280,6 +296,8 @@ impl GoalKeeper {
     pub fn look_around(&mut self) {
         self.search_heading = None;
         self.search_turned_rad = 0.0;
+        self.nothing_left_at_rad = None;
+        self.search_dir = 1.0;
         self.state = GoalState::LookingAround;
     }
 
@@ -290,9 +308,38 @@ impl GoalKeeper {
     /// Whether a turn found nothing and the keeper waits for a place to
     /// search next ([`GoalKeeper::explore`]).
     pub fn wants_place(&self) -> bool {
-        self.explores
-            && matches!(self.state, GoalState::Searching { .. })
-            && self.search_turned_rad >= std::f64::consts::TAU
+        self.explores && matches!(self.state, GoalState::Searching { .. }) && self.turned_enough()
+    }
+
+    /// The map's word on the search turn: `nothing_left` when, outside
+    /// the camera's view, nothing around the chair is left to look at; the
+    /// turn then ends [`LOOK_SETTLE_RAD`] later (a whole turn at most), and
+    /// something left again starts that over. `clockwise_shorter`: the
+    /// turn that brings what is left into view is shorter clockwise — a
+    /// turn not yet begun goes that way.
+    pub fn left_to_see(&mut self, nothing_left: bool, clockwise_shorter: bool) {
+        if !matches!(self.state, GoalState::Searching { .. }) {
+            self.nothing_left_at_rad = None;
+            return;
+        }
+        if self.search_turned_rad == 0.0 {
+            self.search_dir = if clockwise_shorter { -1.0 } else { 1.0 };
+        }
+        if !nothing_left {
+            self.nothing_left_at_rad = None;
+            return;
+        }
+        self.nothing_left_at_rad
+            .get_or_insert(self.search_turned_rad);
+    }
+
+    /// The search turn has seen what it can from here: a whole turn, or
+    /// [`LOOK_SETTLE_RAD`] beyond where nothing was left to look at.
+    fn turned_enough(&self) -> bool {
+        self.search_turned_rad >= std::f64::consts::TAU
+            || self
+                .nothing_left_at_rad
+                .is_some_and(|at| self.search_turned_rad >= at + LOOK_SETTLE_RAD)
     }
 
     /// The search turn cannot go on (something in its circle): what it
@@ -370,7 +417,8 @@ impl GoalKeeper {
         }
     }
 
-    /// While searching: turn on the spot, counter-clockwise.
+    /// While searching: turn on the spot (counter-clockwise, unless what is
+    /// left to see is nearer clockwise: [`GoalKeeper::left_to_see`]).
     pub fn search_command(&self) -> Option<VelocityCmd> {
         matches!(
             self.state,
@@ -378,7 +426,7 @@ impl GoalKeeper {
         )
         .then_some(VelocityCmd {
             v_mps: 0.0,
-            omega_radps: self.settings.search_turn_radps,
+            omega_radps: self.search_dir * self.settings.search_turn_radps,
         })
     }
 
@@ -498,7 +546,7 @@ impl GoalKeeper {
                     .goal(&label, from)
                     .filter(|t| t.last_seen.age_at(now) <= s.unseen_after);
                 let Some(t) = fresh else {
-                    if self.search_turned_rad >= std::f64::consts::TAU && !self.explores {
+                    if self.turned_enough() && !self.explores {
                         self.state = GoalState::None;
                         return Some(GoalEvent::NotFound { label });
                     }
@@ -545,6 +593,8 @@ impl GoalKeeper {
                     self.state = GoalState::Searching { label };
                     self.search_heading = None;
                     self.search_turned_rad = 0.0;
+                    self.nothing_left_at_rad = None;
+                    self.search_dir = 1.0;
                     return self.update(now, tracker, chair, obstacles_odom, visible, fits);
                 }
                 let there = (target[0] - from[0]).hypot(target[1] - from[1]) <= EXPLORED_WITHIN_M;
@@ -554,6 +604,8 @@ impl GoalKeeper {
                     self.state = GoalState::Searching { label };
                     self.search_heading = None;
                     self.search_turned_rad = 0.0;
+                    self.nothing_left_at_rad = None;
+                    self.search_dir = 1.0;
                 }
                 None
             }
@@ -628,6 +680,8 @@ impl GoalKeeper {
                     self.searched.clear();
                     self.search_heading = None;
                     self.search_turned_rad = 0.0;
+                    self.nothing_left_at_rad = None;
+                    self.search_dir = 1.0;
                     self.search_since = Some(now);
                     self.said_no_approach = None;
                     self.state = GoalState::Searching {

@@ -357,3 +357,63 @@ fn the_place_beside_the_object_is_one_the_map_admits_where_there_is_one() {
     let a = approach_with(&|_| false);
     assert!((a.x_m - 1.6).abs() < 1e-6 && a.y_m.abs() < 1e-6, "{a:?}");
 }
+
+/// A search turn ends once the map has nothing left around the chair to
+/// look at, and [`LOOK_SETTLE_RAD`] more; it goes the shorter way to what
+/// is left; with something always left, a whole turn.
+#[test]
+fn a_search_turn_ends_once_nothing_is_left_to_look_at() {
+    let settings = crate::config::Settings::defaults().goal_settings();
+    let tracker = Tracker::new(crate::config::Settings::defaults().tracker);
+    // turns the chair as commanded, 0.1 s a step, with the map's word
+    // `left(turned_rad)` before each step; how far it turned when the
+    // keeper wanted a place to search next, and the turn's way
+    let turn = |left: &dyn Fn(f64) -> (bool, bool)| {
+        let mut g = GoalKeeper::new(settings);
+        g.explores = true;
+        g.set_prompt("chair");
+        let (mut heading, mut turned, mut way) = (0.0_f64, 0.0_f64, 0.0_f64);
+        for k in 0..1000 {
+            let (nothing, cw) = left(turned);
+            g.left_to_see(nothing, cw);
+            g.update(
+                t(k as f64 * 0.1),
+                &tracker,
+                Pose2 {
+                    theta_rad: heading,
+                    ..Default::default()
+                },
+                &[],
+                &|_| true,
+                &|_| true,
+            );
+            if g.wants_place() {
+                return (turned, way);
+            }
+            let cmd = g.search_command().expect("turning");
+            way = cmd.omega_radps.signum();
+            heading = wrap_angle(heading + cmd.omega_radps * 0.1);
+            turned += cmd.omega_radps.abs() * 0.1;
+        }
+        panic!("the turn did not end");
+    };
+    let tau = std::f64::consts::TAU;
+    // something is left until the turn has gone 2 rad
+    let (turned, way) = turn(&|turned| (turned >= 2.0, false));
+    assert_eq!(way, 1.0, "counter-clockwise by default");
+    assert!(
+        (turned - (2.0 + LOOK_SETTLE_RAD)).abs() < 0.05,
+        "{turned} rad"
+    );
+    // nearer clockwise: that way
+    let (turned, way) = turn(&|turned| (turned >= 1.0, true));
+    assert_eq!(way, -1.0);
+    assert!((turned - 1.5).abs() < 0.05, "{turned} rad");
+    // always something left: a whole turn
+    let (turned, _) = turn(&|_| (false, false));
+    assert!((turned - tau).abs() < 0.05, "{turned} rad");
+    // nothing left, then something again (a person walked into the
+    // camera's memory): the settle starts over
+    let (turned, _) = turn(&|turned| (!(0.3..1.5).contains(&turned), false));
+    assert!((turned - 2.0).abs() < 0.05, "{turned} rad");
+}

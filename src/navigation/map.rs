@@ -67,6 +67,13 @@ const MAX_EXPANDED: usize = 60_000;
 /// or room to turn looks farther).
 const DIST_CAP_OVER_M: f32 = 0.5;
 const DIST_CAP_MIN_M: f32 = 1.5;
+/// Unseen cells this near the camera are the chair's own place, which no
+/// laser sees: the camera's rays go on past them, m.
+pub const LOOK_PAST_UNSEEN_M: f64 = 0.5;
+/// A bearing has something left to look at with this many seen cells on
+/// it the camera has not looked at (fewer: the rays' rounding, the
+/// camera's view from its own place beside the chair's centre).
+pub const UNLOOKED_CELLS: usize = 3;
 
 #[derive(Debug, Clone)]
 pub struct GridMap {
@@ -308,7 +315,8 @@ impl GridMap {
     /// The camera at `origin` (odom) looking along `yaw_rad` with a
     /// horizontal half-angle of `half_fov_rad`, out to `range_m`: the
     /// seen free cells in its view, up to the first blocked or unseen cell
-    /// of each ray, and that blocked cell, are looked at.
+    /// of each ray, and that blocked cell, are looked at (unseen cells
+    /// within [`LOOK_PAST_UNSEEN_M`] of the camera are passed over).
     pub fn look(&mut self, origin: [f64; 2], yaw_rad: f64, half_fov_rad: f64, range_m: f64) {
         let r = self.settings.resolution_m;
         // rays one cell apart at the far end
@@ -319,6 +327,10 @@ impl GridMap {
             self.ray_cells(origin, [a.cos(), a.sin()], range_m, &mut cells);
             for &i in &cells {
                 if !self.is_known(i) {
+                    let p = self.center(i);
+                    if (p[0] - origin[0]).hypot(p[1] - origin[1]) < LOOK_PAST_UNSEEN_M {
+                        continue;
+                    }
                     break;
                 }
                 self.looked[i] = true;
@@ -330,6 +342,52 @@ impl GridMap {
     }
 
     /// Looked at by the camera ([`GridMap::look`]).
+    /// Per bearing from `origin` (odom; `bins` over a whole turn, bin k
+    /// centred on 2πk/`bins` rad): whether the camera looking that way
+    /// would see something it has not looked at — beyond `start_m` (the
+    /// chair itself) and within `range_m`, [`UNLOOKED_CELLS`] seen cells
+    /// not looked at before the first blocked one, or unseen space before
+    /// any looked-at cell (nothing seen that way, nothing looked at).
+    pub fn unlooked_bearings(
+        &self,
+        origin: [f64; 2],
+        start_m: f64,
+        range_m: f64,
+        bins: usize,
+    ) -> Vec<bool> {
+        let mut cells = Vec::new();
+        (0..bins)
+            .map(|k| {
+                let a = std::f64::consts::TAU * k as f64 / bins as f64;
+                let d = [a.cos(), a.sin()];
+                self.ray_cells(origin, d, range_m, &mut cells);
+                let mut unlooked = 0;
+                let mut any_looked = false;
+                for &i in &cells {
+                    let p = self.center(i);
+                    if (p[0] - origin[0]).hypot(p[1] - origin[1]) < start_m {
+                        continue;
+                    }
+                    if !self.is_known(i) {
+                        return !any_looked;
+                    }
+                    if self.looked[i] {
+                        any_looked = true;
+                    } else {
+                        unlooked += 1;
+                        if unlooked >= UNLOOKED_CELLS {
+                            return true;
+                        }
+                    }
+                    if self.is_blocked(i) {
+                        return false;
+                    }
+                }
+                false
+            })
+            .collect()
+    }
+
     pub fn is_looked(&self, i: usize) -> bool {
         self.looked[i]
     }

@@ -165,6 +165,82 @@ fn the_camera_looks_at_seen_free_cells_up_to_the_first_obstacle() {
 }
 
 #[test]
+fn unseen_cells_at_the_camera_do_not_stop_its_look() {
+    let mut map = GridMap::new(MapSettings::default(), [0.0, 0.0]);
+    // the lasers' rays begin 0.3 m ahead of the camera (the chair's own
+    // place, which no laser sees), out to a wall 2 m from the camera
+    let rays: Vec<LaserRay> = ring(Some(1.7), false)
+        .into_iter()
+        .map(|mut r| {
+            r.origin_m = [0.3 * r.dir[0], 0.3 * r.dir[1]];
+            r
+        })
+        .collect();
+    map.add_scan(Pose2::default(), &rays);
+    let at = |map: &GridMap, p: [f64; 2]| map.is_looked(map.cell(p).expect("on the map"));
+    assert!(!map.is_known(map.cell([0.1, 0.0]).expect("on the map")));
+    map.look([0.0, 0.0], 0.0, 0.5, 4.0);
+    assert!(at(&map, [1.0, 0.0]) && at(&map, [1.99, 0.0]));
+    // unseen space farther out still ends a ray: a wall with a gap
+    let mut gap = GridMap::new(MapSettings::default(), [0.0, 0.0]);
+    gap.add_scan(Pose2::default(), &ring(Some(1.0), false));
+    gap.look([0.0, 0.0], 0.0, 0.5, 4.0);
+    assert!(!gap.is_known(gap.cell([1.5, 0.0]).expect("on the map")));
+    assert!(!at(&gap, [1.5, 0.0]));
+}
+
+#[test]
+fn bearings_left_to_look_at_are_those_the_camera_has_not_swept() {
+    let bins = 72;
+    // nothing seen: every way is left to look at
+    let empty = GridMap::new(MapSettings::default(), [0.0, 0.0]);
+    assert!(empty
+        .unlooked_bearings([0.0, 0.0], 0.7, 4.0, bins)
+        .iter()
+        .all(|&b| b));
+    // a ring of walls 2 m away, the camera looking along +x ±0.5 rad
+    let mut map = GridMap::new(MapSettings::default(), [0.0, 0.0]);
+    map.add_scan(Pose2::default(), &ring(Some(2.0), false));
+    map.look([0.0, 0.0], 0.0, 0.5, 4.0);
+    let left = map.unlooked_bearings([0.0, 0.0], 0.7, 4.0, bins);
+    let bearing = |k: usize| crate::msg::wrap_angle(std::f64::consts::TAU * k as f64 / bins as f64);
+    for (k, &l) in left.iter().enumerate() {
+        let b = bearing(k).abs();
+        if b < 0.45 {
+            assert!(!l, "bin {k} ({b} rad) was looked along");
+        } else if b > 0.55 {
+            assert!(l, "bin {k} ({b} rad) was not looked along");
+        }
+    }
+    // the camera turned all round: nothing left
+    map.look([0.0, 0.0], 0.0, std::f64::consts::PI, 4.0);
+    assert!(map
+        .unlooked_bearings([0.0, 0.0], 0.7, 4.0, bins)
+        .iter()
+        .all(|&b| !b));
+    // a looked-at room: nothing left; then a door in it opens (the
+    // lasers see floor beyond it, the camera never looked there): its
+    // bearing is left
+    let rays: Vec<LaserRay> = ring(Some(2.0), false)
+        .into_iter()
+        .map(|mut r| {
+            if r.dir[0] > 0.99 {
+                r.range_m = Some(3.5);
+            }
+            r
+        })
+        .collect();
+    let mut door = GridMap::new(MapSettings::default(), [0.0, 0.0]);
+    door.add_scan(Pose2::default(), &ring(Some(2.0), false));
+    door.look([0.0, 0.0], 0.0, std::f64::consts::PI, 4.0);
+    assert!(!door.unlooked_bearings([0.0, 0.0], 0.7, 4.0, bins)[0]);
+    for _ in 0..5 {
+        door.add_scan(Pose2::default(), &rays);
+    }
+    assert!(door.unlooked_bearings([0.0, 0.0], 0.7, 4.0, bins)[0]);
+}
+
+#[test]
 fn room_to_turn_is_the_nearest_place_clear_all_round() {
     let mut map = GridMap::new(MapSettings::default(), [0.0, 0.0]);
     // a wall 0.5 m to the left (y = 0.5), open elsewhere to 3 m
