@@ -154,6 +154,8 @@ pub struct Control {
     /// whether the person has been told.
     held_since: Option<Stamp>,
     said_held: bool,
+    /// Whether this hold has had the object's other side tried.
+    tried_other_side: bool,
 }
 
 /// A turn on the spot refused this long for an unseen rear: the chair asks.
@@ -169,6 +171,9 @@ pub const STAND_STILL_FOR: std::time::Duration = std::time::Duration::from_secs(
 /// Held on the way this long without a break (no detour, no room to back
 /// off): the person is told, once per hold; the chair keeps trying.
 pub const SAY_HELD_AFTER: std::time::Duration = std::time::Duration::from_secs(10);
+/// Held this long on the way to the place beside the object: another side
+/// of it is tried (before the person is told of the hold).
+pub const OTHER_SIDE_HELD_AFTER: std::time::Duration = std::time::Duration::from_secs(8);
 
 /// A search turn goes clockwise when what is left to look at is nearer
 /// that way by this much, rad (counter-clockwise otherwise: at a trip's
@@ -233,6 +238,7 @@ impl Control {
             detours: 0,
             held_since: None,
             said_held: false,
+            tried_other_side: false,
         }
     }
 

@@ -2,7 +2,7 @@
 //! goal: a detour the supervisor admits (`navigation::detour`), and
 //! telling the person when there is none for a while.
 
-use super::{Control, NEAR_ENOUGH_M, SAY_HELD_AFTER};
+use super::{Control, NEAR_ENOUGH_M, OTHER_SIDE_HELD_AFTER, SAY_HELD_AFTER};
 use crate::msg::{Stamp, Stamped, VelocityCmd};
 use crate::safety::SupervisorInputs;
 
@@ -100,10 +100,19 @@ impl Control {
         let Some(held) = held else {
             self.held_since = None;
             self.said_held = false;
+            self.tried_other_side = false;
             return None;
         };
         let since = *self.held_since.get_or_insert(now);
         let held_for = since.age_at(now);
+        // held on the way to the place beside the object: another side
+        // of it, once a hold (a new hold begins when the chair moves on)
+        if held_for >= OTHER_SIDE_HELD_AFTER && !self.tried_other_side {
+            self.tried_other_side = true;
+            if self.goal.refuse_approach() {
+                tracing::info!(?held, "held on the way: trying another side of the object");
+            }
+        }
         if held_for >= SAY_HELD_AFTER && !self.said_held {
             self.said_held = true;
             // driving to an object, the wait has an end

@@ -139,6 +139,11 @@ pub enum GoalEvent {
         /// How far the place beside the object still is, m.
         off_m: f64,
     },
+    /// Held on the way to the place beside the object: another side of
+    /// it instead ([`GoalKeeper::refuse_approach`]).
+    OtherSide {
+        label: String,
+    },
     /// A full search turn without seeing the word: the goal is dropped.
     NotFound {
         label: String,
@@ -179,6 +184,9 @@ impl GoalEvent {
             GoalEvent::ReachedNear { label, .. } => {
                 format!("Arrived: this is as near the {label} as I can safely go.")
             }
+            GoalEvent::OtherSide { label } => {
+                format!("I cannot get to this side of the {label}. Trying another side.")
+            }
             GoalEvent::NotFound { label } => format!("I cannot find a {label} here. Stopped."),
             GoalEvent::GaveUp { label, held_s } => format!(
                 "I cannot get to the {label}: my way has been blocked for {held_s:.0} seconds. \
@@ -205,6 +213,8 @@ pub struct GoalKeeper {
     /// Where the goal's object was last seen (odom), to pick up its track
     /// again when the tracker re-identifies it.
     last_center: Option<[f64; 3]>,
+    /// The goal's object's box when last seen (odom: centre, size), m.
+    last_box: Option<([f64; 3], [f64; 3])>,
     /// The search turn: the heading last seen and how far the chair has
     /// turned since the search began, rad.
     search_heading: Option<f64>,
@@ -226,7 +236,25 @@ pub struct GoalKeeper {
     said_no_approach: Option<u64>,
     /// Searches begun again for this word after losing sight of it.
     searched_again: u32,
+    /// Places beside the object the chair was held on its way to (odom):
+    /// not chosen again for this word.
+    refused: Vec<[f64; 2]>,
+    /// A place was just refused: the next update looks for another.
+    refusing: bool,
 }
+
+/// A place beside the object this near one refused is refused too, m
+/// (the places tried are 15° apart about the object).
+const REFUSED_WITHIN_M: f64 = 0.6;
+/// At the place beside the object, it must have been seen this recently
+/// (where the camera can see it) for the trip to end there: a false
+/// detection's track, not seen again, is held, then looked for again.
+pub const SEEN_ON_ARRIVAL: Duration = Duration::from_millis(1500);
+/// Held facing the object this near the place's distance from its box:
+/// arrived, as near as it goes, m.
+pub const AT_STANDOFF_WITHIN_M: f64 = 0.2;
+/// At most this many places refused a word (the object's other sides).
+pub const REFUSED_AT_MOST: usize = 3;
 
 /// A word's object lost from sight (held out of view for
 /// [`GoalSettings::hold_for`]) is looked for again this many times before
@@ -260,6 +288,7 @@ impl GoalKeeper {
             settings,
             state: GoalState::None,
             last_center: None,
+            last_box: None,
             search_heading: None,
             search_turned_rad: 0.0,
             nothing_left_at_rad: None,
@@ -269,6 +298,8 @@ impl GoalKeeper {
             search_since: None,
             said_no_approach: None,
             searched_again: 0,
+            refused: Vec::new(),
+            refusing: false,
         }
     }
 
@@ -286,6 +317,8 @@ impl GoalKeeper {
         self.search_since = None;
         self.said_no_approach = None;
         self.searched_again = 0;
+        self.refused.clear();
+        self.refusing = false;
         self.state = GoalState::Searching {
             label: label.trim().to_lowercase(),
         };
@@ -351,9 +384,12 @@ impl GoalKeeper {
     }
 
     /// The chair is held by something on the way (the caller knows how
-    /// long): within `within_m` of the place beside the object, the trip
-    /// ends there, as near as it safely goes. None otherwise (not tracking,
-    /// or too far: the caller backs off and tries again).
+    /// long): within `within_m` of the place beside the object — or facing
+    /// the object (within 90° of the heading) at the place's distance from
+    /// its box, give or take [`AT_STANDOFF_WITHIN_M`] (the box as seen: a
+    /// box seen large ends a trip short), on another side of it —, the trip
+    /// ends there, as near as it safely goes. None otherwise (not
+    /// tracking, or too far: the caller backs off and tries again).
     pub fn arrive_near(&mut self, chair: Pose2, within_m: f64) -> Option<GoalEvent> {
         let GoalState::Tracking {
             label,
@@ -364,7 +400,16 @@ impl GoalKeeper {
             return None;
         };
         let off_m = (approach.x_m - chair.x_m).hypot(approach.y_m - chair.y_m);
-        if off_m > within_m {
+        let at_standoff = self.last_box.is_some_and(|(c, size)| {
+            let gap = |d: f64, half: f64| (d.abs() - half).max(0.0);
+            let to_box =
+                gap(chair.x_m - c[0], size[0] / 2.0).hypot(gap(chair.y_m - c[1], size[1] / 2.0));
+            let standoff = self.settings.standoff_m + self.settings.front_offset_m;
+            let bearing = (c[1] - chair.y_m).atan2(c[0] - chair.x_m);
+            (to_box - standoff).abs() <= within_m.min(AT_STANDOFF_WITHIN_M)
+                && wrap_angle(bearing - chair.theta_rad).abs() <= std::f64::consts::FRAC_PI_2
+        });
+        if off_m > within_m && !at_standoff {
             return None;
         }
         let label = label.clone();
@@ -373,6 +418,23 @@ impl GoalKeeper {
             track: *track,
         };
         Some(GoalEvent::ReachedNear { label, off_m })
+    }
+
+    /// Held on the way to the place beside the object (the caller times
+    /// it): that place is not chosen again for this word, and the next
+    /// update looks for another side ([`GoalEvent::OtherSide`]; where
+    /// there is none, the place stays). False when not driving to one, or
+    /// [`REFUSED_AT_MOST`] places were refused already.
+    pub fn refuse_approach(&mut self) -> bool {
+        let GoalState::Tracking { approach, .. } = &self.state else {
+            return false;
+        };
+        if self.refusing || self.refused.len() >= REFUSED_AT_MOST {
+            return false;
+        }
+        self.refused.push([approach.x_m, approach.y_m]);
+        self.refusing = true;
+        true
     }
 
     /// Held on the way for `held_s` (the caller times it against
@@ -469,13 +531,33 @@ impl GoalKeeper {
         fits: &dyn Fn([f64; 2]) -> bool,
     ) -> Option<GoalEvent> {
         let s = self.settings;
+        // never a place the chair was held on its way to
+        let refused = self.refused.clone();
+        let not_refused = |p: [f64; 2]| {
+            refused
+                .iter()
+                .all(|r| (p[0] - r[0]).hypot(p[1] - r[1]) > REFUSED_WITHIN_M)
+        };
         let place_beside = |t: &Track,
                             from: [f64; 2],
                             standoff_m: f64,
                             obstacles: &[[f64; 2]],
                             clearance_m: f64| {
-            approach_pose(t, from, standoff_m, obstacles, clearance_m, fits)
-                .or_else(|| approach_pose(t, from, standoff_m, obstacles, clearance_m, &|_| true))
+            let body_m = s.front_offset_m;
+            approach_pose(t, from, standoff_m, body_m, obstacles, clearance_m, &|p| {
+                fits(p) && not_refused(p)
+            })
+            .or_else(|| {
+                approach_pose(
+                    t,
+                    from,
+                    standoff_m,
+                    body_m,
+                    obstacles,
+                    clearance_m,
+                    &not_refused,
+                )
+            })
         };
         let from = [chair.x_m, chair.y_m];
         let last_center = self.last_center;
@@ -557,6 +639,7 @@ impl GoalKeeper {
                 };
                 let id = t.id;
                 self.last_center = Some(t.center_m);
+                self.last_box = Some((t.center_m, t.size_m));
                 match place_beside(
                     t,
                     from,
@@ -617,28 +700,48 @@ impl GoalKeeper {
                 Some(t) => {
                     let track = t.id;
                     self.last_center = Some(t.center_m);
+                    self.last_box = Some((t.center_m, t.size_m));
                     // re-planned as the track updates
-                    let a = place_beside(
+                    let beside = place_beside(
                         t,
                         from,
                         s.standoff_m + s.front_offset_m,
                         obstacles_odom,
                         s.clearance_m,
-                    )
-                    .unwrap_or(approach);
-                    if (a.x_m - chair.x_m).hypot(a.y_m - chair.y_m) <= s.reached_within_m {
+                    );
+                    let refusing = std::mem::take(&mut self.refusing);
+                    let a = match beside {
+                        Some(a) => a,
+                        None if refusing => {
+                            // no other side: the place held on the way to
+                            // stays the goal's
+                            self.refused.pop();
+                            approach
+                        }
+                        None => approach,
+                    };
+                    let other_side = refusing && beside.is_some();
+                    // arrived where the object is seen now (not a false
+                    // detection's track, seen a while ago and no more)
+                    let seen_now = t.last_seen.age_at(now) <= SEEN_ON_ARRIVAL || !visible(t);
+                    if (a.x_m - chair.x_m).hypot(a.y_m - chair.y_m) <= s.reached_within_m
+                        && seen_now
+                    {
                         self.state = GoalState::Reached {
                             label: label.clone(),
                             track,
                         };
                         return Some(GoalEvent::Reached { label });
                     }
+                    let event = other_side.then(|| GoalEvent::OtherSide {
+                        label: label.clone(),
+                    });
                     self.state = GoalState::Tracking {
                         label,
                         track,
                         approach: a,
                     };
-                    None
+                    event
                 }
                 None => {
                     self.state = GoalState::Holding {
@@ -657,6 +760,7 @@ impl GoalKeeper {
                 if let Some(t) = in_view(track, &label) {
                     let track = t.id;
                     self.last_center = Some(t.center_m);
+                    self.last_box = Some((t.center_m, t.size_m));
                     if let Some(approach) = place_beside(
                         t,
                         from,

@@ -417,3 +417,155 @@ fn a_search_turn_ends_once_nothing_is_left_to_look_at() {
     let (turned, _) = turn(&|turned| (!(0.3..1.5).contains(&turned), false));
     assert!((turned - 2.0).abs() < 0.05, "{turned} rad");
 }
+
+/// Held facing the object at the place's distance from it, on another
+/// side than the place: as near as it goes too; facing away, not.
+#[test]
+fn held_at_the_standoff_on_another_side_ends_as_near_as_it_goes() {
+    let settings = crate::config::Settings::defaults().goal_settings();
+    let standoff = settings.standoff_m + settings.front_offset_m;
+    let mut g = GoalKeeper::new(settings);
+    g.set_prompt("chair");
+    see_a_chair_ahead(&mut g, &|_| true, &|_| true);
+    let a = g.approach().expect("an approach");
+    // beside the chair's −y face (the place is on its −x side)
+    let beside = |theta_rad: f64| Pose2 {
+        x_m: 3.0,
+        y_m: -0.25 - standoff - 0.1,
+        theta_rad,
+    };
+    assert!((a.x_m - 3.0).hypot(a.y_m - beside(0.0).y_m) > 1.0);
+    assert_eq!(
+        g.arrive_near(beside(-std::f64::consts::FRAC_PI_2), 0.3),
+        None
+    );
+    assert_eq!(
+        g.arrive_near(
+            Pose2 {
+                y_m: -0.25 - standoff - 0.5,
+                ..beside(std::f64::consts::FRAC_PI_2)
+            },
+            0.3
+        ),
+        None,
+        "0.5 m short"
+    );
+    assert!(matches!(
+        g.arrive_near(beside(std::f64::consts::FRAC_PI_2), 0.3),
+        Some(GoalEvent::ReachedNear { .. })
+    ));
+    assert!(matches!(g.state(), GoalState::Reached { .. }));
+}
+
+/// Held on the way to the place beside the object: another side of it,
+/// never the refused one again; where there is no other side, the place
+/// stays; at most [`REFUSED_AT_MOST`] refused.
+#[test]
+fn held_on_the_way_to_the_place_the_chair_tries_another_side() {
+    let mut g = GoalKeeper::new(crate::config::Settings::defaults().goal_settings());
+    assert!(!g.refuse_approach(), "no goal");
+    g.set_prompt("chair");
+    assert!(!g.refuse_approach(), "searching");
+    let mut tracker = see_a_chair_ahead(&mut g, &|_| true, &|_| true);
+    let first = g.approach().expect("an approach");
+    let step = |g: &mut GoalKeeper, tracker: &mut Tracker, k: u32, obstacles: &[[f64; 2]]| {
+        let now = t(1.0 + k as f64 * 0.1);
+        tracker.update(now, &[chair_obj(3.0)], |_| true);
+        g.update(
+            now,
+            tracker,
+            Pose2::default(),
+            obstacles,
+            &|_| true,
+            &|_| true,
+        )
+    };
+    assert!(g.refuse_approach());
+    assert!(!g.refuse_approach(), "one refusal at a time");
+    let e = step(&mut g, &mut tracker, 0, &[]);
+    assert!(
+        matches!(&e, Some(GoalEvent::OtherSide { label }) if label == "chair"),
+        "{e:?}"
+    );
+    assert_eq!(
+        e.expect("an event").say(),
+        "I cannot get to this side of the chair. Trying another side."
+    );
+    let second = g.approach().expect("another place");
+    let apart = |a: &ApproachPose, b: &ApproachPose| (a.x_m - b.x_m).hypot(a.y_m - b.y_m);
+    assert!(apart(&first, &second) > 0.6, "{first:?} {second:?}");
+    // from the origin the first side stays the nearest: never chosen again
+    for k in 1..5 {
+        assert_eq!(step(&mut g, &mut tracker, k, &[]), None);
+        assert!(apart(&first, &g.approach().expect("a place")) > 0.6);
+    }
+    assert!(g.refuse_approach());
+    assert!(step(&mut g, &mut tracker, 5, &[]).is_some());
+    assert!(g.refuse_approach());
+    assert!(step(&mut g, &mut tracker, 6, &[]).is_some());
+    assert!(!g.refuse_approach(), "at most {REFUSED_AT_MOST}");
+
+    // something all round the chair but on its −x side (towards the
+    // origin): no other side; the place stays the goal's
+    let mut g = GoalKeeper::new(crate::config::Settings::defaults().goal_settings());
+    g.set_prompt("chair");
+    let mut tracker = see_a_chair_ahead(&mut g, &|_| true, &|_| true);
+    let only = g.approach().expect("an approach");
+    let ring: Vec<[f64; 2]> = (0..360)
+        .step_by(3)
+        .map(|d| (d as f64).to_radians())
+        .filter(|a| wrap_angle(a - std::f64::consts::PI).abs() >= 40f64.to_radians())
+        .flat_map(|a| [1.0, 1.2, 1.4, 1.6].map(|r| [3.0 + r * a.cos(), r * a.sin()]))
+        .collect();
+    assert_eq!(step(&mut g, &mut tracker, 0, &ring), None);
+    assert!(apart(&only, &g.approach().expect("a place")) < 0.3);
+    assert!(g.refuse_approach());
+    assert_eq!(step(&mut g, &mut tracker, 1, &ring), None);
+    let kept = g.approach().expect("the place stays");
+    assert!(apart(&only, &kept) < 0.3, "{only:?} {kept:?}");
+    // and it is not refused: the next update keeps it as well
+    assert_eq!(step(&mut g, &mut tracker, 2, &ring), None);
+    assert!(apart(&only, &g.approach().expect("a place")) < 0.3);
+}
+
+/// At the place beside the object, it must be seen now (where the camera
+/// can see it) for the trip to end: a false detection's track, not seen
+/// again, is not arrived at.
+#[test]
+fn arrived_only_where_the_object_is_seen_now() {
+    let at = Pose2 {
+        x_m: 1.57,
+        y_m: 0.02,
+        theta_rad: 0.0,
+    };
+    let mut g = GoalKeeper::new(crate::config::Settings::defaults().goal_settings());
+    g.set_prompt("chair");
+    let mut tracker = see_a_chair_ahead(&mut g, &|_| true, &|_| true);
+    // last seen at 0.2 s; at the place 2 s later, nothing seen since
+    let later = 0.2 + SEEN_ON_ARRIVAL.as_secs_f64() + 0.3;
+    tracker.update(t(later), &[], |_| false);
+    assert_eq!(
+        g.update(t(later), &tracker, at, &[], &|_| true, &|_| true),
+        None
+    );
+    assert!(matches!(g.state(), GoalState::Tracking { .. }));
+    // where the camera cannot see it (too close, below the view): arrived
+    assert!(matches!(
+        g.update(t(later), &tracker, at, &[], &|_| false, &|_| true),
+        Some(GoalEvent::Reached { .. })
+    ));
+    // seen again at the place: arrived
+    let mut g = GoalKeeper::new(crate::config::Settings::defaults().goal_settings());
+    g.set_prompt("chair");
+    let mut tracker = see_a_chair_ahead(&mut g, &|_| true, &|_| true);
+    tracker.update(t(later), &[], |_| false);
+    assert_eq!(
+        g.update(t(later), &tracker, at, &[], &|_| true, &|_| true),
+        None
+    );
+    tracker.update(t(later + 0.5), &[chair_obj(3.0)], |_| true);
+    assert!(matches!(
+        g.update(t(later + 0.5), &tracker, at, &[], &|_| true, &|_| true),
+        Some(GoalEvent::Reached { .. })
+    ));
+}

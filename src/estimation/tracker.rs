@@ -244,10 +244,14 @@ pub struct ApproachPose {
 /// every obstacle point, else the nearest free direction around the
 /// object (15° steps). None when no side is free.
 /// The line from a stopping place to its object keeps this far from every
-/// obstacle point but the object's own: the chair's body (half its width)
-/// fits there, facing the object, and nothing stands between (a wall
-/// beside a doorway the object is seen through), m.
+/// obstacle point but the object's own along the chair's body (from the
+/// place to its front edge): the body (half its width) fits there, facing
+/// the object, m.
 const LINE_OF_SIGHT_M: f64 = 0.36;
+/// And this far along the rest, the gap between the chair's front and the
+/// object: nothing stands between (a wall beside a doorway the object is
+/// seen through), m.
+const VIEW_CLEAR_M: f64 = 0.2;
 /// An obstacle point this close to the object's box is the object's own, m.
 const OWN_POINT_M: f64 = 0.1;
 /// The object's own points within this of the line from its centre to
@@ -272,11 +276,13 @@ pub(crate) fn segment_distance_sq(a: [f64; 2], b: [f64; 2], p: [f64; 2]) -> f64 
 /// facing it, on the free side nearest the way from `from`, clear of
 /// `obstacles` by `clearance_m` with the object in sight; only places
 /// `fits` admits (odom: e.g. where the chair fits on the map of everything
-/// it has seen; `&|_| true` for any).
+/// it has seen; `&|_| true` for any). `body_m`: from the place to the
+/// chair's front edge (of `standoff_m`, from the place to the object).
 pub fn approach_pose(
     track: &Track,
     from: [f64; 2],
     standoff_m: f64,
+    body_m: f64,
     obstacles: &[[f64; 2]],
     clearance_m: f64,
     fits: &dyn Fn([f64; 2]) -> bool,
@@ -333,9 +339,13 @@ pub fn approach_pose(
             // and the chair's body and its view of the object clear of
             // everything else
             let edge = [cx + reach(a) * a.cos(), cy + reach(a) * a.sin()];
+            let body = body_m.clamp(0.0, r);
+            let front = [x - body * a.cos(), y - body * a.sin()];
             let in_sight = || {
                 obstacles.iter().all(|o| {
-                    is_own(o) || segment_distance_sq([x, y], edge, *o) >= LINE_OF_SIGHT_M.powi(2)
+                    is_own(o)
+                        || (segment_distance_sq([x, y], front, *o) >= LINE_OF_SIGHT_M.powi(2)
+                            && segment_distance_sq(front, edge, *o) >= VIEW_CLEAR_M.powi(2))
                 })
             };
             if free && fits([x, y]) && in_sight() {
@@ -455,14 +465,14 @@ mod tests {
     #[test]
     fn approach_pose_faces_the_object_from_the_free_side() {
         let t = one_track("chair", [3.0, 0.0, 0.4], 0.25);
-        let p = approach_pose(&t, [0.0, 0.0], 0.6, &[], 0.4, &|_| true).unwrap();
+        let p = approach_pose(&t, [0.0, 0.0], 0.6, 0.6, &[], 0.4, &|_| true).unwrap();
         assert!(
             (p.x_m - (3.0 - 0.25 - 0.6)).abs() < 1e-6
                 && p.y_m.abs() < 1e-6
                 && p.yaw_rad.abs() < 1e-9
         );
         // something stands there: the next free direction, still facing it
-        let p = approach_pose(&t, [0.0, 0.0], 0.6, &[[2.15, 0.0]], 0.4, &|_| true).unwrap();
+        let p = approach_pose(&t, [0.0, 0.0], 0.6, 0.6, &[[2.15, 0.0]], 0.4, &|_| true).unwrap();
         assert!(p.y_m.abs() > 0.1);
         let to_obj = (0.0 - p.y_m).atan2(3.0 - p.x_m);
         assert!((p.yaw_rad - to_obj).abs() < 1e-9);
@@ -473,7 +483,23 @@ mod tests {
                 [3.0 + 0.9 * a.cos(), 0.9 * a.sin()]
             })
             .collect();
-        assert!(approach_pose(&t, [0.0, 0.0], 0.6, &ring, 0.4, &|_| true).is_none());
+        assert!(approach_pose(&t, [0.0, 0.0], 0.6, 0.6, &ring, 0.4, &|_| true).is_none());
+    }
+
+    #[test]
+    fn only_the_chairs_body_needs_room_beside_the_line_to_the_object() {
+        let t = one_track("chair", [3.0, 0.0, 0.4], 0.25);
+        // a table's corner beside the gap between the chair's front and
+        // the object (0.3 m off the line), not beside the chair's body
+        let corner = [[2.62, 0.3]];
+        let p = approach_pose(&t, [0.0, 0.0], 0.6, 0.2, &corner, 0.4, &|_| true).unwrap();
+        assert!(p.y_m.abs() < 1e-6 && (p.x_m - 2.15).abs() < 1e-6, "{p:?}");
+        // the body reaching past it: another side
+        let p = approach_pose(&t, [0.0, 0.0], 0.6, 0.6, &corner, 0.4, &|_| true).unwrap();
+        assert!(p.y_m.abs() > 0.1, "{p:?}");
+        // something right on the line in the gap: nothing is seen past it
+        let p = approach_pose(&t, [0.0, 0.0], 0.6, 0.2, &[[2.6, 0.05]], 0.4, &|_| true).unwrap();
+        assert!(p.y_m.abs() > 0.1, "{p:?}");
     }
 
     #[test]
@@ -482,15 +508,15 @@ mod tests {
         // towards the chair seen by the lasers 0.3 m inside the box
         let t = one_track("desk", [3.0, 0.0, 0.4], 0.5);
         let face: Vec<[f64; 2]> = (-3..=3).map(|k| [2.8, k as f64 * 0.1]).collect();
-        let p = approach_pose(&t, [0.0, 0.0], 0.6, &face, 0.4, &|_| true).unwrap();
+        let p = approach_pose(&t, [0.0, 0.0], 0.6, 0.6, &face, 0.4, &|_| true).unwrap();
         assert!((p.x_m - (2.8 - 0.6)).abs() < 1e-6, "{p:?}");
         // its points beside the way in, or nothing seen: the box's edge
         let aside: Vec<[f64; 2]> = vec![[2.8, 0.45]];
-        let p = approach_pose(&t, [0.0, 0.0], 0.6, &aside, 0.4, &|_| true).unwrap();
+        let p = approach_pose(&t, [0.0, 0.0], 0.6, 0.6, &aside, 0.4, &|_| true).unwrap();
         assert!((p.x_m - (2.5 - 0.6)).abs() < 1e-6, "{p:?}");
         // a point outside the box (0.1 m short of it) is not the object's
         // edge: never beyond the box
-        let p = approach_pose(&t, [0.0, 0.0], 0.6, &[[2.45, 0.0]], 0.3, &|_| true).unwrap();
+        let p = approach_pose(&t, [0.0, 0.0], 0.6, 0.6, &[[2.45, 0.0]], 0.3, &|_| true).unwrap();
         assert!((p.x_m - (2.5 - 0.6)).abs() < 1e-6, "{p:?}");
     }
 }
