@@ -21,10 +21,7 @@ use crate::navigation::map::MapSettings;
 use crate::navigation::mpc::UnicycleState;
 use crate::navigation::planner::Planner;
 
-use super::route::{
-    Router, CRAWL_MPS, EXPLORE_APART_M, EXPLORE_MIN_M, EXPLORE_ROOM_M, ROOM_TO_TURN_MIN_M,
-    TURN_FIRST_RAD, TURN_FIRST_RADPS,
-};
+use super::route::{Router, CRAWL_MPS, TURN_FIRST_RAD, TURN_FIRST_RADPS};
 use crate::safety::rear::{RearSettings, RearWatch};
 use crate::safety::{Supervisor, SupervisorInputs};
 
@@ -178,9 +175,9 @@ pub const OTHER_SIDE_HELD_AFTER: std::time::Duration = std::time::Duration::from
 /// A search turn goes clockwise when what is left to look at is nearer
 /// that way by this much, rad (counter-clockwise otherwise: at a trip's
 /// start, when all round is left, the way does not depend on a few cells).
-const CLOCKWISE_SHORTER_BY_RAD: f64 = 0.5;
+pub(super) const CLOCKWISE_SHORTER_BY_RAD: f64 = 0.5;
 /// A search turn held this long by an obstacle ends there.
-const TURN_HELD_FOR: std::time::Duration = std::time::Duration::from_secs(3);
+pub(super) const TURN_HELD_FOR: std::time::Duration = std::time::Duration::from_secs(3);
 
 /// The motor interface up but not driving this long: the takeover failed.
 const TAKEOVER_WITHIN: std::time::Duration = std::time::Duration::from_secs(1);
@@ -563,17 +560,7 @@ impl Control {
         if let Some(m) = map {
             m.update_distances();
         }
-        // a search turn ends once nothing around is left to look at
-        if let (Some(r), Some(v), GoalState::Searching { .. }) =
-            (self.route.as_ref(), view.as_ref(), self.goal.state())
-        {
-            if let Some(left) = r.left_to_see(pose, v) {
-                self.goal.left_to_see(
-                    left.nothing(),
-                    left.cw_rad + CLOCKWISE_SHORTER_BY_RAD < left.ccw_rad,
-                );
-            }
-        }
+        self.tell_goal_what_is_left(pose, view.as_ref());
         let map = self.route.as_ref().and_then(|r| r.map.as_ref());
         let event = self.goal.update(
             now,
@@ -583,52 +570,7 @@ impl Control {
             &|t| t.expected_seen && view.is_some_and(|v| v.sees(&pose, &t.center_m)),
             &|p| map.is_none_or(|m| m.fits(p)),
         );
-        // a search turn held by something in the turn's circle: as good as
-        // done from here; the keeper looks further, somewhere with room
-        let turn_held = matches!(self.goal.state(), GoalState::Searching { .. })
-            && self.supervisor.state()
-                == SupervisorState::Stopped(crate::msg::StopReason::Obstacle);
-        if !turn_held {
-            self.turn_held_since = None;
-        }
-        let held_long = turn_held
-            && event.is_none()
-            && self.turn_held_since.get_or_insert(now).age_at(now) >= TURN_HELD_FOR;
-        let event = match event {
-            None if held_long => {
-                self.turn_held_since = None;
-                let from = [pose.x_m, pose.y_m];
-                let place = self.route.as_mut().and_then(|r| {
-                    // room to spare where it can (it stops within 0.3 m
-                    // of the place)
-                    let map = r.map.as_mut()?;
-                    map.room_to_turn(from, ROOM_TO_TURN_MIN_M, EXPLORE_ROOM_M + 0.15)
-                        .or_else(|| map.room_to_turn(from, ROOM_TO_TURN_MIN_M, EXPLORE_ROOM_M))
-                });
-                tracing::info!(
-                    ?pose,
-                    ?place,
-                    "search turn held by an obstacle: turning elsewhere"
-                );
-                self.goal.turn_done();
-                self.goal.explore(now, place)
-            }
-            None if self.goal.wants_place() => {
-                let from = [pose.x_m, pose.y_m];
-                let place = self.route.as_mut().and_then(|r| {
-                    let map = r.map.as_mut()?;
-                    map.frontier(
-                        from,
-                        EXPLORE_MIN_M,
-                        EXPLORE_ROOM_M,
-                        &self.goal.searched,
-                        EXPLORE_APART_M,
-                    )
-                });
-                self.goal.explore(now, place)
-            }
-            e => e,
-        };
+        let event = self.search_further(now, pose, event);
         // held on the way, close to the place beside the object: as near
         // as it safely goes
         // (for something in the way, or asked whether it is clear behind
@@ -841,6 +783,10 @@ impl Control {
 /// What the step does when the supervisor holds the way.
 #[path = "control_held.rs"]
 mod held;
+
+/// The search: its turns and where it goes on.
+#[path = "control_search.rs"]
+mod search;
 
 /// Asking the person whether it is clear behind before a turn.
 #[path = "control_rear.rs"]

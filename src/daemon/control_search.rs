@@ -1,0 +1,84 @@
+//! The control step's search for the word: a search turn that ends once
+//! nothing around is left to look at, and where the search goes on — a
+//! place with room to turn when the turn is held, the nearest frontier
+//! when it is done.
+
+use super::{Control, CLOCKWISE_SHORTER_BY_RAD, TURN_HELD_FOR};
+use crate::daemon::route::{EXPLORE_APART_M, EXPLORE_MIN_M, EXPLORE_ROOM_M, ROOM_TO_TURN_MIN_M};
+use crate::estimation::goal::{GoalEvent, GoalState};
+use crate::estimation::view::CameraView;
+use crate::msg::{Pose2, Stamp, SupervisorState};
+
+impl Control {
+    /// Before the goal's update: what is left for the camera to look at
+    /// around the chair, while searching (the turn's end and its way).
+    pub(super) fn tell_goal_what_is_left(&mut self, pose: Pose2, view: Option<&CameraView>) {
+        // a search turn ends once nothing around is left to look at
+        if let (Some(r), Some(v), GoalState::Searching { .. }) =
+            (self.route.as_ref(), view, self.goal.state())
+        {
+            if let Some(left) = r.left_to_see(pose, v) {
+                self.goal.left_to_see(
+                    left.nothing(),
+                    left.cw_rad + CLOCKWISE_SHORTER_BY_RAD < left.ccw_rad,
+                );
+            }
+        }
+    }
+
+    /// After the goal's update (`event`, its event): a search turn held
+    /// by something in its circle, or one that is done, goes on elsewhere.
+    pub(super) fn search_further(
+        &mut self,
+        now: Stamp,
+        pose: Pose2,
+        event: Option<GoalEvent>,
+    ) -> Option<GoalEvent> {
+        // a search turn held by something in the turn's circle: as good as
+        // done from here; the keeper looks further, somewhere with room
+        let turn_held = matches!(self.goal.state(), GoalState::Searching { .. })
+            && self.supervisor.state()
+                == SupervisorState::Stopped(crate::msg::StopReason::Obstacle);
+        if !turn_held {
+            self.turn_held_since = None;
+        }
+        let held_long = turn_held
+            && event.is_none()
+            && self.turn_held_since.get_or_insert(now).age_at(now) >= TURN_HELD_FOR;
+        match event {
+            None if held_long => {
+                self.turn_held_since = None;
+                let from = [pose.x_m, pose.y_m];
+                let place = self.route.as_mut().and_then(|r| {
+                    // room to spare where it can (it stops within 0.3 m
+                    // of the place)
+                    let map = r.map.as_mut()?;
+                    map.room_to_turn(from, ROOM_TO_TURN_MIN_M, EXPLORE_ROOM_M + 0.15)
+                        .or_else(|| map.room_to_turn(from, ROOM_TO_TURN_MIN_M, EXPLORE_ROOM_M))
+                });
+                tracing::info!(
+                    ?pose,
+                    ?place,
+                    "search turn held by an obstacle: turning elsewhere"
+                );
+                self.goal.turn_done();
+                self.goal.explore(now, place)
+            }
+            None if self.goal.wants_place() => {
+                let from = [pose.x_m, pose.y_m];
+                let place = self.route.as_mut().and_then(|r| {
+                    let map = r.map.as_mut()?;
+                    map.frontier(
+                        from,
+                        EXPLORE_MIN_M,
+                        EXPLORE_ROOM_M,
+                        &self.goal.searched,
+                        EXPLORE_APART_M,
+                    )
+                });
+                self.goal.explore(now, place)
+            }
+            e => e,
+        }
+    }
+}
