@@ -100,111 +100,11 @@ impl GoalState {
     }
 }
 
-/// What the user hears (and the log records).
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub enum GoalEvent {
-    Acquired {
-        label: String,
-        track: u64,
-    },
-    /// No free side around the object to stop at.
-    NoApproach {
-        label: String,
-        track: u64,
-    },
-    OutOfView {
-        label: String,
-    },
-    BackInView {
-        label: String,
-    },
-    /// Held too long out of view: looked for again from where the chair
-    /// is (at most [`SEARCH_AGAIN_AT_MOST`] times a word).
-    SearchingAgain {
-        label: String,
-        held_s: f64,
-    },
-    /// Held too long out of view: dropped, the chair stops.
-    Lost {
-        label: String,
-        held_s: f64,
-    },
-    Reached {
-        label: String,
-    },
-    /// Held by something on the way within reach of the place beside the
-    /// object: as near as the chair can safely go, so the trip ends there.
-    ReachedNear {
-        label: String,
-        /// How far the place beside the object still is, m.
-        off_m: f64,
-    },
-    /// Held on the way to the place beside the object: another side of
-    /// it instead ([`GoalKeeper::refuse_approach`]).
-    OtherSide {
-        label: String,
-    },
-    /// A full search turn without seeing the word: the goal is dropped.
-    NotFound {
-        label: String,
-    },
-    /// Held on the way for [`GoalSettings::give_up_held_after`] without a
-    /// break: the goal is dropped, the chair stops.
-    GaveUp {
-        label: String,
-        held_s: f64,
-    },
-    /// A turn to look around is done: what is known around, nearest first.
-    LookedAround {
-        seen: Vec<String>,
-    },
-    /// Not seen from here: going on to look elsewhere.
-    LookingFurther {
-        label: String,
-    },
-}
-
-impl GoalEvent {
-    /// A sentence for the voice output / display.
-    pub fn say(&self) -> String {
-        match self {
-            GoalEvent::Acquired { label, .. } => format!("Going to the {label}."),
-            GoalEvent::NoApproach { label, .. } => {
-                format!("I see the {label} but cannot find a free place beside it.")
-            }
-            GoalEvent::OutOfView { label } => format!("I lost sight of the {label}; waiting."),
-            GoalEvent::BackInView { label } => format!("I see the {label} again."),
-            GoalEvent::SearchingAgain { label, held_s } => format!(
-                "I lost sight of the {label} for {held_s:.0} seconds. Looking for it again."
-            ),
-            GoalEvent::Lost { label, held_s } => {
-                format!("I could not find the {label} again after {held_s:.0} seconds. Stopped.")
-            }
-            GoalEvent::Reached { label } => format!("Arrived at the {label}."),
-            GoalEvent::ReachedNear { label, .. } => {
-                format!("Arrived: this is as near the {label} as I can safely go.")
-            }
-            GoalEvent::OtherSide { label } => {
-                format!("I cannot get to this side of the {label}. Trying another side.")
-            }
-            GoalEvent::NotFound { label } => format!("I cannot find a {label} here. Stopped."),
-            GoalEvent::GaveUp { label, held_s } => format!(
-                "I cannot get to the {label}: my way has been blocked for {held_s:.0} seconds. \
-                 Stopped."
-            ),
-            GoalEvent::LookingFurther { label } => {
-                format!("I cannot see a {label} from here. Looking further.")
-            }
-            GoalEvent::LookedAround { seen } if seen.is_empty() => {
-                "I looked around and saw nothing I know.".into()
-            }
-            GoalEvent::LookedAround { seen } => {
-                let things: Vec<String> = seen.iter().map(|l| format!("the {l}")).collect();
-                format!("I looked around. I see {}.", things.join(", "))
-            }
-        }
-    }
-}
+/// What the user hears (and the log records): the goal's events and their
+/// sentences.
+#[path = "goal_events.rs"]
+mod events;
+pub use events::GoalEvent;
 
 #[derive(Debug, Clone)]
 pub struct GoalKeeper {
@@ -303,16 +203,21 @@ impl GoalKeeper {
         }
     }
 
+    /// A search turn begins afresh: nothing turned yet, counter-clockwise.
+    fn new_turn(&mut self) {
+        self.search_heading = None;
+        self.search_turned_rad = 0.0;
+        self.nothing_left_at_rad = None;
+        self.search_dir = 1.0;
+    }
+
     pub fn state(&self) -> &GoalState {
         &self.state
     }
 
     /// The user said a word.
     pub fn set_prompt(&mut self, label: &str) {
-        self.search_heading = None;
-        self.search_turned_rad = 0.0;
-        self.nothing_left_at_rad = None;
-        self.search_dir = 1.0;
+        self.new_turn();
         self.searched.clear();
         self.search_since = None;
         self.said_no_approach = None;
@@ -327,10 +232,7 @@ impl GoalKeeper {
     /// Turn once on the spot (the search turn, with no word) and then say
     /// what is around.
     pub fn look_around(&mut self) {
-        self.search_heading = None;
-        self.search_turned_rad = 0.0;
-        self.nothing_left_at_rad = None;
-        self.search_dir = 1.0;
+        self.new_turn();
         self.state = GoalState::LookingAround;
     }
 
@@ -674,10 +576,7 @@ impl GoalKeeper {
                 {
                     // seen on the way: as when a search turn finds it
                     self.state = GoalState::Searching { label };
-                    self.search_heading = None;
-                    self.search_turned_rad = 0.0;
-                    self.nothing_left_at_rad = None;
-                    self.search_dir = 1.0;
+                    self.new_turn();
                     return self.update(now, tracker, chair, obstacles_odom, visible, fits);
                 }
                 let there = (target[0] - from[0]).hypot(target[1] - from[1]) <= EXPLORED_WITHIN_M;
@@ -685,10 +584,7 @@ impl GoalKeeper {
                     // look again from here
                     self.searched.push(from);
                     self.state = GoalState::Searching { label };
-                    self.search_heading = None;
-                    self.search_turned_rad = 0.0;
-                    self.nothing_left_at_rad = None;
-                    self.search_dir = 1.0;
+                    self.new_turn();
                 }
                 None
             }
@@ -782,10 +678,7 @@ impl GoalKeeper {
                     // a search of its own from here: turn, then further
                     self.searched_again += 1;
                     self.searched.clear();
-                    self.search_heading = None;
-                    self.search_turned_rad = 0.0;
-                    self.nothing_left_at_rad = None;
-                    self.search_dir = 1.0;
+                    self.new_turn();
                     self.search_since = Some(now);
                     self.said_no_approach = None;
                     self.state = GoalState::Searching {
