@@ -57,6 +57,7 @@ fn trip(asked: impl Fn(f64, f64) -> VelocityCmd) -> Trip {
     let front = settings.safety.front_offset_m;
     let rear = RearView {
         seen: true,
+        reverse_seen: true,
         points_base: Vec::new(),
     };
     let mut obstacles = None;

@@ -124,6 +124,8 @@ pub struct Control {
     rear_clear_since: Option<Stamp>,
     /// The chair asked whether it is clear behind (the pose it asked at).
     asked_rear: Option<crate::msg::Pose2>,
+    /// What was asked about the rear was backing up, not a turn.
+    asked_back_up: bool,
     /// "yes" arrived: vouch for the rear at the next step.
     rear_yes: bool,
     /// Since when a search turn is held by an obstacle.
@@ -222,6 +224,7 @@ impl Control {
             rear_blocked_since: None,
             rear_clear_since: None,
             asked_rear: None,
+            asked_back_up: false,
             rear_yes: false,
             turn_held_since: None,
             back_off: BackOff::default(),
@@ -362,7 +365,23 @@ impl Control {
             }
             UserInput::Yes if self.asked_rear.is_some() => {
                 self.rear_yes = true;
-                self.say("Thank you. Turning.".into());
+                self.say(if self.asked_back_up {
+                    "Thank you. Backing up.".into()
+                } else {
+                    "Thank you. Turning.".into()
+                });
+            }
+            UserInput::No if self.asked_back_up && self.asked_rear.is_some() => {
+                // backing up only made room to line up with a doorway:
+                // the passage goes on without it
+                self.asked_rear = None;
+                if self.route.as_mut().is_some_and(|r| r.refuse_back_up()) {
+                    self.say("I will not back up.".into());
+                } else {
+                    self.goal.clear();
+                    self.planner_cmd = None;
+                    self.say("Staying here.".into());
+                }
             }
             UserInput::No if self.asked_rear.take().is_some() => {
                 self.goal.clear();

@@ -7,6 +7,9 @@ use crate::msg::{Obstacles, Stamp, Stamped, SupervisorState};
 
 /// A turn refused for an unseen rear this long: the person is asked.
 pub(super) const ASK_REAR_AFTER: std::time::Duration = std::time::Duration::from_secs(1);
+/// The person's "yes" to backing up holds this far straight back (a
+/// doorway's back-up is 0.4 m at most), m.
+pub(super) const BACK_UP_VOUCHED_M: f64 = 0.45;
 /// Turns no longer refused for an unseen rear this long: that wait is over.
 pub(super) const REAR_WAIT_OVER_AFTER: std::time::Duration = std::time::Duration::from_secs(1);
 
@@ -25,7 +28,11 @@ impl Control {
         }
         if std::mem::take(&mut self.rear_yes) {
             if let Some(at) = self.asked_rear.take() {
-                self.rear.confirm(now, at);
+                if self.asked_back_up {
+                    self.rear.confirm_backing(now, at, BACK_UP_VOUCHED_M);
+                } else {
+                    self.rear.confirm(now, at);
+                }
             }
         }
         self.rear.view(now, pose)
@@ -57,11 +64,20 @@ impl Control {
         if since.age_at(now) >= ASK_REAR_AFTER && self.asked_rear.is_none() {
             if let Some(p) = pose {
                 self.asked_rear = Some(p);
-                self.say(
+                let backing = self
+                    .planner_cmd
+                    .as_ref()
+                    .is_some_and(|c| c.value.v_mps < 0.0);
+                self.asked_back_up = backing;
+                self.say(if backing {
+                    "I need to back up a little, and I cannot see behind me. \
+                     Is it clear behind? Say yes to let me back up, or no."
+                        .into()
+                } else {
                     "I need to turn on the spot, and I cannot see behind me. \
                      Is it clear behind? Say yes to let me turn, or no."
-                        .into(),
-                );
+                        .into()
+                });
             }
         }
     }

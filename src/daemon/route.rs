@@ -181,6 +181,15 @@ impl Router {
         Some(left)
     }
 
+    /// The person said it is not clear behind while the chair backed up
+    /// before a doorway: the passage goes on without backing up. Whether
+    /// a passage was backing up.
+    pub(super) fn refuse_back_up(&mut self) -> bool {
+        self.passage
+            .as_mut()
+            .is_some_and(|(p, _, _)| p.refuse_back_up())
+    }
+
     /// Whether the map has something within [`TIGHT_M`] of the chair's
     /// centre line up to 0.6 m ahead.
     pub(super) fn tight_ahead(&mut self, pose: crate::msg::Pose2) -> bool {

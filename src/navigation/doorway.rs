@@ -284,6 +284,10 @@ pub enum Phase {
     Align,
     /// Straight through at a crawl.
     Pass,
+    /// Too near the doorway to line up, and off the middle line by more
+    /// than the gap leaves a side: straight back, the heading held, until
+    /// there is room to line up (`to_m` along the axis), m.
+    BackUp { to_m: f64 },
 }
 
 /// What to do now.
@@ -334,6 +338,17 @@ pub struct PassageSettings {
     pub line_up_nearest_m: f64,
     pub line_up_off_m: f64,
     pub line_up_from_m: f64,
+    /// What the gap must hold: the chair's width and the crawl's margin
+    /// each side (0.70 + 2 × 0.03), m. Off the middle line by more than
+    /// half the rest (or `line_up_off_m`), too near to line up, and with
+    /// the front not yet at the wall (base_link `enter_m` before the
+    /// middle), the chair backs up to make room, `back_ups` times at most.
+    pub body_m: f64,
+    pub enter_m: f64,
+    pub back_ups: u32,
+    /// Backs up this far at most (the person is asked about this much
+    /// behind when the rear is unseen), m.
+    pub back_up_m: f64,
 }
 
 impl Default for PassageSettings {
@@ -355,9 +370,16 @@ impl Default for PassageSettings {
             line_up_nearest_m: 0.78,
             line_up_off_m: 0.03,
             line_up_from_m: 0.35,
+            body_m: 0.76,
+            enter_m: 0.5,
+            back_ups: 2,
+            back_up_m: 0.4,
         }
     }
 }
+
+/// Backing up only this square to the doorway, rad.
+const BACK_UP_SQUARE_RAD: f64 = 0.2;
 
 /// One doorway being passed.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -369,6 +391,8 @@ pub struct Passage {
     pub found: Doorway,
     pub phase: Phase,
     pub settings: PassageSettings,
+    /// Times it backed up to line up again.
+    pub backed_up: u32,
 }
 
 /// Jamb points are taken within this of the wall's middle plane along the
@@ -422,7 +446,49 @@ impl Passage {
             found: door,
             phase: Phase::Approach,
             settings,
+            backed_up: 0,
         }
+    }
+
+    /// No backing up (the person said it is not clear behind): from a
+    /// backing up, on to aligning where the chair is. Whether it was
+    /// backing up.
+    pub fn refuse_back_up(&mut self) -> bool {
+        self.backed_up = self.settings.back_ups;
+        let backing = matches!(self.phase, Phase::BackUp { .. });
+        if backing {
+            self.phase = Phase::Align;
+        }
+        backing
+    }
+
+    /// How far off the middle line the chair may pass: half what the gap
+    /// leaves beside the chair's body, never less than the line-up's own
+    /// tolerance, m.
+    fn passes_off_m(&self) -> f64 {
+        ((self.door.width_m - self.settings.body_m) / 2.0).max(self.settings.line_up_off_m)
+    }
+
+    /// Off the line by more than the gap allows, where backing up would
+    /// make room to line up (front not yet at the wall, backings left):
+    /// the phase that backs up to there.
+    fn back_up(&mut self, along: f64, left: f64, heading_err: f64) -> Option<Phase> {
+        let s = self.settings;
+        // (square to the doorway: backing up at a slant would take the
+        // chair further off the line)
+        (left.abs() > self.passes_off_m() + 0.01
+            && along < -s.enter_m
+            && heading_err.abs() <= BACK_UP_SQUARE_RAD
+            && self.backed_up < s.back_ups)
+            .then(|| {
+                self.backed_up += 1;
+                Phase::BackUp {
+                    // room to line up from there, on a line no steeper
+                    // than 45 degrees
+                    to_m: (-s.line_up_nearest_m - s.line_up_ahead_m - left.abs().max(0.05))
+                        .max(along - s.back_up_m),
+                }
+            })
     }
 
     /// The doorway's middle and width from the jambs in `points_odom`
@@ -483,6 +549,8 @@ impl Passage {
                     }
                     self.phase = if left.abs() > s.line_up_off_m && room_to_line_up {
                         Phase::LineUp { at_m: line_up_at }
+                    } else if let Some(back) = self.back_up(along, left, heading_err) {
+                        back
                     } else {
                         Phase::Align
                     };
@@ -523,6 +591,14 @@ impl Passage {
                         self.phase = Phase::Align;
                         continue;
                     }
+                    // off the line where it no longer steers onto it:
+                    // the jamb would hold it
+                    if along >= -s.square_within_m {
+                        if let Some(back) = self.back_up(along, left, heading_err) {
+                            self.phase = back;
+                            continue;
+                        }
+                    }
                     // onto the middle line while far; square to the
                     // doorway once the front nears it (the stop corridor
                     // ahead is a few centimetres narrower than the gap)
@@ -536,6 +612,17 @@ impl Passage {
                     return PassageCmd::Drive(VelocityCmd {
                         v_mps: s.crawl_mps,
                         omega_radps: omega,
+                    });
+                }
+                Phase::BackUp { to_m } => {
+                    if along <= to_m {
+                        self.phase = Phase::Approach;
+                        continue;
+                    }
+                    return PassageCmd::Drive(VelocityCmd {
+                        v_mps: -s.crawl_mps,
+                        omega_radps: (-s.k_heading * heading_err)
+                            .clamp(-s.omega_max_radps, s.omega_max_radps),
                     });
                 }
             }

@@ -243,6 +243,102 @@ fn a_chair_off_the_middle_line_lines_up_before_it_passes() {
 }
 
 #[test]
+fn a_chair_too_near_to_line_up_backs_up_first() {
+    // 0.89 m between the jambs: 6.5 cm a side for the chair and its margin
+    let door = Doorway {
+        center: [2.0, 1.0],
+        axis_rad: 0.0,
+        width_m: 0.89,
+    };
+    // 0.95 m before the middle, 11 cm off its line, square to it: no room
+    // to line up (a turn there would sweep a corner into the wall)
+    let start = Pose2 {
+        x_m: 1.05,
+        y_m: 1.11,
+        theta_rad: 0.0,
+    };
+    let mut p = Passage::new(door, PassageSettings::default());
+    let mut pose = start;
+    let mut backed_to = f64::INFINITY;
+    for _ in 0..100 {
+        match p.step(pose, [4.0, 1.0]) {
+            PassageCmd::Drive(c) if c.v_mps < 0.0 => {
+                assert!(c.omega_radps.abs() < 1e-9, "{c:?}");
+                pose = pose.advanced(c.v_mps * 0.05, c.omega_radps * 0.05);
+                backed_to = backed_to.min(pose.x_m);
+            }
+            _ => break,
+        }
+    }
+    // straight back to where a line-up no steeper than 45 degrees fits
+    assert_eq!(p.backed_up, 1);
+    assert!(backed_to < 2.0 - 0.78 - 0.2 - 0.11 + 0.01, "{backed_to}");
+    assert!(backed_to > 0.85, "{backed_to}");
+    let mut p = Passage::new(door, PassageSettings::default());
+    let (end, worst_left, done) = drive(&mut p, start, [4.0, 1.0]);
+    assert!(done, "did not get through: {end:?}");
+    assert!(worst_left < 0.03, "{worst_left}");
+    // without backing up it passes the jamb 10 cm off the line
+    let mut p = Passage::new(
+        door,
+        PassageSettings {
+            back_ups: 0,
+            ..PassageSettings::default()
+        },
+    );
+    let (_, worst_left, _) = drive(&mut p, start, [4.0, 1.0]);
+    assert!(worst_left > 0.08, "{worst_left}");
+    // on the line, or off it by less than the gap leaves, no backing up
+    for y_m in [1.0, 1.05] {
+        let mut p = Passage::new(door, PassageSettings::default());
+        let (_, _, done) = drive(&mut p, Pose2 { y_m, ..start }, [4.0, 1.0]);
+        assert!(done);
+        assert_eq!(p.backed_up, 0, "from {y_m}");
+    }
+    // pushed off the line in the passage, where it no longer steers onto
+    // it: back up, at most twice
+    let mut p = Passage::new(door, PassageSettings::default());
+    p.phase = Phase::Pass;
+    let near = Pose2 {
+        x_m: 1.3,
+        y_m: 0.88,
+        theta_rad: 0.0,
+    };
+    assert!(matches!(
+        p.step(near, [4.0, 1.0]),
+        PassageCmd::Drive(c) if c.v_mps < 0.0
+    ));
+    assert!(matches!(p.phase, Phase::BackUp { .. }));
+    p.backed_up = 2;
+    p.phase = Phase::Pass;
+    assert!(matches!(
+        p.step(near, [4.0, 1.0]),
+        PassageCmd::Drive(c) if c.v_mps > 0.0
+    ));
+    // the person says it is not clear behind: aligned where it is, and
+    // no more backing up
+    let mut p = Passage::new(door, PassageSettings::default());
+    p.phase = Phase::Pass;
+    assert!(matches!(p.step(near, [4.0, 1.0]), PassageCmd::Drive(c) if c.v_mps < 0.0));
+    assert!(p.refuse_back_up());
+    assert_eq!(p.phase, Phase::Align);
+    assert!(matches!(p.step(near, [4.0, 1.0]), PassageCmd::Drive(c) if c.v_mps > 0.0));
+    assert!(!p.refuse_back_up(), "not backing up");
+    // at a slant to the doorway, it aligns before it backs up (backing
+    // at a slant takes it further off the line)
+    let mut p = Passage::new(door, PassageSettings::default());
+    let slanted = Pose2 {
+        theta_rad: 0.4,
+        ..start
+    };
+    assert!(matches!(
+        p.step(slanted, [4.0, 1.0]),
+        PassageCmd::Drive(c) if c.v_mps == 0.0
+    ));
+    assert_eq!(p.phase, Phase::Align);
+}
+
+#[test]
 fn the_chair_goes_through_on_the_middle_line_from_a_slant() {
     let door = Doorway {
         center: [2.0, 1.0],

@@ -509,6 +509,7 @@ impl Supervisor {
         };
         let turning_on_the_spot = turns.iter().any(|(v, w)| v.abs() < 0.05 && w.abs() > 0.05);
         let rear_seen = inputs.rear.is_some_and(|r| r.seen);
+        let rear_seen_for_reverse = inputs.rear.is_some_and(|r| r.reverse_seen);
         if blocked_by(&[
             &obs.value.points_base,
             &obs.value.drop_offs_base,
@@ -528,7 +529,9 @@ impl Supervisor {
                 );
             }
             Some(StopReason::Obstacle)
-        } else if (turning_on_the_spot || v < -MOVING_MPS) && l.turn_needs_seen_rear && !rear_seen {
+        } else if l.turn_needs_seen_rear
+            && ((turning_on_the_spot && !rear_seen) || (v < -MOVING_MPS && !rear_seen_for_reverse))
+        {
             // a turn on the spot sweeps the rear; reversing drives
             // into it: neither without the rear seen or vouched for
             Some(StopReason::RearUnseen)

@@ -57,6 +57,9 @@ impl Default for RearSettings {
 pub struct RearView {
     /// The blind sector was seen (remembered) or vouched for.
     pub seen: bool,
+    /// Seen for a reverse: seen, or the person said it is clear for
+    /// backing up along the line the chair is on.
+    pub reverse_seen: bool,
     /// Remembered laser points near the chair, in `base_link` now.
     pub points_base: Vec<[f32; 2]>,
 }
@@ -70,6 +73,10 @@ pub struct RearWatch {
     points: VecDeque<(Stamp, [f64; 2])>,
     cells: std::collections::HashSet<(i64, i64)>,
     confirmed: Option<(Stamp, Pose2)>,
+    /// The person's word for backing up from a pose: when, from where,
+    /// and how far straight back it holds (m). Not for a turn: they
+    /// looked at the strip behind, not at the circle the corners sweep.
+    confirmed_back: Option<(Stamp, Pose2, f64)>,
 }
 
 const CELL_M: f64 = 0.05;
@@ -94,6 +101,7 @@ impl RearWatch {
             points: VecDeque::new(),
             cells: Default::default(),
             confirmed: None,
+            confirmed_back: None,
         }
     }
 
@@ -128,6 +136,13 @@ impl RearWatch {
     /// The person said it is clear behind, with the chair at `pose`.
     pub fn confirm(&mut self, stamp: Stamp, pose: Pose2) {
         self.confirmed = Some((stamp, pose));
+    }
+
+    /// The person said it is clear behind for backing up `back_m`
+    /// straight from `pose`: the word holds for a reverse along that
+    /// line ([`RearView::reverse_seen`]), not for a turn.
+    pub fn confirm_backing(&mut self, stamp: Stamp, pose: Pose2, back_m: f64) {
+        self.confirmed_back = Some((stamp, pose, back_m.max(0.0)));
     }
 
     fn forget(&mut self, now: Stamp, pose: Pose2) {
@@ -174,6 +189,25 @@ impl RearWatch {
             .is_some_and(|(t, p)| t.age_at(now) <= self.settings.confirm_for && self.near(&p, pose))
     }
 
+    /// Whether the person's word for backing up holds at `pose`: near
+    /// the line straight back from where they gave it.
+    fn vouched_backing(&self, now: Stamp, pose: &Pose2) -> bool {
+        self.confirmed_back.is_some_and(|(t, p, back_m)| {
+            if t.age_at(now) > self.settings.confirm_for {
+                return false;
+            }
+            let (c, s) = (p.theta_rad.cos(), p.theta_rad.sin());
+            let behind = -(c * (pose.x_m - p.x_m) + s * (pose.y_m - p.y_m));
+            let b = behind.clamp(0.0, back_m);
+            let on_line = Pose2 {
+                x_m: p.x_m - c * b,
+                y_m: p.y_m - s * b,
+                theta_rad: p.theta_rad,
+            };
+            self.near(&on_line, pose)
+        })
+    }
+
     /// Whether every direction of the blind sector behind `pose` was in
     /// the lasers' view from about here within the memory.
     fn remembered(&self, now: Stamp, pose: &Pose2) -> bool {
@@ -200,9 +234,11 @@ impl RearWatch {
 
     /// The rear as the supervisor needs it at `now`, the chair at `pose`.
     pub fn view(&self, now: Stamp, pose: Pose2) -> RearView {
+        let seen = self.vouched(now, &pose) || self.remembered(now, &pose);
         let (c, s) = (pose.theta_rad.cos(), pose.theta_rad.sin());
         RearView {
-            seen: self.vouched(now, &pose) || self.remembered(now, &pose),
+            seen,
+            reverse_seen: seen || self.vouched_backing(now, &pose),
             // only what lies out of the lasers' sight now: where they look,
             // the live scan says what is there (a person who walked past
             // in front no longer holds the chair)
@@ -286,6 +322,30 @@ mod tests {
         assert!(w.view(at(5.0), pose(0.0, 120.0)).seen);
         assert!(!w.view(at(5.0), pose(0.5, 0.0)).seen, "another spot");
         assert!(!w.view(at(61.0), pose(0.0, 0.0)).seen, "expired");
+    }
+
+    #[test]
+    fn the_persons_word_for_backing_up_holds_along_the_line_behind_for_a_reverse_only() {
+        let mut w = RearWatch::new(RearSettings::default());
+        w.confirm_backing(at(0.0), pose(1.0, 0.0), 0.45);
+        for x in [1.0, 0.8, 0.6] {
+            let v = w.view(at(5.0), pose(x, 0.0));
+            assert!(v.reverse_seen, "at {x}");
+            // they looked at the strip behind, not the corners' circle
+            assert!(!v.seen, "at {x}");
+        }
+        // beyond the line's end, beside it, or expired
+        assert!(!w.view(at(5.0), pose(0.3, 0.0)).reverse_seen);
+        let aside = Pose2 {
+            y_m: 0.3,
+            ..pose(0.8, 0.0)
+        };
+        assert!(!w.view(at(5.0), aside).reverse_seen);
+        assert!(!w.view(at(61.0), pose(0.8, 0.0)).reverse_seen);
+        // a word for a turn holds for both at its spot
+        w.confirm(at(10.0), pose(2.0, 0.0));
+        let v = w.view(at(11.0), pose(2.0, 0.0));
+        assert!(v.seen && v.reverse_seen);
     }
 
     #[test]

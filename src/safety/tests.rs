@@ -32,6 +32,7 @@ impl World {
             camera: Stamped::new(ms(t), Obstacles::default()),
             rear: rear::RearView {
                 seen: true,
+                reverse_seen: true,
                 points_base: Vec::new(),
             },
             cmd: Stamped::new(
@@ -440,6 +441,7 @@ fn a_turn_on_the_spot_needs_the_rear_seen_and_what_was_seen_there_counts() {
     let mut s = moving(0.0);
     let mut w = World::new(20, 0.0, 0.5);
     w.rear.seen = false;
+    w.rear.reverse_seen = false;
     let c = s.step(ms(20), &w.inputs());
     assert_eq!(c.state, SupervisorState::Stopped(StopReason::RearUnseen));
     assert_eq!(c.cmd, VelocityCmd::default());
@@ -455,6 +457,24 @@ fn a_turn_on_the_spot_needs_the_rear_seen_and_what_was_seen_there_counts() {
     let mut s = moving(0.0);
     let mut w = World::new(20, -0.1, 0.0);
     w.rear.seen = false;
+    w.rear.reverse_seen = false;
+    assert_eq!(
+        s.step(ms(20), &w.inputs()).state,
+        SupervisorState::Stopped(StopReason::RearUnseen)
+    );
+    // the person's word for backing up along this line: a reverse, but
+    // not a turn on the spot
+    let mut s = moving(0.0);
+    w.rear.reverse_seen = true;
+    assert_eq!(
+        s.step(ms(20), &w.inputs()).state,
+        SupervisorState::Navigating
+    );
+    let mut s = moving(0.0);
+    let w = World {
+        rear: w.rear.clone(),
+        ..World::new(20, 0.0, 0.5)
+    };
     assert_eq!(
         s.step(ms(20), &w.inputs()).state,
         SupervisorState::Stopped(StopReason::RearUnseen)

@@ -80,10 +80,16 @@ const ANSWER_AFTER: Duration = Duration::from_millis(1500);
 /// nothing behind within this, the person says it is clear, m.
 const CLEAR_BEHIND_M: f64 = 0.70;
 
-/// What a truthful person sees behind the chair: nothing within
-/// [`CLEAR_BEHIND_M`] of base_link on the rear half (walls, boxes taller
-/// than 5 cm, steps down).
-fn clear_behind(w: &super::world::SimWorld) -> bool {
+/// Backing up, the chair's rear edge (0.45 m behind base_link) moves at
+/// most this far back; the person looks along its width and a margin, m.
+const CLEAR_BACK_M: f64 = 0.40;
+const CLEAR_BACK_HALF_WIDTH_M: f64 = 0.40;
+
+/// What a truthful person sees behind the chair (walls, boxes taller than
+/// 5 cm, steps down): for a turn, nothing within [`CLEAR_BEHIND_M`] of
+/// base_link on the rear half; backing up, nothing in the strip the rear
+/// backs into ([`CLEAR_BACK_M`]).
+fn clear_behind(w: &super::world::SimWorld, backing_up: bool) -> bool {
     let t = w.truth;
     let (c, s) = (t.theta_rad.cos(), t.theta_rad.sin());
     let [sx, sy, _] = w.room.size_m;
@@ -102,12 +108,31 @@ fn clear_behind(w: &super::world::SimWorld) -> bool {
         ([-1.0, -1.0], [0.0, sy + 1.0]),
         ([sx, -1.0], [sx + 1.0, sy + 1.0]),
     ]);
-    // sample the rear half-disc
-    for i in 0..=12 {
-        let a = std::f64::consts::FRAC_PI_2 + std::f64::consts::PI * i as f64 / 12.0;
-        for k in 1..=8 {
-            let r = CLEAR_BEHIND_M * k as f64 / 8.0;
-            let (bx, by) = (r * a.cos(), r * a.sin());
+    // sample the rear half-disc, or the strip behind
+    let samples: Vec<[f64; 2]> = if backing_up {
+        (0..=8)
+            .flat_map(|i| {
+                (0..=8).map(move |k| {
+                    [
+                        -0.45 - CLEAR_BACK_M * i as f64 / 8.0,
+                        CLEAR_BACK_HALF_WIDTH_M * (k as f64 / 4.0 - 1.0),
+                    ]
+                })
+            })
+            .collect()
+    } else {
+        (0..=12)
+            .flat_map(|i| {
+                let a = std::f64::consts::FRAC_PI_2 + std::f64::consts::PI * i as f64 / 12.0;
+                (1..=8).map(move |k| {
+                    let r = CLEAR_BEHIND_M * k as f64 / 8.0;
+                    [r * a.cos(), r * a.sin()]
+                })
+            })
+            .collect()
+    };
+    {
+        for [bx, by] in samples {
             let (x, y) = (t.x_m + c * bx - s * by, t.y_m + s * bx + c * by);
             if boxes
                 .iter()
@@ -135,7 +160,11 @@ async fn person(
         while let Some(sentence) = heard.recv().await {
             let answer = if sentence.contains("Is it clear behind?") {
                 tokio::time::sleep(ANSWER_AFTER).await;
-                let clear = world.lock().map(|w| clear_behind(&w)).unwrap_or(false);
+                let backing_up = sentence.contains("back up");
+                let clear = world
+                    .lock()
+                    .map(|w| clear_behind(&w, backing_up))
+                    .unwrap_or(false);
                 Some(if clear { UserInput::Yes } else { UserInput::No })
             } else if sentence.starts_with("Staying here.") {
                 // the person would not let it turn: the trip is over
