@@ -89,7 +89,10 @@ impl GridMap {
     /// camera has not looked at, laser-unseen space included, with
     /// `room_m` to everything — room to turn there) at least
     /// `min_m` from `from` and farther than `avoid_m` from each of `avoid`
-    /// (frontiers already visited).
+    /// (frontiers already visited). Where none is reached through seen
+    /// space (a room looked at all round, its doorway seen only edge-on),
+    /// the nearest such place by a way that may cross unseen space: the
+    /// chair drives towards it, and the lasers show what is there.
     pub fn frontier(
         &mut self,
         from: [f64; 2],
@@ -97,6 +100,19 @@ impl GridMap {
         room_m: f64,
         avoid: &[[f64; 2]],
         avoid_m: f64,
+    ) -> Option<[f64; 2]> {
+        self.frontier_by(from, min_m, room_m, avoid, avoid_m, false)
+            .or_else(|| self.frontier_by(from, min_m, room_m, avoid, avoid_m, true))
+    }
+
+    fn frontier_by(
+        &mut self,
+        from: [f64; 2],
+        min_m: f64,
+        room_m: f64,
+        avoid: &[[f64; 2]],
+        avoid_m: f64,
+        unknown_ok: bool,
     ) -> Option<[f64; 2]> {
         self.update_distances();
         let n = self.n;
@@ -137,7 +153,7 @@ impl GridMap {
             }
             count * 4 >= samples
         };
-        let (end, _) = self.search(from, &is_goal, &|_| 0.0, false)?;
+        let (end, _) = self.search(from, &is_goal, &|_| 0.0, unknown_ok)?;
         Some(self.center(end))
     }
 

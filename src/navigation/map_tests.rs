@@ -144,9 +144,49 @@ fn the_frontier_is_the_nearest_edge_of_what_was_seen() {
         .frontier([0.0, 0.0], 1.0, 0.5, &[], 1.0)
         .expect("a frontier");
     assert!(f[0] > 2.0 && f[1].abs() < 1.2, "{f:?}");
-    // once visited, there is none left that the chair can reach
-    // through seen free space
-    assert!(map.frontier([0.0, 0.0], 1.0, 0.5, &[f], 1.5).is_none());
+    // once visited, none is left that the chair can reach through seen
+    // free space: the nearest beyond it, by a way across unseen space
+    let beyond = map
+        .frontier([0.0, 0.0], 1.0, 0.5, &[f], 1.5)
+        .expect("a frontier beyond what was seen");
+    assert!(beyond[0] > 2.5 && beyond[1].abs() < 1.5, "{beyond:?}");
+}
+
+#[test]
+fn a_room_looked_at_all_round_has_its_frontier_beyond_its_doorway() {
+    // walls 3 m all round but for a 0.8 m doorway to +x, seen edge-on:
+    // the lasers' rays through it end at 2.9 m
+    let rays: Vec<LaserRay> = ring(Some(3.0), false)
+        .into_iter()
+        .map(|mut r| {
+            if r.dir[1].abs() < 0.13 && r.dir[0] > 0.0 {
+                r.range_m = None;
+            }
+            r
+        })
+        .collect();
+    let mut map = GridMap::new(
+        MapSettings {
+            free_range_m: 2.9,
+            ..Default::default()
+        },
+        [0.0, 0.0],
+    );
+    map.add_scan(Pose2::default(), &rays);
+    map.look([0.0, 0.0], 0.0, std::f64::consts::PI, 4.0);
+    // no seen place with 0.8 m of room next to the unseen: the place is
+    // beyond the doorway, reached through it
+    let f = map
+        .frontier([0.0, 0.0], 1.0, 0.8, &[], 1.5)
+        .expect("a frontier beyond the doorway");
+    assert!(f[0] > 3.0 && f[1].abs() < 0.5, "{f:?}");
+    let way = map.path([0.0, 0.0], f, 0.1).expect("a way there");
+    assert!(way.length_m < f[0] + 0.5, "{}", way.length_m);
+    // closed all round: nowhere left
+    let mut closed = GridMap::new(MapSettings::default(), [0.0, 0.0]);
+    closed.add_scan(Pose2::default(), &ring(Some(3.0), false));
+    closed.look([0.0, 0.0], 0.0, std::f64::consts::PI, 4.0);
+    assert_eq!(closed.frontier([0.0, 0.0], 1.0, 0.8, &[], 1.5), None);
 }
 
 #[test]
