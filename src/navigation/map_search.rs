@@ -101,19 +101,6 @@ impl GridMap {
         avoid: &[[f64; 2]],
         avoid_m: f64,
     ) -> Option<[f64; 2]> {
-        self.frontier_by(from, min_m, room_m, avoid, avoid_m, false)
-            .or_else(|| self.frontier_by(from, min_m, room_m, avoid, avoid_m, true))
-    }
-
-    fn frontier_by(
-        &mut self,
-        from: [f64; 2],
-        min_m: f64,
-        room_m: f64,
-        avoid: &[[f64; 2]],
-        avoid_m: f64,
-        unknown_ok: bool,
-    ) -> Option<[f64; 2]> {
         self.update_distances();
         let n = self.n;
         let reach = (0.5 / self.settings.resolution_m).round() as i64;
@@ -153,7 +140,9 @@ impl GridMap {
             }
             count * 4 >= samples
         };
-        let (end, _) = self.search(from, &is_goal, &|_| 0.0, unknown_ok)?;
+        let (end, _) = self
+            .search(from, &is_goal, &|_| 0.0, false)
+            .or_else(|| self.search(from, &is_goal, &|_| 0.0, true))?;
         Some(self.center(end))
     }
 
