@@ -302,154 +302,6 @@ impl Control {
         self.say(s.to_string());
     }
 
-    /// A word, a stop or a quit from the user.
-    pub fn on_input(&mut self, input: UserInput) {
-        match input {
-            UserInput::Goto(word) if self.latched => {
-                self.asked_goal = None;
-                // a word alone does not clear a stop
-                self.say(format!("Stopped. Say go to go to the {word}."));
-                self.pending = Some(word);
-            }
-            UserInput::Goto(word) => {
-                // a sure word answers the question too
-                self.asked_goal = None;
-                self.goal.set_prompt(&word);
-                self.say(format!("Looking for a {word}."));
-            }
-            UserInput::Stop => {
-                self.supervisor.user_stop();
-                self.latch();
-                self.say("Stopped.".into());
-                if self.exit_on_arrival {
-                    self.done.get_or_insert(Outcome::Stopped);
-                }
-            }
-            UserInput::Go if self.latched => {
-                self.latched = false;
-                self.supervisor.resume();
-                match self.pending.take() {
-                    Some(word) => {
-                        self.goal.set_prompt(&word);
-                        self.say(format!("Going on. Looking for a {word}."));
-                    }
-                    None => self.say("Going on. Say a word.".into()),
-                }
-            }
-            UserInput::Go => tracing::info!("\"go\" while not stopped: nothing to clear"),
-            UserInput::Heard(word) | UserInput::Unsure(word) if self.under_way() => {
-                // any word heard while the chair drives itself stops it: a
-                // misheard "stop" must never keep it going, or send it
-                // elsewhere
-                self.supervisor.user_stop();
-                self.latch();
-                self.asked_goal = None;
-                self.say(format!(
-                    "Stopped. Did you say the {word}? Say go to go there."
-                ));
-                self.pending = Some(word);
-            }
-            UserInput::Heard(word) => self.on_input(UserInput::Goto(word)),
-            UserInput::Unsure(word) => {
-                self.say(format!("Did you say the {word}? Say yes, or say it again."));
-                self.asked_goal = Some(word);
-            }
-            UserInput::Yes if self.asked_goal.is_some() => {
-                if let Some(word) = self.asked_goal.take() {
-                    // as if the word had been said surely
-                    self.on_input(UserInput::Goto(word));
-                }
-            }
-            UserInput::No if self.asked_goal.take().is_some() => {
-                self.say("Say the word again.".into());
-            }
-            UserInput::Yes if self.asked_rear.is_some() => {
-                self.rear_yes = true;
-                self.say(if self.asked_back_up {
-                    "Thank you. Backing up.".into()
-                } else {
-                    "Thank you. Turning.".into()
-                });
-            }
-            UserInput::No if self.asked_back_up && self.asked_rear.is_some() => {
-                // backing up only made room to line up with a doorway:
-                // the passage goes on without it
-                self.asked_rear = None;
-                if self.route.as_mut().is_some_and(|r| r.refuse_back_up()) {
-                    self.say("I will not back up.".into());
-                } else {
-                    self.goal.clear();
-                    self.planner_cmd = None;
-                    self.say("Staying here.".into());
-                }
-            }
-            UserInput::No if self.asked_rear.take().is_some() => {
-                self.goal.clear();
-                self.planner_cmd = None;
-                self.say("Staying here.".into());
-            }
-            UserInput::AckFault => match self.supervisor.state() {
-                SupervisorState::Fault(FaultReason::Task) => self
-                    .say("An internal fault cannot be acknowledged: the daemon restarts.".into()),
-                SupervisorState::Fault(_) => {
-                    self.supervisor.clear_fault();
-                    self.fault_reason = None;
-                    self.acknowledged = true;
-                    self.say("Fault acknowledged. Say a word to go.".into());
-                }
-                _ => self.say("There is no fault to acknowledge.".into()),
-            },
-            UserInput::Yes | UserInput::No => {
-                tracing::info!(input = ?input, "an answer while nothing was asked: ignored")
-            }
-            UserInput::Quit => {
-                self.done.get_or_insert(Outcome::Quit);
-            }
-            UserInput::LookAround if self.latched => {
-                self.say("Stopped. Say go first, then ask me to look around.".into());
-            }
-            UserInput::LookAround => {
-                self.asked_goal = None;
-                self.pending = None;
-                self.goal.look_around();
-                self.say("Looking around.".into());
-            }
-        }
-    }
-
-    /// What the motor interface reported.
-    pub fn on_actuator_event(&mut self, ev: &ActuatorEvent) {
-        match ev {
-            ActuatorEvent::Ready { .. } => self.motors.ready_pending = true,
-            ActuatorEvent::Active => self.motors.active = true,
-            ActuatorEvent::Fault { kind, reason } => {
-                self.supervisor.can_fault(*kind);
-                self.fault_reason = Some(reason.clone());
-                self.goal.clear();
-                self.say(format!("Motor interface fault: {reason}. Stopped."));
-            }
-            ActuatorEvent::UserDeflection { .. } => {
-                self.supervisor.user_takeover();
-                self.latch();
-                self.say("You have the joystick. Say go to let me drive again.".into());
-            }
-            other @ (ActuatorEvent::JsmLost | ActuatorEvent::Released) => {
-                tracing::info!(event = ?other, "actuator")
-            }
-        }
-    }
-
-    /// A task or thread died: stop for good and say so.
-    pub fn on_task_failure(&mut self, task: &str, reason: &str) {
-        self.supervisor.can_fault(FaultReason::Task);
-        self.goal.clear();
-        self.say(format!("Internal fault in {task}. Stopped."));
-        self.done = Some(Outcome::Fault {
-            task: task.to_string(),
-            reason: reason.to_string(),
-        });
-    }
-
     /// A takeover that does not happen is said and latched as a fault; a
     /// chair whose joystick module never answers is said once.
     fn watch_motors(&mut self, now: Stamp) {
@@ -810,6 +662,11 @@ mod search;
 /// Asking the person whether it is clear behind before a turn.
 #[path = "control_rear.rs"]
 mod rear_question;
+
+/// What comes in besides the sensors: the person's words, presses and
+/// answers, the motor interface's events, a task's failure.
+#[path = "control_input.rs"]
+mod input;
 
 #[cfg(test)]
 #[path = "control_tests.rs"]
