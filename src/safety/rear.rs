@@ -80,6 +80,9 @@ pub struct RearWatch {
 }
 
 const CELL_M: f64 = 0.05;
+/// The person's word for backing up holds facing within this of the
+/// chair's heading when they gave it, rad.
+const BACKING_HEADING_RAD: f64 = 0.35;
 /// A new view is kept when the chair turned this much (or moved `near_m`/2).
 const VIEW_STEP_RAD: f64 = 0.09;
 /// Remembered points this far inside the edge of the lasers' seen sector
@@ -190,10 +193,14 @@ impl RearWatch {
     }
 
     /// Whether the person's word for backing up holds at `pose`: near
-    /// the line straight back from where they gave it.
+    /// the line straight back from where they gave it, facing within
+    /// [`BACKING_HEADING_RAD`] of the way it faced then (turned further,
+    /// its rear would back into space they did not look at).
     fn vouched_backing(&self, now: Stamp, pose: &Pose2) -> bool {
         self.confirmed_back.is_some_and(|(t, p, back_m)| {
-            if t.age_at(now) > self.settings.confirm_for {
+            if t.age_at(now) > self.settings.confirm_for
+                || wrap(pose.theta_rad - p.theta_rad).abs() > BACKING_HEADING_RAD
+            {
                 return false;
             }
             let (c, s) = (p.theta_rad.cos(), p.theta_rad.sin());
@@ -342,6 +349,9 @@ mod tests {
         };
         assert!(!w.view(at(5.0), aside).reverse_seen);
         assert!(!w.view(at(61.0), pose(0.8, 0.0)).reverse_seen);
+        // turned away from the way it faced: its rear backs elsewhere
+        assert!(w.view(at(5.0), pose(0.8, 15.0)).reverse_seen);
+        assert!(!w.view(at(5.0), pose(0.8, 40.0)).reverse_seen);
         // a word for a turn holds for both at its spot
         w.confirm(at(10.0), pose(2.0, 0.0));
         let v = w.view(at(11.0), pose(2.0, 0.0));
