@@ -41,6 +41,34 @@ const LASER_EVERY: u64 = 10;
 /// What the simulator's camera rendered last, for its detector.
 type LastView = Arc<Mutex<Option<Vec<i32>>>>;
 
+/// The world's steps as they happen, for a camera that waits for the
+/// next one as a real camera's read waits for its next exposure.
+#[derive(Clone, Default)]
+struct WorldSteps(Arc<(Mutex<u64>, std::sync::Condvar)>);
+
+impl WorldSteps {
+    /// A step was taken.
+    fn stepped(&self) {
+        let (count, cv) = &*self.0;
+        if let Ok(mut n) = count.lock() {
+            *n += 1;
+        }
+        cv.notify_all();
+    }
+
+    /// Blocks until the world takes its next step, or `at_most` passes
+    /// (a world that has stopped stepping, whose task's end the daemon
+    /// reports: its last state is what there is to see).
+    fn wait_next(&self, at_most: Duration) {
+        let (count, cv) = &*self.0;
+        if let Ok(n) = count.lock() {
+            let seen = *n;
+            // (a poisoned count: the world task panicked, reported as its end)
+            let _ = cv.wait_timeout_while(n, at_most, |n| *n == seen);
+        }
+    }
+}
+
 /// The simulated world while the daemon runs on it.
 #[derive(Clone)]
 pub struct SimHandle {
@@ -152,9 +180,15 @@ pub fn devices_with(
     let (left_tx, left_rx) = watch::channel::<Option<Stamped<LaserScan>>>(None);
     let (right_tx, right_rx) = watch::channel::<Option<Stamped<LaserScan>>>(None);
     let mapping = settings.joystick_mapping();
+    let steps = WorldSteps::default();
     let world_task = {
-        let (world, chair, clock, stop) =
-            (world.clone(), chair.clone(), clock.clone(), stop.clone());
+        let (world, chair, clock, stop, steps) = (
+            world.clone(),
+            chair.clone(),
+            clock.clone(),
+            stop.clone(),
+            steps.clone(),
+        );
         async move {
             // half a step after the joystick module's frames: the motors
             // act on the latest frame, which under FollowJSM is ours right
@@ -185,6 +219,8 @@ pub fn devices_with(
                     left_tx.send_replace(Some(Stamped::new(now, w.laser_scan(&lasers_at[0], ms))));
                     right_tx.send_replace(Some(Stamped::new(now, w.laser_scan(&lasers_at[1], ms))));
                 }
+                drop(w);
+                steps.stepped();
                 k += 1;
             }
         }
@@ -249,6 +285,11 @@ pub fn devices_with(
         rng: super::scene::SplitMix64::new(settings.sim.seed),
     };
     let camera_world = world.clone();
+    // at the wall clock's pace a frame is of the world's next step, as a
+    // real camera's is of its next exposure: rendered from the last step,
+    // it would be 0–10 ms old when read (virtual time stands still while
+    // perception runs, so there it is the last step's)
+    let fresh = (writer == SimWriter::OwnThread).then_some(steps);
     let camera = CameraDevice {
         open: Box::new(move || {
             Ok(Box::new(SimCamera {
@@ -257,6 +298,7 @@ pub fn devices_with(
                 k,
                 base_from_camera,
                 last: last.clone(),
+                fresh: fresh.clone(),
             }) as Box<dyn CameraSource>)
         }),
         detector: Box::new(detector),
@@ -314,6 +356,8 @@ struct SimCamera {
     k: Intrinsics,
     base_from_camera: Isometry3<f64>,
     last: LastView,
+    /// Wait for the world's next step before rendering.
+    fresh: Option<WorldSteps>,
 }
 
 impl CameraSource for SimCamera {
@@ -322,6 +366,9 @@ impl CameraSource for SimCamera {
     }
 
     fn next_frame(&mut self) -> Result<Option<Stamped<RgbdFrame>>, CameraError> {
+        if let Some(steps) = &self.fresh {
+            steps.wait_next(3 * WORLD_STEP);
+        }
         let (r, stamp): (_, Stamp) = {
             let w = self
                 .world
@@ -459,6 +506,33 @@ impl Detector for SimDetector {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The camera's wait for a fresh frame ends at the world's next step,
+    /// not before it (a step taken before the wait does not count), and
+    /// a world that stopped stepping does not hold it past its bound.
+    #[test]
+    fn a_fresh_frame_waits_for_the_worlds_next_step() {
+        let steps = WorldSteps::default();
+        steps.stepped();
+        let done = Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let waiter = {
+            let (steps, done) = (steps.clone(), done.clone());
+            std::thread::spawn(move || {
+                steps.wait_next(Duration::from_secs(60));
+                done.store(true, std::sync::atomic::Ordering::SeqCst);
+            })
+        };
+        std::thread::sleep(Duration::from_millis(50));
+        assert!(
+            !done.load(std::sync::atomic::Ordering::SeqCst),
+            "returned before the next step"
+        );
+        steps.stepped();
+        waiter.join().expect("the waiter");
+        assert!(done.load(std::sync::atomic::Ordering::SeqCst));
+        // no step: back after the bound, with the last state to render
+        steps.wait_next(Duration::from_millis(1));
+    }
 
     fn detector(noise: crate::config::SimSection) -> SimDetector {
         SimDetector {
