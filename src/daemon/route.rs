@@ -50,6 +50,9 @@ pub struct Router {
 /// A doorway given up after the chair stood blocked in it this long, or
 /// took this long in all; not tried again for this long.
 pub(super) const PASSAGE_BLOCKED_FOR: std::time::Duration = std::time::Duration::from_secs(5);
+/// Held this long on the way to the point before a doorway, the chair
+/// lines up from where it is ([`Passage::held_on_approach`]).
+pub(super) const LINE_UP_HELD_AFTER: std::time::Duration = std::time::Duration::from_secs(2);
 pub(super) const PASSAGE_AT_MOST: std::time::Duration = std::time::Duration::from_secs(60);
 pub(super) const PASSAGE_SKIP_FOR: std::time::Duration = std::time::Duration::from_secs(20);
 /// A gap measured narrower than this is no doorway for the chair: its
@@ -319,6 +322,18 @@ impl Router {
             self.path = None;
             self.last_plan = None;
             return None;
+        }
+        // held on the way to the point before it: lined up from here
+        if blocked.is_some_and(|b| b.age_at(now) >= LINE_UP_HELD_AFTER)
+            && passage.held_on_approach(pose)
+        {
+            let (along_m, left_m) = passage.door.local(from);
+            tracing::info!(
+                along_m,
+                left_m,
+                "doorway: held on the way to it, lining up from here"
+            );
+            *blocked = None;
         }
         let give_up = blocked.is_some_and(|b| b.age_at(now) >= PASSAGE_BLOCKED_FOR)
             || since.age_at(now) >= PASSAGE_AT_MOST;

@@ -54,6 +54,11 @@ const JAMB_SEARCH_M: f64 = 0.8;
 /// band this thick (a wall's thickness and a cell), m.
 const WALL_SEARCH_DEG: u32 = 35;
 const WALL_BAND_M: f64 = 0.16;
+/// A doorway's wall runs at least this far along on each side of it, m
+/// (on the map, the walls beside the simulator's doorways ran 0.45 m and
+/// more where the search reached 0.65 m; the far side of a gap between
+/// furniture, 0-0.1 m).
+const WALL_RUN_M: f64 = 0.25;
 
 /// The first doorway on `path` within [`LOOK_M`] of the path point nearest
 /// `from`: the narrowest point of the way there, if it lies between two
@@ -140,6 +145,34 @@ pub fn find(map: &mut GridMap, path: &MapPath, from: [f64; 2]) -> Option<Doorway
         .map(along_wall)
         .fold(f64::INFINITY, f64::min);
     if !face_a.is_finite() || !face_b.is_finite() || face_b <= face_a {
+        return None;
+    }
+    // a wall either side, not the gap between two pieces of furniture
+    // (the planner's way between them): blocked cells on the wall's line
+    // from each face outwards, a cell's gap at most
+    let normal = [-w[1], w[0]];
+    let run = |face: f64, outwards: f64| -> f64 {
+        let mut last = 0.0;
+        let mut t = 0.0;
+        while t <= WALL_RUN_M + res && t - last <= 2.0 * res {
+            let on = (-1..=1).any(|k| {
+                let off = depth + k as f64 * res;
+                let p = [
+                    c0[0] + (face + outwards * t) * w[0] + off * normal[0],
+                    c0[1] + (face + outwards * t) * w[1] + off * normal[1],
+                ];
+                map.cell(p).is_some_and(|i| map.is_blocked(i))
+            });
+            if on {
+                last = t;
+            }
+            t += res;
+        }
+        last
+    };
+    let (run_a, run_b) = (run(face_a, -1.0), run(face_b, 1.0));
+    if run_a.min(run_b) < WALL_RUN_M {
+        tracing::debug!(?c0, run_a, run_b, "doorway: not in a wall");
         return None;
     }
     let mut axis = [-w[1], w[0]];
@@ -378,6 +411,10 @@ impl Default for PassageSettings {
     }
 }
 
+/// Held on the way to the point before the doorway, the chair lines up
+/// from at most this far off the middle line, m.
+pub const LINE_UP_HELD_FROM_M: f64 = 1.0;
+
 /// Backing up only this square to the doorway, rad.
 const BACK_UP_SQUARE_RAD: f64 = 0.2;
 
@@ -393,6 +430,9 @@ pub struct Passage {
     pub settings: PassageSettings,
     /// Times it backed up to line up again.
     pub backed_up: u32,
+    /// Whether it has lined up from where it was held on its way to the
+    /// point before the doorway ([`Passage::held_on_approach`]).
+    pub lined_up_where_held: bool,
 }
 
 /// Jamb points are taken within this of the wall's middle plane along the
@@ -447,7 +487,31 @@ impl Passage {
             phase: Phase::Approach,
             settings,
             backed_up: 0,
+            lined_up_where_held: false,
         }
+    }
+
+    /// Held on the way to the point before the doorway (something stands
+    /// between the chair and it, or at it): where the chair is already
+    /// level with that point or nearer the doorway, and off the middle
+    /// line by at most [`LINE_UP_HELD_FROM_M`], it lines up from there,
+    /// on a line steeper than the 45 degrees an approach allows (turned
+    /// on the spot to face it, at a crawl), once a passage. Whether it
+    /// does.
+    pub fn held_on_approach(&mut self, pose: Pose2) -> bool {
+        let s = self.settings;
+        let (along, left) = self.door.local([pose.x_m, pose.y_m]);
+        let line_up_at = (-s.line_up_m).max(along + s.line_up_ahead_m);
+        let lines_up = self.phase == Phase::Approach
+            && !self.lined_up_where_held
+            && along > -s.before_m - s.at_m
+            && line_up_at <= -s.line_up_nearest_m
+            && left.abs() <= LINE_UP_HELD_FROM_M;
+        if lines_up {
+            self.lined_up_where_held = true;
+            self.phase = Phase::LineUp { at_m: line_up_at };
+        }
+        lines_up
     }
 
     /// No backing up (the person said it is not clear behind): from a

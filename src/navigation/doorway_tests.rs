@@ -21,6 +21,39 @@ fn map_with_door() -> GridMap {
     map
 }
 
+/// The gap between a cabinet 0.6 m wide and a floor lamp 0.1 m across,
+/// standing 0.85 m apart across the way as the doorway of
+/// [`map_with_door`] is: no wall runs on the lamp's side, so it is the
+/// planner's way, not a doorway.
+#[test]
+fn a_gap_between_two_pieces_of_furniture_is_not_a_doorway() {
+    let mut pts = Vec::new();
+    let mut y: f64 = 0.0;
+    while y <= 0.6 {
+        for dx in [0.0, 0.05] {
+            // the cabinet, from 0.425 m right of the gap's middle
+            pts.push([2.0 + dx, 0.575 - y]);
+            // the lamp, 0.425 m left of it
+            if y <= 0.1 {
+                pts.push([2.0 + dx, 1.425 + y]);
+            }
+        }
+        y += 0.02;
+    }
+    let mut map = GridMap::new(MapSettings::default(), [0.0, 0.0]);
+    map.set_camera(&pts, &[]);
+    let path = map.path([0.0, 1.0], [4.0, 1.0], 0.1).expect("a way");
+    assert!(
+        find(&mut map, &path, [0.5, 1.0]).is_none(),
+        "{:?}",
+        find(&mut map, &path, [0.5, 1.0])
+    );
+    // the same gap in a wall is a doorway
+    let mut walled = map_with_door();
+    let path = walled.path([0.0, 1.0], [4.0, 1.0], 0.1).expect("a way");
+    assert!(find(&mut walled, &path, [0.5, 1.0]).is_some());
+}
+
 #[test]
 fn the_doorway_on_the_way_is_found_with_its_middle_and_axis() {
     let mut map = map_with_door();
@@ -365,4 +398,44 @@ fn the_chair_goes_through_on_the_middle_line_from_a_slant() {
     let mut p = Passage::new(door, PassageSettings::default());
     let (end, _, done) = drive(&mut p, start, [2.3, 1.0]);
     assert!(done && (end.x_m - 2.6).abs() < 0.05, "{end:?}");
+}
+
+/// Held on its way to the point before the doorway, level with that point
+/// or nearer and off the line by at most a metre, the chair lines up from
+/// where it is, on a steeper line than an approach allows; once a
+/// passage, and not from further back or further off.
+#[test]
+fn held_on_the_way_to_the_point_before_it_the_chair_lines_up_from_there() {
+    let door = Doorway {
+        center: [2.0, 1.0],
+        axis_rad: 0.0,
+        width_m: 0.85,
+    };
+    let at = |along: f64, left: f64| Pose2 {
+        x_m: 2.0 + along,
+        y_m: 1.0 + left,
+        theta_rad: -2.0,
+    };
+    let mut p = Passage::new(door, PassageSettings::default());
+    assert!(p.held_on_approach(at(-1.06, 0.5)));
+    assert!(
+        matches!(p.phase, Phase::LineUp { at_m } if (at_m + 0.86).abs() < 1e-9),
+        "{:?}",
+        p.phase
+    );
+    // it drives there: a turn on the spot towards the point first
+    let cmd = p.step(at(-1.06, 0.5), [4.0, 1.0]);
+    assert!(
+        matches!(cmd, PassageCmd::Drive(c) if c.v_mps == 0.0 && c.omega_radps != 0.0),
+        "{cmd:?}"
+    );
+    // once a passage
+    p.phase = Phase::Approach;
+    assert!(!p.held_on_approach(at(-1.06, 0.5)));
+    // not from further back, further off, or too near to turn on the line
+    for (along, left) in [(-1.6, 0.3), (-1.0, 1.2), (-0.5, 0.3)] {
+        let mut p = Passage::new(door, PassageSettings::default());
+        assert!(!p.held_on_approach(at(along, left)), "{along} {left}");
+        assert_eq!(p.phase, Phase::Approach);
+    }
 }
