@@ -384,6 +384,15 @@ pub struct PassageSettings {
     pub back_up_m: f64,
 }
 
+impl PassageSettings {
+    /// The point on the middle line to line up on from `along_m` along
+    /// the axis: [`Self::line_up_m`] before the middle, or
+    /// [`Self::line_up_ahead_m`] ahead of the chair when it is nearer, m.
+    fn line_up_at(&self, along_m: f64) -> f64 {
+        (-self.line_up_m).max(along_m + self.line_up_ahead_m)
+    }
+}
+
 impl Default for PassageSettings {
     fn default() -> Self {
         PassageSettings {
@@ -501,7 +510,7 @@ impl Passage {
     pub fn held_on_approach(&mut self, pose: Pose2) -> bool {
         let s = self.settings;
         let (along, left) = self.door.local([pose.x_m, pose.y_m]);
-        let line_up_at = (-s.line_up_m).max(along + s.line_up_ahead_m);
+        let line_up_at = s.line_up_at(along);
         let lines_up = self.phase == Phase::Approach
             && !self.lined_up_where_held
             && along > -s.before_m - s.at_m
@@ -600,7 +609,7 @@ impl Passage {
                     let near = (pre[0] - p[0]).hypot(pre[1] - p[1]) <= s.at_m
                         || (along > -s.before_m - s.at_m && along < -0.2 && left.abs() <= s.at_m);
                     // the point to line up on, where there is room
-                    let line_up_at = (-s.line_up_m).max(along + s.line_up_ahead_m);
+                    let line_up_at = s.line_up_at(along);
                     let room_to_line_up = line_up_at <= -s.line_up_nearest_m;
                     // off the line, but near enough to drive onto it at
                     // 45 degrees or less (steeper, the stop corridor sweeps

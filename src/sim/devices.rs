@@ -61,10 +61,20 @@ impl WorldSteps {
     /// reports: its last state is what there is to see).
     fn wait_next(&self, at_most: Duration) {
         let (count, cv) = &*self.0;
-        if let Ok(n) = count.lock() {
+        let waited = count.lock().ok().and_then(|n| {
             let seen = *n;
-            // (a poisoned count: the world task panicked, reported as its end)
-            let _ = cv.wait_timeout_while(n, at_most, |n| *n == seen);
+            cv.wait_timeout_while(n, at_most, |n| *n == seen)
+                .ok()
+                .map(|(_, t)| t.timed_out())
+        });
+        match waited {
+            Some(false) => {}
+            // the world task's end is reported as a device's; the camera
+            // renders its last state meanwhile
+            Some(true) => tracing::debug!("simulator: no world step for the camera to wait for"),
+            None => tracing::warn!(
+                "simulator: the world's step count is poisoned; the camera renders without waiting"
+            ),
         }
     }
 }
