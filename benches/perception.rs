@@ -13,6 +13,9 @@
 //!   session, same settings, a pre-made input): the whole view's ratio
 //!   to it is what perception adds to the model. After both, each stage's
 //!   median over 50 views is printed (`whole_view stages`).
+//! - `yolo11n_detect_prepared`: the detector on an input letterboxed
+//!   beforehand (the model and the decoding); `letterbox_mrpt`: that
+//!   letterbox of the real frame.
 //! - `whole_view_pipelined`: the same views as a stream of frames
 //!   (`Pipeline::process_stream`: the next frame's depth registration and
 //!   letterbox, and the last frame's masks and geometry, beside the
@@ -33,7 +36,7 @@ use nalgebra::Isometry3;
 use opennav::msg::Frame;
 use opennav::msg::{DepthImage, RgbImage};
 use opennav::msg::{Intrinsics, RgbdCalibration};
-use opennav::perception::detector::{open_detector, Detection, DetectorSettings};
+use opennav::perception::detector::{open_detector, Detection, DetectorSettings, PreparedImage};
 use opennav::perception::image::letterbox_chw;
 use opennav::perception::pipeline::{objects_from_masks, GeometrySettings, Pipeline, Timing};
 use opennav::perception::registration::register_depth_to_color;
@@ -289,6 +292,28 @@ fn bench_whole_view(c: &mut Criterion) {
             out.len()
         })
     });
+    // the detector's own share: the model and the decoding of its output
+    // into boxes, on an input letterboxed beforehand (copied each time, as
+    // the bare model's)
+    let mut detector = open_detector(&model, &settings, None).expect("model");
+    detector
+        .set_prompts(&["book".into(), "chair".into(), "person".into()])
+        .expect("prompts");
+    let prepared = PreparedImage::letterboxed(&color, 640);
+    group.bench_function("yolo11n_detect_prepared", |b| {
+        b.iter(|| {
+            detector
+                .detect_prepared(PreparedImage {
+                    chw: prepared.chw.clone(),
+                    letterbox: prepared.letterbox,
+                    side: prepared.side,
+                })
+                .expect("detections")
+        })
+    });
+    group.bench_function("letterbox_mrpt", |b| {
+        b.iter(|| PreparedImage::letterboxed(&color, 640))
+    });
     group.finish();
     // where the view's time goes: each stage's median over 50 views, one
     // view at a time
@@ -305,6 +330,32 @@ fn bench_whole_view(c: &mut Criterion) {
         true
     });
     print_stages(&format!("whole_view_pipelined stages ({provider}"), &views);
+    // one view at a time and the bare model, alternated run by run (on a
+    // shared host whose speed drifts, each pair sees the same moment):
+    // the medians and the median of the pairs' ratios
+    let mut pairs: Vec<(f64, f64)> = Vec::new();
+    for _ in 0..300 {
+        let t = std::time::Instant::now();
+        p.process(&color, Some(&depth)).expect("view");
+        let view_ms = t.elapsed().as_secs_f64() * 1e3;
+        let input = ort::value::Tensor::from_array((vec![1usize, 3, 640, 640], chw.clone()))
+            .expect("tensor");
+        let t = std::time::Instant::now();
+        bare.session
+            .run(ort::inputs![input_name.as_str() => input])
+            .expect("inference");
+        pairs.push((view_ms, t.elapsed().as_secs_f64() * 1e3));
+    }
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    eprintln!(
+        "whole_view alternated ({provider}, 300 pairs): a view {:.3} ms, the model alone {:.3} ms (its input made outside the timing), median ratio {:.2}x",
+        median(pairs.iter().map(|p| p.0).collect()),
+        median(pairs.iter().map(|p| p.1).collect()),
+        median(pairs.iter().map(|p| p.0 / p.1).collect()),
+    );
     // the period over one long stream against the bare model over as many
     // runs, alternated: each view's time where the model is the limit
     const LONG: u32 = 300;

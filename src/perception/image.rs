@@ -1,5 +1,7 @@
 //! The detector's input: the letterbox and bilinear resizing.
 
+use rayon::prelude::*;
+
 use crate::msg::RgbImage;
 
 /// How a letterboxed input maps back to the original image.
@@ -51,22 +53,20 @@ pub fn letterbox_chw(img: &RgbImage, size: usize, pad_value: u8) -> (Vec<f32>, L
         std::borrow::Cow::Owned(resize_bilinear(img, new_w, new_h))
     };
     let (shown_w, shown_h) = (new_w.min(size - left), new_h.min(size - top));
-    let mut out: Vec<f32> = Vec::with_capacity(3 * size * size);
-    for c in 0..3 {
-        out.resize(out.len() + top * size, pad);
-        for row in resized.chunks_exact(new_w * 3).take(shown_h) {
-            out.resize(out.len() + left, pad);
-            out.extend(
-                row[..shown_w * 3]
-                    .iter()
-                    .skip(c)
-                    .step_by(3)
-                    .map(|&b| lut[b as usize]),
-            );
-            out.resize(out.len() + size - left - shown_w, pad);
-        }
-        out.resize((c + 1) * size * size, pad);
-    }
+    let layout = Layout {
+        size,
+        top,
+        left,
+        shown_w,
+        shown_h,
+        row_bytes: new_w * 3,
+        pad,
+    };
+    let out = if super::pool_is_parallel() {
+        planes_by_rows(&resized, &layout, &lut)
+    } else {
+        planes_in_order(&resized, &layout, &lut)
+    };
     (
         out,
         Letterbox {
@@ -77,6 +77,78 @@ pub fn letterbox_chw(img: &RgbImage, size: usize, pad_value: u8) -> (Vec<f32>, L
             orig_height: h,
         },
     )
+}
+
+/// Where the image lies in the letterboxed square, input pixels.
+struct Layout {
+    size: usize,
+    top: usize,
+    left: usize,
+    shown_w: usize,
+    shown_h: usize,
+    /// Bytes of a row of the (resized) RGB image.
+    row_bytes: usize,
+    pad: f32,
+}
+
+/// The three planes written in order, row by row: padding, the image's
+/// row, padding (one thread).
+fn planes_in_order(rgb: &[u8], l: &Layout, lut: &[f32; 256]) -> Vec<f32> {
+    let size = l.size;
+    let mut out: Vec<f32> = Vec::with_capacity(3 * size * size);
+    for c in 0..3 {
+        out.resize(out.len() + l.top * size, l.pad);
+        for row in rgb.chunks_exact(l.row_bytes).take(l.shown_h) {
+            out.resize(out.len() + l.left, l.pad);
+            out.extend(
+                row[..l.shown_w * 3]
+                    .iter()
+                    .skip(c)
+                    .step_by(3)
+                    .map(|&b| lut[b as usize]),
+            );
+            out.resize(out.len() + size - l.left - l.shown_w, l.pad);
+        }
+        out.resize((c + 1) * size * size, l.pad);
+    }
+    out
+}
+
+/// The same planes with each output row (plane c, row y) written on its
+/// own, the rows shared out over the pool's threads in runs of 64.
+fn planes_by_rows(rgb: &[u8], l: &Layout, lut: &[f32; 256]) -> Vec<f32> {
+    let size = l.size;
+    let write_row = |r: usize, row: &mut [std::mem::MaybeUninit<f32>]| {
+        let (c, y) = (r / size, r % size);
+        if y < l.top || y >= l.top + l.shown_h {
+            row.iter_mut().for_each(|x| {
+                x.write(l.pad);
+            });
+            return;
+        }
+        let start = (y - l.top) * l.row_bytes;
+        let src = &rgb[start..start + l.shown_w * 3];
+        let (head, rest) = row.split_at_mut(l.left);
+        let (shown, tail) = rest.split_at_mut(l.shown_w);
+        for x in head.iter_mut().chain(tail.iter_mut()) {
+            x.write(l.pad);
+        }
+        for (x, &b) in shown.iter_mut().zip(src.iter().skip(c).step_by(3)) {
+            x.write(lut[b as usize]);
+        }
+    };
+    let len = 3 * size * size;
+    let mut out: Vec<f32> = Vec::with_capacity(len);
+    out.spare_capacity_mut()[..len]
+        .par_chunks_mut(size)
+        .with_min_len(64)
+        .enumerate()
+        .for_each(|(r, row)| write_row(r, row));
+    // SAFETY: the capacity is `len`, and each of its `len` elements was
+    // written above: every row of `size` elements, padding or image,
+    // wholly (`left + shown_w + (size - left - shown_w)` for an image row)
+    unsafe { out.set_len(len) };
+    out
 }
 
 /// Bilinear resize with half-pixel centres (OpenCV INTER_LINEAR geometry),
@@ -143,7 +215,16 @@ mod tests {
                 .map(|i| ((i * 37 + i / 7) % 256) as u8)
                 .collect();
             let img = RgbImage::new(w, h, data).unwrap();
-            let (t, lb) = letterbox_chw(&img, 640, 114);
+            // in order on one thread, and row by row on four
+            let pool = |n| {
+                rayon::ThreadPoolBuilder::new()
+                    .num_threads(n)
+                    .build()
+                    .unwrap()
+            };
+            let (t, lb) = pool(1).install(|| letterbox_chw(&img, 640, 114));
+            let (by_rows, lb_by_rows) = pool(4).install(|| letterbox_chw(&img, 640, 114));
+            assert!(by_rows == t && lb_by_rows == lb, "{w}x{h}: rows differ");
             let (nw, nh) = (
                 ((w as f32 * lb.scale).round() as usize).clamp(1, 640),
                 ((h as f32 * lb.scale).round() as usize).clamp(1, 640),

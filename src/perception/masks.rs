@@ -92,6 +92,12 @@ impl Mask {
         true
     }
 
+    /// The region's pixels, row-major (region coordinates), to set in place.
+    #[inline]
+    pub fn region_bits_mut(&mut self) -> &mut [bool] {
+        &mut self.bits
+    }
+
     /// Row `y` of the region (region coordinates) as booleans.
     #[inline]
     pub fn region_row(&self, y: usize) -> &[bool] {

@@ -4,6 +4,7 @@
 use std::time::Instant;
 
 use nalgebra::Isometry3;
+use rayon::prelude::*;
 use serde::Serialize;
 use thiserror::Error;
 
@@ -87,8 +88,16 @@ pub fn objects_from_masks(
         target_from_camera,
         frame,
     };
-    for (det, mask) in detections.iter().zip(masks) {
-        let made = mask_object(mask, depth, &g, &det.label, det.score, Some(det.box_xyxy));
+    // each mask on its own (the pool's threads), the results in order
+    let lift = |(det, mask): (&Detection, &Mask)| {
+        mask_object(mask, depth, &g, &det.label, det.score, Some(det.box_xyxy))
+    };
+    let made: Vec<_> = if super::pool_is_parallel() && detections.len() > 1 {
+        detections.par_iter().zip(masks).map(lift).collect()
+    } else {
+        detections.iter().zip(masks).map(lift).collect()
+    };
+    for ((det, mask), made) in detections.iter().zip(masks).zip(made) {
         match made.object {
             Some(o) if made.points >= settings.min_points.max(1) => objects.push(o),
             _ => dropped.push(Dropped {
@@ -362,3 +371,83 @@ pub fn lift_detections(
 #[path = "stream.rs"]
 mod stream;
 pub use stream::StreamFrame;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::perception::segmenter::DepthBoxSegmenter;
+
+    /// Boxes at several depths in front of a wall, one box over no depth.
+    fn scene() -> (DepthImage, Vec<Detection>) {
+        let (w, h) = (160, 120);
+        let mut d = vec![4.0f32; w * h];
+        let boxes = [
+            (10, 10, 40, 50, 1.2f32),
+            (60, 20, 90, 70, 2.0),
+            (100, 60, 150, 110, 2.8),
+            (20, 70, 50, 100, 0.0),
+        ];
+        let mut detections = Vec::new();
+        for (i, &(x0, y0, x1, y1, z)) in boxes.iter().enumerate() {
+            for v in y0..y1 {
+                for u in x0..x1 {
+                    d[v * w + u] = z + 0.002 * ((u * 7 + v * 3) % 11) as f32;
+                }
+            }
+            detections.push(Detection {
+                label: format!("object {i}"),
+                class: "object".into(),
+                score: 0.9 - 0.1 * i as f32,
+                box_xyxy: [
+                    x0 as f32 - 3.0,
+                    y0 as f32 - 3.0,
+                    x1 as f32 + 3.0,
+                    y1 as f32 + 3.0,
+                ],
+            });
+        }
+        (DepthImage::new(w, h, d).unwrap(), detections)
+    }
+
+    #[test]
+    fn objects_are_the_same_on_one_thread_and_on_several() {
+        let (depth, detections) = scene();
+        let k = Intrinsics {
+            width: 160,
+            height: 120,
+            fx: 120.0,
+            fy: 120.0,
+            cx: 80.0,
+            cy: 60.0,
+        };
+        let color = RgbImage::filled(160, 120, [0, 0, 0]).unwrap();
+        let lift = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| {
+                lift_detections(
+                    &mut DepthBoxSegmenter::default(),
+                    &color,
+                    &depth,
+                    detections.clone(),
+                    &k,
+                    &Isometry3::identity(),
+                    Frame::BaseLink,
+                    &GeometrySettings::default(),
+                )
+                .unwrap()
+            })
+        };
+        let (one, four) = (lift(1), lift(4));
+        assert_eq!(one.objects.len(), 3);
+        assert_eq!(one.dropped.len(), 1);
+        assert_eq!(one.dropped[0].label, "object 3");
+        assert_eq!(one.masks, four.masks);
+        assert_eq!(one.objects, four.objects);
+        assert_eq!(one.dropped, four.dropped);
+        let labels: Vec<&str> = four.objects.iter().map(|o| o.label.as_str()).collect();
+        assert_eq!(labels, ["object 0", "object 1", "object 2"]);
+    }
+}

@@ -69,7 +69,11 @@ impl Pipeline {
         let (to_model, at_model) = sync_channel::<Prepared>(0);
         let (to_lift, at_lift) = sync_channel::<Detected>(0);
         std::thread::scope(|scope| {
-            let prepare = scope.spawn(move || prepare_stage(frames, calibration, side, to_model));
+            let prepare = scope.spawn(move || {
+                crate::perception::one_thread_here(|| {
+                    prepare_stage(frames, calibration, side, to_model)
+                })
+            });
             let model = scope.spawn(move || {
                 for f in at_model {
                     let t = Instant::now();
@@ -94,14 +98,16 @@ impl Pipeline {
                     }
                 }
             });
-            let ended_early = lift_stage(
-                at_lift,
-                segmenter.as_mut(),
-                calibration,
-                geometry,
-                prompts,
-                &mut view,
-            );
+            let ended_early = crate::perception::one_thread_here(|| {
+                lift_stage(
+                    at_lift,
+                    segmenter.as_mut(),
+                    calibration,
+                    geometry,
+                    prompts,
+                    &mut view,
+                )
+            });
             for (stage, handle) in [("preparation", prepare), ("model", model)] {
                 if handle.join().is_err() && !ended_early {
                     view(Err(PipelineError::Input(format!(
