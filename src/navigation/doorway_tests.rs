@@ -2,7 +2,7 @@
 //! unicycle chair.
 
 use super::*;
-use crate::navigation::map::MapSettings;
+use crate::navigation::map::{GridMap, MapSettings};
 
 /// A wall along x = 2 with a 0.85 m doorway centred on y = 1.
 fn map_with_door() -> GridMap {
