@@ -12,7 +12,9 @@
 //! - `yolo11n_model_only`: the same model's inference alone (its own
 //!   session, same settings, a pre-made input): the whole view's ratio
 //!   to it is what perception adds to the model. After both, each stage's
-//!   median over 50 views is printed (`whole_view stages`).
+//!   median over 50 views is printed (`whole_view stages`), and one view
+//!   at a time alternated with one bare model run, 300 pairs, with the
+//!   median of the pairs' ratios (`whole_view alternated`).
 //! - `yolo11n_detect_prepared`: the detector on an input letterboxed
 //!   beforehand (the model and the decoding); `letterbox_mrpt`: that
 //!   letterbox of the real frame.
