@@ -1,9 +1,10 @@
 //! Step 6: 3D boxes of object clouds (axis-aligned as in the paper, and
 //! oriented about the gravity axis), 3D IoU, and the cross-view merge.
 
-use super::sweep::Sweep;
+use super::sweep::{ground_lanes, Ground, Sweep};
 use nalgebra::Point3;
 use serde::Serialize;
+use wide::f32x8;
 
 use crate::msg::Frame;
 
@@ -99,14 +100,14 @@ impl OrientedBox {
     /// is the direction of the longer side, in (−π/2, π/2].
     pub fn from_points(points: &[Point3<f32>]) -> Option<OrientedBox> {
         let sweep = Sweep::of(points)?;
-        Some(Self::from_sweep(points, &sweep))
+        Some(Self::from_sweep(points, &sweep, None))
     }
 
     /// As [`from_points`](Self::from_points) when the points' axis-aligned
     /// box is known (its z range is the box's height).
     pub fn from_points_and_aabb(points: &[Point3<f32>], aabb: &Aabb) -> OrientedBox {
         match Sweep::of(points) {
-            Some(sweep) => Self::from_sweep(points, &sweep).with_height(aabb),
+            Some(sweep) => Self::from_sweep(points, &sweep, None).with_height(aabb),
             None => OrientedBox {
                 center_m: [0.0, 0.0, 0.5 * (aabb.min_m[2] + aabb.max_m[2])],
                 size_m: [0.0, 0.0, aabb.max_m[2] - aabb.min_m[2]],
@@ -123,9 +124,9 @@ impl OrientedBox {
         self
     }
 
-    fn from_sweep(points: &[Point3<f32>], sweep: &Sweep) -> OrientedBox {
+    fn from_sweep(points: &[Point3<f32>], sweep: &Sweep, ground: Option<Ground>) -> OrientedBox {
         let (zmin, zmax) = (sweep.min[2] as f64, sweep.max[2] as f64);
-        let hull = convex_hull(hull_candidates(points, sweep));
+        let hull = convex_hull(hull_candidates(points, sweep, ground));
         let (cx, cy, len, wid, yaw) = min_area_rect(&hull);
         OrientedBox {
             center_m: [cx, cy, 0.5 * (zmin + zmax)],
@@ -138,9 +139,11 @@ impl OrientedBox {
 /// Akl–Toussaint: the ground projections of the points that can be hull
 /// vertices. Points strictly inside the octagon of the extreme points (along
 /// x, y, x+y, x−y), or on its edges between vertices, cannot be; they are
-/// dropped in one pass after the sweep, leaving few points for the hull's
-/// sort. Exact.
-fn hull_candidates(points: &[Point3<f32>], sweep: &Sweep) -> Vec<u64> {
+/// dropped in one pass after the sweep, eight points at a time, leaving few
+/// points for the hull's sort; with the sweep's [`Ground`], a block of
+/// points whose bounds lie inside is dropped without a look at its points.
+/// Exact.
+fn hull_candidates(points: &[Point3<f32>], sweep: &Sweep, ground: Option<Ground>) -> Vec<u64> {
     let all = || points.iter().map(|p| ground_key(p.x, p.y)).collect();
     if points.len() < 64 {
         return all();
@@ -158,12 +161,10 @@ fn hull_candidates(points: &[Point3<f32>], sweep: &Sweep) -> Vec<u64> {
     // inside: n·p ≥ c for every counter-clockwise edge (n its left normal).
     // Tested in f32 with a margin, so a point is dropped only when it is
     // inside beyond rounding: the hull stays exact.
-    let mut nx = [0.0f32; 8];
-    let mut ny = [0.0f32; 8];
-    let mut c = [f32::MIN; 8];
     let scale = poly
         .iter()
         .fold(1.0f64, |m, p| m.max(p[0].abs()).max(p[1].abs()));
+    let mut edges: Vec<[f32; 3]> = Vec::with_capacity(poly.len());
     for i in 0..poly.len() {
         let a = poly[i];
         let b = poly[(i + 1) % poly.len()];
@@ -172,22 +173,50 @@ fn hull_candidates(points: &[Point3<f32>], sweep: &Sweep) -> Vec<u64> {
         if len == 0.0 {
             continue;
         }
-        nx[i] = (ex / len) as f32;
-        ny[i] = (ey / len) as f32;
-        c[i] = ((ex * a[0] + ey * a[1]) / len + 1e-5 * scale) as f32;
+        let c = (ex * a[0] + ey * a[1]) / len + 1e-5 * scale;
+        edges.push([(ex / len) as f32, (ey / len) as f32, c as f32]);
     }
+    let edges8: Vec<[f32x8; 3]> = edges.iter().map(|e| e.map(f32x8::splat)).collect();
+    // a block's points lie within its bounds, and the rectangle of the
+    // bounds within the (convex) octagon when its corners do, beyond the
+    // margin: then none of them is a hull vertex
+    let inside = |x: f32, y: f32| edges.iter().all(|&[nx, ny, c]| nx * x + ny * y >= c);
+    let bounds_inside = |[x0, x1, y0, y1]: [f32; 4]| {
+        inside(x0, y0) && inside(x1, y0) && inside(x0, y1) && inside(x1, y1)
+    };
     let mut out: Vec<u64> = poly
         .iter()
         .map(|p| ground_key(p[0] as f32, p[1] as f32))
         .collect();
-    for p in points {
-        let mut outside = false;
-        for k in 0..8 {
-            outside |= nx[k] * p.x + ny[k] * p.y < c[k];
+    // eight points: those outside some edge (a NaN lane is outside none)
+    let mut test = |[x, y]: [f32x8; 2]| {
+        let mut outside = f32x8::ZERO;
+        for [nx, ny, c] in &edges8 {
+            outside |= (*nx * x + *ny * y).simd_lt(*c);
         }
-        if outside {
-            out.push(ground_key(p.x, p.y));
+        let outside = outside.to_bitmask();
+        if outside != 0 {
+            let (x, y) = (x.to_array(), y.to_array());
+            for l in 0..8 {
+                if (outside >> l) & 1 == 1 {
+                    out.push(ground_key(x[l], y[l]));
+                }
+            }
         }
+    };
+    match ground {
+        Some(g) => {
+            for b in 0..g.blocks.len() {
+                match g.block_bounds(b) {
+                    Some(bounds) if !bounds_inside(bounds) => {
+                        g.block_lanes(b).iter().copied().for_each(&mut test)
+                    }
+                    // no point, or all inside
+                    _ => {}
+                }
+            }
+        }
+        None => ground_lanes(points).into_iter().for_each(&mut test),
     }
     out
 }
@@ -328,24 +357,37 @@ impl Object3D {
         box_xyxy: Option<[f32; 4]>,
     ) -> Option<Object3D> {
         // one pass for the bounds and the hull's extreme points
-        let sweep = Sweep::of(&points)?;
+        let lanes = ground_lanes(&points);
+        let (sweep, blocks) = Sweep::of_lanes(&points, &lanes);
+        let ground = Ground {
+            lanes: &lanes,
+            blocks: &blocks,
+        };
         Some(Self::from_swept_points(
-            label, score, frame, points, &sweep, box_xyxy,
+            label,
+            score,
+            frame,
+            points,
+            &sweep?,
+            Some(ground),
+            box_xyxy,
         ))
     }
 
     /// As [`from_points`](Self::from_points) with the points' sweep made
-    /// already (as the fused steps 3–5 make it).
+    /// already, and their ground lanes when made (as the fused steps 3–5
+    /// make both).
     pub(crate) fn from_swept_points(
         label: String,
         score: f32,
         frame: Frame,
         points: Vec<Point3<f32>>,
         sweep: &Sweep,
+        ground: Option<Ground>,
         box_xyxy: Option<[f32; 4]>,
     ) -> Object3D {
         let aabb = sweep.aabb();
-        let obb = OrientedBox::from_sweep(&points, sweep);
+        let obb = OrientedBox::from_sweep(&points, sweep, ground);
         Object3D {
             label,
             score,
@@ -486,6 +528,60 @@ mod tests {
             }
         }
         v
+    }
+
+    /// The hull from the candidates (the octagon's test, and blocks whose
+    /// bounds lie inside dropped whole) is the hull of every point: clouds
+    /// of rectangles, rotated ones, thin strips, rings, on coarse and fine
+    /// grids (ties, repeated points), as rows of pixels arrive.
+    #[test]
+    fn the_candidates_hull_is_every_points_hull() {
+        let mut next = crate::perception::test_sequence(11);
+        for case in 0..300 {
+            let n = 64 + next() % 3000;
+            let yaw = (next() % 360) as f64 * std::f64::consts::PI / 180.0;
+            let (len, wid) = (
+                0.1 + (next() % 200) as f64 * 0.01,
+                0.02 + (next() % 100) as f64 * 0.01,
+            );
+            let grid = [0.05f64, 0.001, 1e-6][case % 3];
+            let ring = case % 5 == 0;
+            let row = 1 + next() % 90;
+            let points: Vec<Point3<f32>> = (0..n)
+                .map(|i| {
+                    // a raster: rows of `row` points across the shape
+                    let (a, b) = (
+                        (i % row) as f64 / row as f64 - 0.5,
+                        (i / row) as f64 / (n / row + 1) as f64 - 0.5,
+                    );
+                    let (a, b) = if ring && a.abs() < 0.3 && b.abs() < 0.3 {
+                        (a.signum() * 0.45, b)
+                    } else {
+                        (a, b)
+                    };
+                    let (x, y) = (a * len, b * wid);
+                    let (c, s) = (yaw.cos(), yaw.sin());
+                    let snap = |v: f64| (v / grid).round() * grid;
+                    Point3::new(
+                        snap(1.5 + x * c - y * s) as f32,
+                        snap(-0.7 + x * s + y * c) as f32,
+                        0.1 * (i % 7) as f32,
+                    )
+                })
+                .collect();
+            let lanes = ground_lanes(&points);
+            let (sweep, blocks) = Sweep::of_lanes(&points, &lanes);
+            let sweep = sweep.unwrap();
+            let ground = Ground {
+                lanes: &lanes,
+                blocks: &blocks,
+            };
+            let every = convex_hull(points.iter().map(|p| ground_key(p.x, p.y)).collect());
+            let from_blocks = convex_hull(hull_candidates(&points, &sweep, Some(ground)));
+            let from_points = convex_hull(hull_candidates(&points, &sweep, None));
+            assert_eq!(from_blocks, every, "case {case}");
+            assert_eq!(from_points, every, "case {case}");
+        }
     }
 
     #[test]

@@ -3,6 +3,7 @@
 //! path the pipeline runs (`mask_points`).
 
 use nalgebra::{Isometry3, Point3};
+use wide::f64x4;
 
 use super::mask_points::Projector;
 use super::masks::Mask;
@@ -56,15 +57,25 @@ pub fn depth_stats(samples: &[DepthSample]) -> Option<(f64, f64)> {
 pub fn depth_stats_of(zs: &[f32]) -> Option<(f64, f64)> {
     const L: usize = 8;
     let shift = *zs.first()? as f64;
-    let (mut s1, mut s2) = ([0.0f64; L], [0.0f64; L]);
+    // lanes 0–3 and 4–7 of the running sums as vectors: each lane's
+    // operations are the scalar ones
+    let zero = f64x4::splat(0.0);
+    let (mut s1a, mut s1b, mut s2a, mut s2b) = (zero, zero, zero, zero);
+    let shift4 = f64x4::splat(shift);
     let mut chunks = zs.chunks_exact(L);
     for c in &mut chunks {
-        for l in 0..L {
-            let d = c[l] as f64 - shift;
-            s1[l] += d;
-            s2[l] += d * d;
-        }
+        let da = f64x4::new([c[0] as f64, c[1] as f64, c[2] as f64, c[3] as f64]) - shift4;
+        let db = f64x4::new([c[4] as f64, c[5] as f64, c[6] as f64, c[7] as f64]) - shift4;
+        s1a += da;
+        s1b += db;
+        s2a += da * da;
+        s2b += db * db;
     }
+    let lanes = |a: f64x4, b: f64x4| -> [f64; L] {
+        let (a, b) = (a.to_array(), b.to_array());
+        std::array::from_fn(|l| if l < 4 { a[l] } else { b[l - 4] })
+    };
+    let (mut s1, mut s2) = (lanes(s1a, s1b), lanes(s2a, s2b));
     for (l, &z) in chunks.remainder().iter().enumerate() {
         let d = z as f64 - shift;
         s1[l] += d;
@@ -122,6 +133,50 @@ mod tests {
                 z_m,
             })
             .collect()
+    }
+
+    /// The statistics lane by lane in scalar arithmetic, as first written:
+    /// the reference for the vector form.
+    fn depth_stats_scalar(zs: &[f32]) -> Option<(f64, f64)> {
+        const L: usize = 8;
+        let shift = *zs.first()? as f64;
+        let (mut s1, mut s2) = ([0.0f64; L], [0.0f64; L]);
+        let mut chunks = zs.chunks_exact(L);
+        for c in &mut chunks {
+            for l in 0..L {
+                let d = c[l] as f64 - shift;
+                s1[l] += d;
+                s2[l] += d * d;
+            }
+        }
+        for (l, &z) in chunks.remainder().iter().enumerate() {
+            let d = z as f64 - shift;
+            s1[l] += d;
+            s2[l] += d * d;
+        }
+        let join = |a: [f64; L]| ((a[0] + a[1]) + (a[2] + a[3])) + ((a[4] + a[5]) + (a[6] + a[7]));
+        let n = zs.len() as f64;
+        let mean_d = join(s1) / n;
+        let var = (join(s2) / n - mean_d * mean_d).max(0.0);
+        Some((shift + mean_d, var.sqrt()))
+    }
+
+    /// Bit for bit the scalar sums, for every length's remainder and
+    /// depths near and far apart.
+    #[test]
+    fn depth_stats_are_the_scalar_sums() {
+        let mut next = crate::perception::test_sequence(5);
+        assert_eq!(depth_stats_of(&[]), None);
+        for n in 1..300usize {
+            let spread = [1e-4f32, 0.01, 3.0][n % 3];
+            let zs: Vec<f32> = (0..n)
+                .map(|_| 0.5 + spread * (next() % 10_000) as f32 / 10_000.0)
+                .collect();
+            let (mean, std) = depth_stats_of(&zs).unwrap();
+            let (want_mean, want_std) = depth_stats_scalar(&zs).unwrap();
+            assert_eq!(mean.to_bits(), want_mean.to_bits(), "{n} depths");
+            assert_eq!(std.to_bits(), want_std.to_bits(), "{n} depths");
+        }
     }
 
     #[test]

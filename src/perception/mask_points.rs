@@ -22,7 +22,7 @@ use wide::f32x8;
 use super::boxes::Object3D;
 use super::cloud::depth_stats_of;
 use super::masks::Mask;
-use super::sweep::{Sweep, SweepLanes, SWEEP_LANES};
+use super::sweep::{Ground, Sweep, SweepLanes, SWEEP_LANES};
 use crate::msg::{DepthImage, Frame, Intrinsics};
 
 /// The depth samples of one mask, as three arrays (pixel column, row and
@@ -33,6 +33,11 @@ struct Samples {
     v: Vec<f32>,
     z_m: Vec<f32>,
     len: usize,
+    /// The kept points' ground lanes (see [`Ground`]), by
+    /// [`kept_points`].
+    ground: Vec<[f32x8; 2]>,
+    /// The sweep's blocks (see [`SweepLanes`]).
+    blocks: Vec<[f32x8; 8]>,
 }
 
 impl Samples {
@@ -81,19 +86,13 @@ impl Samples {
             let (on, z) = (&bits[x..x + 8], &depths[x..x + 8]);
             let z8 = f32x8::new(std::array::from_fn(|l| z[l]));
             let valid = z8.simd_ge(lo8) & z8.simd_le(hi8);
-            let on_bits = on
-                .iter()
-                .enumerate()
-                .fold(0u32, |m, (l, &b)| m | (u32::from(b) << l));
-            let keep = valid.to_bitmask() & on_bits;
+            let keep = valid.to_bitmask() & bools_bitmask(on);
             if keep == 0xff {
                 let u0 = (x0 + x) as f32;
-                for l in 0..8 {
-                    // below 2^24: every pixel column is exact
-                    us[k + l] = u0 + l as f32;
-                    vs[k + l] = vf;
-                    zs[k + l] = z[l];
-                }
+                // below 2^24: every pixel column is exact
+                us[k..k + 8].copy_from_slice(&std::array::from_fn::<f32, 8, _>(|l| u0 + l as f32));
+                vs[k..k + 8].copy_from_slice(&[vf; 8]);
+                zs[k..k + 8].copy_from_slice(z);
                 k += 8;
             } else if keep != 0 {
                 for (l, &zl) in z.iter().enumerate() {
@@ -114,6 +113,15 @@ impl Samples {
         }
         self.len = start + k;
     }
+}
+
+/// Eight booleans as the low eight bits of a mask (bit `l` for `on[l]`):
+/// their bytes (0 or 1) as one word, gathered into its top byte by one
+/// multiplication (byte `l` lands on bit `56 + l`, no two products meet).
+#[inline(always)]
+fn bools_bitmask(on: &[bool]) -> u32 {
+    let bytes: [u8; 8] = std::array::from_fn(|l| u8::from(on[l]));
+    (u64::from_le_bytes(bytes).wrapping_mul(0x0102_0408_1020_4080) >> 56) as u32
 }
 
 thread_local! {
@@ -171,11 +179,26 @@ pub fn mask_object(
             eroded.count()
         };
         let depth_samples = samples.len;
-        let (points, sweep) = kept_points(&samples, g);
+        let mut ground = std::mem::take(&mut samples.ground);
+        let mut blocks = std::mem::take(&mut samples.blocks);
+        let (points, sweep) = kept_points(&samples, &mut ground, &mut blocks, g);
         let n = points.len();
         let object = sweep.map(|s| {
-            Object3D::from_swept_points(label.to_string(), score, g.frame, points, &s, box_xyxy)
+            Object3D::from_swept_points(
+                label.to_string(),
+                score,
+                g.frame,
+                points,
+                &s,
+                Some(Ground {
+                    lanes: &ground,
+                    blocks: &blocks,
+                }),
+                box_xyxy,
+            )
         });
+        samples.ground = ground;
+        samples.blocks = blocks;
         MaskObject {
             points: if object.is_some() { n } else { 0 },
             object,
@@ -211,7 +234,7 @@ fn gather_eroded_once(
     let (lo, hi) = depth_range(min_m, max_m);
     let mut eroded = 0usize;
     mask.for_each_eroded_row(|y, bits| {
-        eroded += bits.iter().filter(|&&b| b).count();
+        eroded += super::masks::count_set(bits);
         let v = y0 + y;
         if v < dh {
             out.push_row(x0, v, bits, &data[v * dw + x0..v * dw + x0 + cols], lo, hi);
@@ -278,8 +301,14 @@ fn kept_depths(zs: &[f32], tau: f64) -> (f32, f32) {
 
 /// Step 4's z-score and step 5, with the sweep of step 6: the samples
 /// within τσ of the mean depth, back-projected and moved into the target
-/// frame, in the samples' order, and their sweep (None without points).
-fn kept_points(samples: &Samples, g: &MaskGeometry) -> (Vec<Point3<f32>>, Option<Sweep>) {
+/// frame, in the samples' order, and their sweep (None without points);
+/// their ground lanes into `ground`; `blocks`: the sweep's, reused.
+fn kept_points(
+    samples: &Samples,
+    ground: &mut Vec<[f32x8; 2]>,
+    blocks: &mut Vec<[f32x8; 8]>,
+    g: &MaskGeometry,
+) -> (Vec<Point3<f32>>, Option<Sweep>) {
     const L: usize = SWEEP_LANES;
     let n = samples.len;
     let (us, vs, zs) = (&samples.u[..n], &samples.v[..n], &samples.z_m[..n]);
@@ -289,7 +318,9 @@ fn kept_points(samples: &Samples, g: &MaskGeometry) -> (Vec<Point3<f32>>, Option
     // with capacity, not zeroed: a zeroed block this size is fresh pages
     // from the kernel, each a fault when written
     let mut points = Vec::with_capacity(n);
-    let mut sweep = SweepLanes::new();
+    let mut sweep = SweepLanes::new(std::mem::take(blocks));
+    ground.clear();
+    ground.reserve(n.div_ceil(L));
     let nan = f32x8::splat(f32::NAN);
     // eight samples; past the end a NaN depth, never kept
     let load = |a: &[f32], i: usize, pad: f32| match a.get(i..i + L) {
@@ -303,12 +334,9 @@ fn kept_points(samples: &Samples, g: &MaskGeometry) -> (Vec<Point3<f32>>, Option
         let (u, v, z) = (load(us, i, 0.0), load(vs, i, 0.0), load(zs, i, f32::NAN));
         let kept = z.simd_ge(lo) & z.simd_le(hi);
         let [x, y, zt] = p.point8(u, v, z);
-        sweep.add(
-            i as u32,
-            kept.select(x, nan),
-            kept.select(y, nan),
-            kept.select(zt, nan),
-        );
+        let (gx, gy) = (kept.select(x, nan), kept.select(y, nan));
+        sweep.add(gx, gy, kept.select(zt, nan));
+        ground.push([gx, gy]);
         let keep = kept.to_bitmask();
         let (x, y, zt) = (x.to_array(), y.to_array(), zt.to_array());
         if keep == 0xff {
@@ -323,13 +351,9 @@ fn kept_points(samples: &Samples, g: &MaskGeometry) -> (Vec<Point3<f32>>, Option
         }
         i += L;
     }
-    // the sweep's extreme points by their sample: the same projection
-    let xy_of = |i: u32| {
-        let i = i as usize;
-        let [x, y, _] = p.point(*us.get(i)?, *vs.get(i)?, *zs.get(i)?);
-        Some([x, y])
-    };
-    (points, sweep.finish(xy_of))
+    let (sweep, spent) = sweep.finish(ground);
+    *blocks = spent;
+    (points, sweep)
 }
 
 /// A pixel's point in the target frame: p = R·(z·ray(u, v)) + t with
@@ -391,6 +415,15 @@ mod tests {
         let kept = zscore_filter(samples, g.zscore_tau);
         let points = back_project(&kept, g.intrinsics, g.target_from_camera);
         Object3D::from_points("x".into(), 0.5, g.frame, points, None)
+    }
+
+    /// Every pattern of eight booleans gives its own bits.
+    #[test]
+    fn bools_bitmask_is_bit_l_for_bool_l() {
+        for m in 0u32..256 {
+            let on: [bool; 8] = std::array::from_fn(|l| (m >> l) & 1 == 1);
+            assert_eq!(bools_bitmask(&on), m);
+        }
     }
 
     /// The interval of kept depths is the z-score test itself: every f32

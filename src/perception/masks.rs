@@ -105,7 +105,7 @@ impl Mask {
     }
 
     pub fn count(&self) -> usize {
-        self.bits.iter().filter(|&&b| b).count()
+        count_set(&self.bits)
     }
 
     /// Set pixels as (u, v) image coordinates, row-major.
@@ -203,14 +203,7 @@ impl Mask {
                 out[0] = left_out & row[0] & right_out;
                 return;
             }
-            for (((o, &l), &c), &r) in out[1..w - 1]
-                .iter_mut()
-                .zip(&row[..w - 2])
-                .zip(&row[1..w - 1])
-                .zip(&row[2..])
-            {
-                *o = l & c & r;
-            }
+            and3(&mut out[1..w - 1], &row[..w - 2], &row[1..w - 1], &row[2..]);
             out[0] = left_out & row[0] & row[1];
             out[w - 1] = row[w - 2] & row[w - 1] & right_out;
         };
@@ -227,9 +220,7 @@ impl Mask {
             } else {
                 down.fill(bottom_out);
             }
-            for (((o, &u), &m), &d) in out.iter_mut().zip(&up).zip(&mid).zip(&down) {
-                *o = u & m & d;
-            }
+            and3(&mut out, &up, &mid, &down);
             f(y, &out);
             std::mem::swap(&mut up, &mut mid);
             std::mem::swap(&mut mid, &mut down);
@@ -246,6 +237,27 @@ impl Mask {
             h: self.h,
             bits: Vec::new(),
         }
+    }
+}
+
+/// How many of `bits` are set (one add per element, no overflow check:
+/// the count cannot pass the slice's length), in a form the compiler
+/// vectorises.
+#[inline]
+pub fn count_set(bits: &[bool]) -> usize {
+    bits.iter()
+        .fold(0usize, |n, &b| n.wrapping_add(usize::from(b)))
+}
+
+/// `out[i] = a[i] & b[i] & c[i]` over `out`'s length (the inputs as long
+/// at least), indexed over slices of one length so that the compiler drops
+/// the bounds checks and vectorises it.
+#[inline]
+fn and3(out: &mut [bool], a: &[bool], b: &[bool], c: &[bool]) {
+    let n = out.len();
+    let (a, b, c) = (&a[..n], &b[..n], &c[..n]);
+    for i in 0..n {
+        out[i] = a[i] & b[i] & c[i];
     }
 }
 

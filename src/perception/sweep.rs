@@ -3,7 +3,7 @@
 //! box's hull starts from them), eight points at a time.
 
 use nalgebra::Point3;
-use wide::{f32x8, u32x8};
+use wide::f32x8;
 
 use super::boxes::Aabb;
 
@@ -19,19 +19,21 @@ pub(crate) struct Sweep {
 
 impl Sweep {
     pub(crate) fn of(points: &[Point3<f32>]) -> Option<Sweep> {
-        let mut lanes = SweepLanes::new();
-        let mut chunks = points.chunks_exact(SWEEP_LANES);
-        let mut base = 0u32;
-        let lane = |c: &[Point3<f32>], k: usize| {
-            f32x8::new(std::array::from_fn(|l| c.get(l).map_or(f32::NAN, |p| p[k])))
-        };
-        for c in &mut chunks {
-            lanes.add(base, lane(c, 0), lane(c, 1), lane(c, 2));
-            base = base.wrapping_add(SWEEP_LANES as u32);
+        Self::of_lanes(points, &ground_lanes(points)).0
+    }
+
+    /// [`of`](Self::of) with the points' [`ground_lanes`] made already;
+    /// with the sweep's blocks (see [`Ground`]).
+    pub(crate) fn of_lanes(
+        points: &[Point3<f32>],
+        lanes: &[[f32x8; 2]],
+    ) -> (Option<Sweep>, Vec<[f32x8; 8]>) {
+        let mut sweep = SweepLanes::new(Vec::new());
+        for (c, xy) in points.chunks(SWEEP_LANES).zip(lanes) {
+            let z = f32x8::new(std::array::from_fn(|l| c.get(l).map_or(f32::NAN, |p| p.z)));
+            sweep.add(xy[0], xy[1], z);
         }
-        let rest = chunks.remainder();
-        lanes.add(base, lane(rest, 0), lane(rest, 1), lane(rest, 2));
-        lanes.finish(|i| points.get(i as usize).map(|p| [p.x, p.y]))
+        sweep.finish(lanes)
     }
 
     pub(crate) fn aabb(&self) -> Aabb {
@@ -42,102 +44,231 @@ impl Sweep {
     }
 }
 
+/// The points' ground coordinates (x, y), eight at a time in their order
+/// (NaN past the end).
+pub(crate) fn ground_lanes(points: &[Point3<f32>]) -> Vec<[f32x8; 2]> {
+    points.chunks(SWEEP_LANES).map(ground_lanes_of).collect()
+}
+
+/// Up to eight points' ground coordinates as lanes (x, y), NaN past the
+/// end.
+fn ground_lanes_of(chunk: &[Point3<f32>]) -> [f32x8; 2] {
+    let lane = |k: usize| {
+        f32x8::new(std::array::from_fn(|l| {
+            chunk.get(l).map_or(f32::NAN, |p| p[k])
+        }))
+    };
+    [lane(0), lane(1)]
+}
+
 /// Points a [`SweepLanes`] takes at once.
 pub(crate) const SWEEP_LANES: usize = 8;
 
+/// Vectors of [`SWEEP_LANES`] points in one block of a [`SweepLanes`].
+const BLOCK_VECTORS: usize = 8;
+
+/// An object's points' ground coordinates as a [`SweepLanes`] took them:
+/// `lanes`, (x, y) eight at a time in the points' order, a lane that is
+/// no point NaN in both; `blocks`, what the sweep kept of each block of
+/// [`BLOCK_VECTORS`] vectors (each lane's greatest values along x, x+y, y
+/// and y−x, then its least).
+#[derive(Clone, Copy)]
+pub(crate) struct Ground<'a> {
+    pub(crate) lanes: &'a [[f32x8; 2]],
+    pub(crate) blocks: &'a [[f32x8; 8]],
+}
+
+impl Ground<'_> {
+    /// Block `b`'s lanes.
+    pub(crate) fn block_lanes(&self, b: usize) -> &[[f32x8; 2]] {
+        let from = (b * BLOCK_VECTORS).min(self.lanes.len());
+        let to = (from + BLOCK_VECTORS).min(self.lanes.len());
+        &self.lanes[from..to]
+    }
+
+    /// The bounds of block `b`'s points, [x_min, x_max, y_min, y_max];
+    /// None when it has none.
+    pub(crate) fn block_bounds(&self, b: usize) -> Option<[f32; 4]> {
+        let values = self.blocks.get(b)?;
+        let fold = |v: f32x8, better: fn(f32, f32) -> bool, from: f32| {
+            v.to_array()
+                .into_iter()
+                .fold(from, |m, x| if better(x, m) { x } else { m })
+        };
+        let greater = |a: f32, b: f32| a > b;
+        let less = |a: f32, b: f32| a < b;
+        let x_max = fold(values[0], greater, f32::NEG_INFINITY);
+        let x_min = fold(values[4], less, f32::INFINITY);
+        let y_max = fold(values[2], greater, f32::NEG_INFINITY);
+        let y_min = fold(values[6], less, f32::INFINITY);
+        (x_min <= x_max && y_min <= y_max).then_some([x_min, x_max, y_min, y_max])
+    }
+}
+
+/// The values along the four ground directions x, x+y, y and y−x of eight
+/// points (the negative directions are their least values: −x−y is
+/// exactly −(x+y) in floating point).
+#[inline(always)]
+fn directions(x: f32x8, y: f32x8) -> [f32x8; 4] {
+    [x, x + y, y, y - x]
+}
+
+/// `s > acc ? s : acc` lane by lane: a NaN in `s` (no point) keeps `acc`,
+/// as does a tie. On x86-64 one instruction: MAXPS returns its second
+/// operand unless the first is greater, which `fast_max(s, acc)` is.
+#[inline(always)]
+fn raise(s: f32x8, acc: f32x8) -> f32x8 {
+    #[cfg(target_arch = "x86_64")]
+    {
+        s.fast_max(acc)
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        s.simd_gt(acc).select(s, acc)
+    }
+}
+
+/// `s < acc ? s : acc` lane by lane (see [`raise`]).
+#[inline(always)]
+fn lower(s: f32x8, acc: f32x8) -> f32x8 {
+    #[cfg(target_arch = "x86_64")]
+    {
+        s.fast_min(acc)
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        s.simd_lt(acc).select(s, acc)
+    }
+}
+
 /// A [`Sweep`] made [`SWEEP_LANES`] points at a time, each lane keeping
-/// its own extremes (what the compiler turns into vector compares and
-/// blends): along x, x+y, y and y−x the greatest and least value and the
-/// index of the first point that reached it, and the z bounds. The lanes
-/// are joined in [`finish`](Self::finish): the best value, and of the
-/// lanes holding it the smallest index — the first point furthest, as a
-/// point-by-point sweep finds it. The negative directions are the least
-/// values of the positive ones (−x−y is exactly −(x+y) in floating point),
-/// and the x and y bounds are the extremes along x and y.
+/// its own greatest and least value along x, x+y, y and y−x and its z
+/// bounds (a compare-and-keep per value, no index). The values are kept
+/// per block of [`BLOCK_VECTORS`] vectors as well, so that
+/// [`finish`](Self::finish) finds the first point holding each extreme by
+/// looking into the first block that holds it — the first point furthest,
+/// as a point-by-point sweep finds it. The x and y bounds are the
+/// extremes along x and y.
 pub(crate) struct SweepLanes {
     hi: [f32x8; 4],
-    hi_at: [u32x8; 4],
     lo: [f32x8; 4],
-    lo_at: [u32x8; 4],
     z_min: f32x8,
     z_max: f32x8,
+    /// This block's values; `hi` and `lo` take them when it is full.
+    block_hi: [f32x8; 4],
+    block_lo: [f32x8; 4],
+    /// Vectors added so far.
+    vectors: usize,
+    /// Each full block's values: greatest along the four directions, then
+    /// least.
+    blocks: Vec<[f32x8; 8]>,
 }
 
 impl SweepLanes {
-    pub(crate) fn new() -> SweepLanes {
+    /// An empty sweep keeping its blocks in `blocks` (cleared; handed back
+    /// by [`finish`](Self::finish) for the next one).
+    pub(crate) fn new(mut blocks: Vec<[f32x8; 8]>) -> SweepLanes {
+        blocks.clear();
         SweepLanes {
             hi: [f32x8::splat(f32::NEG_INFINITY); 4],
-            hi_at: [u32x8::splat(u32::MAX); 4],
             lo: [f32x8::splat(f32::INFINITY); 4],
-            lo_at: [u32x8::splat(u32::MAX); 4],
             z_min: f32x8::splat(f32::INFINITY),
             z_max: f32x8::splat(f32::NEG_INFINITY),
+            block_hi: [f32x8::splat(f32::NEG_INFINITY); 4],
+            block_lo: [f32x8::splat(f32::INFINITY); 4],
+            vectors: 0,
+            blocks,
         }
     }
 
-    /// Points `first + l` for the lanes `l` (finite coordinates; indices
-    /// increase from call to call). A lane whose coordinates are NaN is
-    /// no point: NaN is neither greater nor less than anything.
+    /// The next eight points (finite coordinates), in order. A lane whose
+    /// coordinates are NaN is no point: NaN is neither greater nor less
+    /// than anything.
     #[inline]
-    pub(crate) fn add(&mut self, first: u32, x: f32x8, y: f32x8, z: f32x8) {
-        let at = u32x8::splat(first) + u32x8::new([0, 1, 2, 3, 4, 5, 6, 7]);
-        let s = [x, x + y, y, y - x];
-        for (d, s) in s.into_iter().enumerate() {
-            let up = s.simd_gt(self.hi[d]);
-            self.hi[d] = up.select(s, self.hi[d]);
-            self.hi_at[d] = bytemuck::cast::<f32x8, u32x8>(up).select(at, self.hi_at[d]);
-            let down = s.simd_lt(self.lo[d]);
-            self.lo[d] = down.select(s, self.lo[d]);
-            self.lo_at[d] = bytemuck::cast::<f32x8, u32x8>(down).select(at, self.lo_at[d]);
+    pub(crate) fn add(&mut self, x: f32x8, y: f32x8, z: f32x8) {
+        for (d, s) in directions(x, y).into_iter().enumerate() {
+            self.block_hi[d] = raise(s, self.block_hi[d]);
+            self.block_lo[d] = lower(s, self.block_lo[d]);
         }
-        self.z_min = z.simd_lt(self.z_min).select(z, self.z_min);
-        self.z_max = z.simd_gt(self.z_max).select(z, self.z_max);
+        self.z_min = lower(z, self.z_min);
+        self.z_max = raise(z, self.z_max);
+        self.vectors += 1;
+        if self.vectors.is_multiple_of(BLOCK_VECTORS) {
+            self.close_block();
+        }
     }
 
-    /// The sweep of every point added (None when there was none);
-    /// `xy_of(i)` is point i's ground coordinates.
-    pub(crate) fn finish(&self, xy_of: impl Fn(u32) -> Option<[f32; 2]>) -> Option<Sweep> {
-        // the best value over the lanes, then the first point holding it
-        let join =
-            |vals: &[f32; SWEEP_LANES], at: &[u32; SWEEP_LANES], better: fn(f32, f32) -> bool| {
-                let mut best: Option<(f32, u32)> = None;
-                for l in 0..SWEEP_LANES {
-                    if at[l] == u32::MAX {
-                        continue;
-                    }
-                    best = match best {
-                        Some((v, i)) if !(better(vals[l], v) || (vals[l] == v && at[l] < i)) => {
-                            Some((v, i))
-                        }
-                        _ => Some((vals[l], at[l])),
-                    };
-                }
-                best
-            };
+    /// The block's values into the sweep's and the list of blocks.
+    fn close_block(&mut self) {
+        let mut kept = [f32x8::ZERO; 8];
+        for d in 0..4 {
+            self.hi[d] = raise(self.block_hi[d], self.hi[d]);
+            self.lo[d] = lower(self.block_lo[d], self.lo[d]);
+            kept[d] = self.block_hi[d];
+            kept[d + 4] = self.block_lo[d];
+        }
+        self.blocks.push(kept);
+        self.block_hi = [f32x8::splat(f32::NEG_INFINITY); 4];
+        self.block_lo = [f32x8::splat(f32::INFINITY); 4];
+    }
+
+    /// The sweep of every point added (None when there was none), and the
+    /// block list back; `lanes[i]` are the ground lanes (x, y) of the
+    /// `i`-th vector added.
+    pub(crate) fn finish(mut self, lanes: &[[f32x8; 2]]) -> (Option<Sweep>, Vec<[f32x8; 8]>) {
+        if !self.vectors.is_multiple_of(BLOCK_VECTORS) {
+            self.close_block();
+        }
+        let sweep = self.sweep(lanes);
+        (sweep, self.blocks)
+    }
+
+    fn sweep(&self, lanes: &[[f32x8; 2]]) -> Option<Sweep> {
+        let fold = |v: f32x8, better: fn(f32, f32) -> bool, from: f32| {
+            v.to_array()
+                .into_iter()
+                .fold(from, |m, x| if better(x, m) { x } else { m })
+        };
         let greater = |a: f32, b: f32| a > b;
         let less = |a: f32, b: f32| a < b;
+        // the first point along slot `k` (0–3 greatest, 4–7 least) whose
+        // value is `best`: in the first block holding it, its first
+        // vector holding it, its first lane
+        let first = |k: usize, best: f32| -> Option<([f32; 2], f32)> {
+            let wanted = f32x8::splat(best);
+            let block = self
+                .blocks
+                .iter()
+                .position(|b| b[k].simd_eq(wanted).to_bitmask() != 0)?;
+            let from = block * BLOCK_VECTORS;
+            let to = (from + BLOCK_VECTORS).min(lanes.len());
+            lanes.get(from..to)?.iter().find_map(|&[x, y]| {
+                let s = directions(x, y)[k % 4];
+                let hit = s.simd_eq(wanted).to_bitmask();
+                (hit != 0).then(|| {
+                    let l = hit.trailing_zeros() as usize;
+                    ([x.to_array()[l], y.to_array()[l]], s.to_array()[l])
+                })
+            })
+        };
         let mut extreme = [[0.0f32; 2]; 8];
         let mut value = [0.0f32; 8];
         for d in 0..4 {
-            let (hv, hi) = join(&self.hi[d].to_array(), &self.hi_at[d].to_array(), greater)?;
-            let (lv, li) = join(&self.lo[d].to_array(), &self.lo_at[d].to_array(), less)?;
-            extreme[d] = xy_of(hi)?;
-            extreme[d + 4] = xy_of(li)?;
-            (value[d], value[d + 4]) = (hv, lv);
+            let best_hi = fold(self.hi[d], greater, f32::NEG_INFINITY);
+            let best_lo = fold(self.lo[d], less, f32::INFINITY);
+            if !best_hi.is_finite() || !best_lo.is_finite() {
+                return None;
+            }
+            (extreme[d], value[d]) = first(d, best_hi)?;
+            (extreme[d + 4], value[d + 4]) = first(d + 4, best_lo)?;
         }
-        let z_min = self
-            .z_min
-            .to_array()
-            .iter()
-            .fold(f32::INFINITY, |m, &z| if z < m { z } else { m });
-        let z_max = self
-            .z_max
-            .to_array()
-            .iter()
-            .fold(f32::NEG_INFINITY, |m, &z| if z > m { z } else { m });
         Some(Sweep {
-            min: [value[4], value[6], z_min],
-            max: [value[0], value[2], z_max],
+            min: [value[4], value[6], fold(self.z_min, less, f32::INFINITY)],
+            max: [
+                value[0],
+                value[2],
+                fold(self.z_max, greater, f32::NEG_INFINITY),
+            ],
             extreme,
         })
     }
@@ -193,6 +324,38 @@ mod tests {
                 sweep_point_by_point(&points),
                 "{n} points"
             );
+        }
+    }
+
+    /// Lanes that are no point (NaN, as the z-score drops samples) change
+    /// nothing: the sweep of the lanes is the sweep of the points kept,
+    /// blocks and ties included.
+    #[test]
+    fn lanes_without_a_point_are_skipped() {
+        let mut next = crate::perception::test_sequence(3);
+        for n in 1..400usize {
+            let grid = if n % 2 == 0 { 0.25 } else { 0.001 };
+            let all: Vec<Option<Point3<f32>>> = (0..n)
+                .map(|_| {
+                    let mut c = || (next() % 17) as f32 * grid - 2.0;
+                    let p = Point3::new(c(), c(), c());
+                    (next() % 4 != 0).then_some(p)
+                })
+                .collect();
+            let kept: Vec<Point3<f32>> = all.iter().flatten().copied().collect();
+            let lane = |c: &[Option<Point3<f32>>], k: usize| {
+                f32x8::new(std::array::from_fn(|l| {
+                    c.get(l).copied().flatten().map_or(f32::NAN, |p| p[k])
+                }))
+            };
+            let lanes: Vec<[f32x8; 2]> = all.chunks(8).map(|c| [lane(c, 0), lane(c, 1)]).collect();
+            let mut sweep = SweepLanes::new(Vec::new());
+            for c in all.chunks(8) {
+                sweep.add(lane(c, 0), lane(c, 1), lane(c, 2));
+            }
+            let (got, blocks) = sweep.finish(&lanes);
+            assert_eq!(got, sweep_point_by_point(&kept), "{n} samples");
+            assert_eq!(blocks.len(), lanes.len().div_ceil(BLOCK_VECTORS));
         }
     }
 }
