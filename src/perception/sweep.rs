@@ -339,7 +339,7 @@ mod tests {
                 .map(|_| {
                     let mut c = || (next() % 17) as f32 * grid - 2.0;
                     let p = Point3::new(c(), c(), c());
-                    (next() % 4 != 0).then_some(p)
+                    (!next().is_multiple_of(4)).then_some(p)
                 })
                 .collect();
             let kept: Vec<Point3<f32>> = all.iter().flatten().copied().collect();
