@@ -55,8 +55,19 @@ pub fn depth_stats(samples: &[DepthSample]) -> Option<(f64, f64)> {
 /// sums joined pairwise at the end: eight additions in flight rather than
 /// one chain.
 pub fn depth_stats_of(zs: &[f32]) -> Option<(f64, f64)> {
-    const L: usize = 8;
     let shift = *zs.first()? as f64;
+    let (s1, s2) = lane_sums(zs, shift);
+    let join = |a: [f64; 8]| ((a[0] + a[1]) + (a[2] + a[3])) + ((a[4] + a[5]) + (a[6] + a[7]));
+    let n = zs.len() as f64;
+    let mean_d = join(s1) / n;
+    let var = (join(s2) / n - mean_d * mean_d).max(0.0);
+    Some((shift + mean_d, var.sqrt()))
+}
+
+/// The eight running sums of the depths less `shift` and of their
+/// squares: depth `i` in sum `i % 8`.
+fn lane_sums(zs: &[f32], shift: f64) -> ([f64; 8], [f64; 8]) {
+    const L: usize = 8;
     // lanes 0–3 and 4–7 of the running sums as vectors: each lane's
     // operations are the scalar ones
     let zero = f64x4::splat(0.0);
@@ -81,11 +92,7 @@ pub fn depth_stats_of(zs: &[f32]) -> Option<(f64, f64)> {
         s1[l] += d;
         s2[l] += d * d;
     }
-    let join = |a: [f64; L]| ((a[0] + a[1]) + (a[2] + a[3])) + ((a[4] + a[5]) + (a[6] + a[7]));
-    let n = zs.len() as f64;
-    let mean_d = join(s1) / n;
-    let var = (join(s2) / n - mean_d * mean_d).max(0.0);
-    Some((shift + mean_d, var.sqrt()))
+    (s1, s2)
 }
 
 /// Keeps the samples whose z-score satisfies |z| < `tau` (step 4). When all
@@ -135,36 +142,10 @@ mod tests {
             .collect()
     }
 
-    /// The statistics lane by lane in scalar arithmetic, as first written:
-    /// the reference for the vector form.
-    fn depth_stats_scalar(zs: &[f32]) -> Option<(f64, f64)> {
-        const L: usize = 8;
-        let shift = *zs.first()? as f64;
-        let (mut s1, mut s2) = ([0.0f64; L], [0.0f64; L]);
-        let mut chunks = zs.chunks_exact(L);
-        for c in &mut chunks {
-            for l in 0..L {
-                let d = c[l] as f64 - shift;
-                s1[l] += d;
-                s2[l] += d * d;
-            }
-        }
-        for (l, &z) in chunks.remainder().iter().enumerate() {
-            let d = z as f64 - shift;
-            s1[l] += d;
-            s2[l] += d * d;
-        }
-        let join = |a: [f64; L]| ((a[0] + a[1]) + (a[2] + a[3])) + ((a[4] + a[5]) + (a[6] + a[7]));
-        let n = zs.len() as f64;
-        let mean_d = join(s1) / n;
-        let var = (join(s2) / n - mean_d * mean_d).max(0.0);
-        Some((shift + mean_d, var.sqrt()))
-    }
-
-    /// Bit for bit the scalar sums, for every length's remainder and
-    /// depths near and far apart.
+    /// Bit for bit the scalar sums (depth `i` into sum `i % 8`, one by
+    /// one), for every length's remainder and depths near and far apart.
     #[test]
-    fn depth_stats_are_the_scalar_sums() {
+    fn lane_sums_are_the_scalar_sums() {
         let mut next = crate::perception::test_sequence(5);
         assert_eq!(depth_stats_of(&[]), None);
         for n in 1..300usize {
@@ -172,10 +153,17 @@ mod tests {
             let zs: Vec<f32> = (0..n)
                 .map(|_| 0.5 + spread * (next() % 10_000) as f32 / 10_000.0)
                 .collect();
-            let (mean, std) = depth_stats_of(&zs).unwrap();
-            let (want_mean, want_std) = depth_stats_scalar(&zs).unwrap();
-            assert_eq!(mean.to_bits(), want_mean.to_bits(), "{n} depths");
-            assert_eq!(std.to_bits(), want_std.to_bits(), "{n} depths");
+            let shift = zs[0] as f64;
+            let (mut s1, mut s2) = ([0.0f64; 8], [0.0f64; 8]);
+            for (i, &z) in zs.iter().enumerate() {
+                let d = z as f64 - shift;
+                s1[i % 8] += d;
+                s2[i % 8] += d * d;
+            }
+            let bits = |a: [f64; 8]| a.map(f64::to_bits);
+            let (got1, got2) = lane_sums(&zs, shift);
+            assert_eq!(bits(got1), bits(s1), "{n} depths");
+            assert_eq!(bits(got2), bits(s2), "{n} depths");
         }
     }
 

@@ -90,17 +90,10 @@ impl Ground<'_> {
     /// None when it has none.
     pub(crate) fn block_bounds(&self, b: usize) -> Option<[f32; 4]> {
         let values = self.blocks.get(b)?;
-        let fold = |v: f32x8, better: fn(f32, f32) -> bool, from: f32| {
-            v.to_array()
-                .into_iter()
-                .fold(from, |m, x| if better(x, m) { x } else { m })
-        };
-        let greater = |a: f32, b: f32| a > b;
-        let less = |a: f32, b: f32| a < b;
-        let x_max = fold(values[0], greater, f32::NEG_INFINITY);
-        let x_min = fold(values[4], less, f32::INFINITY);
-        let y_max = fold(values[2], greater, f32::NEG_INFINITY);
-        let y_min = fold(values[6], less, f32::INFINITY);
+        let x_max = greatest(values[0]);
+        let x_min = least(values[4]);
+        let y_max = greatest(values[2]);
+        let y_min = least(values[6]);
         (x_min <= x_max && y_min <= y_max).then_some([x_min, x_max, y_min, y_max])
     }
 }
@@ -111,6 +104,22 @@ impl Ground<'_> {
 #[inline(always)]
 fn directions(x: f32x8, y: f32x8) -> [f32x8; 4] {
     [x, x + y, y, y - x]
+}
+
+/// The greatest of the lanes, the first lane's of equal ones (−∞ when
+/// every lane is NaN or −∞).
+fn greatest(v: f32x8) -> f32 {
+    v.to_array()
+        .into_iter()
+        .fold(f32::NEG_INFINITY, |m, x| if x > m { x } else { m })
+}
+
+/// The least of the lanes, the first lane's of equal ones (+∞ when every
+/// lane is NaN or +∞).
+fn least(v: f32x8) -> f32 {
+    v.to_array()
+        .into_iter()
+        .fold(f32::INFINITY, |m, x| if x < m { x } else { m })
 }
 
 /// `s > acc ? s : acc` lane by lane: a NaN in `s` (no point) keeps `acc`,
@@ -224,13 +233,6 @@ impl SweepLanes {
     }
 
     fn sweep(&self, lanes: &[[f32x8; 2]]) -> Option<Sweep> {
-        let fold = |v: f32x8, better: fn(f32, f32) -> bool, from: f32| {
-            v.to_array()
-                .into_iter()
-                .fold(from, |m, x| if better(x, m) { x } else { m })
-        };
-        let greater = |a: f32, b: f32| a > b;
-        let less = |a: f32, b: f32| a < b;
         // the first point along slot `k` (0–3 greatest, 4–7 least) whose
         // value is `best`: in the first block holding it, its first
         // vector holding it, its first lane
@@ -254,8 +256,8 @@ impl SweepLanes {
         let mut extreme = [[0.0f32; 2]; 8];
         let mut value = [0.0f32; 8];
         for d in 0..4 {
-            let best_hi = fold(self.hi[d], greater, f32::NEG_INFINITY);
-            let best_lo = fold(self.lo[d], less, f32::INFINITY);
+            let best_hi = greatest(self.hi[d]);
+            let best_lo = least(self.lo[d]);
             if !best_hi.is_finite() || !best_lo.is_finite() {
                 return None;
             }
@@ -263,12 +265,8 @@ impl SweepLanes {
             (extreme[d + 4], value[d + 4]) = first(d + 4, best_lo)?;
         }
         Some(Sweep {
-            min: [value[4], value[6], fold(self.z_min, less, f32::INFINITY)],
-            max: [
-                value[0],
-                value[2],
-                fold(self.z_max, greater, f32::NEG_INFINITY),
-            ],
+            min: [value[4], value[6], least(self.z_min)],
+            max: [value[0], value[2], greatest(self.z_max)],
             extreme,
         })
     }
