@@ -494,6 +494,24 @@ pub fn parse_pp(reply: &Reply) -> Result<SensorParams, ScipError> {
     Ok(p)
 }
 
+/// Builds a key-value reply as the sensor sends one to PP, VV and II
+/// (emulator and tests): echo, status `00`, a `KEY:value;` line with its
+/// checksum per pair, blank line — what [`key_values`] reads.
+pub fn build_key_value_reply(echo: &[u8], pairs: &[(&str, &str)]) -> Vec<u8> {
+    let mut out = build_reply(echo, b"00", None, &[]);
+    // the blank line goes after the pairs
+    out.pop();
+    for (k, v) in pairs {
+        let kv = format!("{k}:{v}");
+        out.extend_from_slice(kv.as_bytes());
+        out.push(b';');
+        out.push(checksum(kv.as_bytes()));
+        out.push(b'\n');
+    }
+    out.push(b'\n');
+    out
+}
+
 /// Builds a reply block as the sensor would send it (emulator and tests):
 /// echo, status, optional timestamp, data split in 64-char lines, blank line.
 pub fn build_reply(echo: &[u8], status: &[u8; 2], timestamp: Option<u32>, data: &[u8]) -> Vec<u8> {

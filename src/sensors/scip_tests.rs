@@ -100,16 +100,7 @@ fn first_md_reply_has_no_timestamp() {
 
 /// A PP reply with these values (checksums right).
 fn pp_block(values: &[(&str, &str)]) -> Vec<u8> {
-    let mut block = b"PP\n00P\n".to_vec();
-    for (k, v) in values {
-        let kv = format!("{k}:{v}");
-        block.extend_from_slice(kv.as_bytes());
-        block.push(b';');
-        block.push(checksum(kv.as_bytes()));
-        block.push(b'\n');
-    }
-    block.push(b'\n');
-    block
+    build_key_value_reply(b"PP", values)
 }
 
 #[test]
@@ -242,4 +233,22 @@ fn malformed_replies_are_errors_not_panics() {
             String::from_utf8_lossy(bad)
         );
     }
+}
+
+/// A key-value reply is the sensor's bytes (echo, `00P`, one checksummed
+/// line per pair, blank line) and reads back pair for pair.
+#[test]
+fn key_value_replies_read_back() {
+    let block = build_key_value_reply(b"VV", &[("VEND", "Hokuyo"), ("FIRM", "3.4.03")]);
+    let vend_sum = checksum(b"VEND:Hokuyo");
+    let mut want = b"VV\n00P\nVEND:Hokuyo;".to_vec();
+    want.push(vend_sum);
+    want.extend_from_slice(b"\nFIRM:3.4.03;");
+    want.push(checksum(b"FIRM:3.4.03"));
+    want.extend_from_slice(b"\n\n");
+    assert_eq!(block, want);
+    let values = key_values(&parse_reply(&block).expect("reply")).expect("pairs");
+    assert_eq!(values.get("VEND").map(String::as_str), Some("Hokuyo"));
+    assert_eq!(values.get("FIRM").map(String::as_str), Some("3.4.03"));
+    assert_eq!(values.len(), 2);
 }

@@ -12,7 +12,7 @@ use std::sync::mpsc::{channel, Receiver, Sender};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use crate::sensors::scip::{build_reply, checksum, encode_value, SensorParams};
+use crate::sensors::scip::{build_key_value_reply, build_reply, encode_value, SensorParams};
 
 /// A fault to inject into the stream.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -272,8 +272,7 @@ impl Emu {
 
     fn pp_block() -> Vec<u8> {
         let p = SensorParams::URG_04LX;
-        let mut b = b"PP\n00P\n".to_vec();
-        for (k, v) in [
+        let values = [
             (
                 "MODL",
                 "URG-04LX-UG01(Simple-URG)(Hokuyo Automatic Co.,Ltd.)".to_string(),
@@ -285,15 +284,9 @@ impl Emu {
             ("AMAX", p.amax.to_string()),
             ("AFRT", p.afrt.to_string()),
             ("SCAN", p.scan_rpm.to_string()),
-        ] {
-            let kv = format!("{k}:{v}");
-            b.extend_from_slice(kv.as_bytes());
-            b.push(b';');
-            b.push(checksum(kv.as_bytes()));
-            b.push(b'\n');
-        }
-        b.push(b'\n');
-        b
+        ];
+        let pairs: Vec<(&str, &str)> = values.iter().map(|(k, v)| (*k, v.as_str())).collect();
+        build_key_value_reply(b"PP", &pairs)
     }
 
     fn handle(&mut self, cmd: Vec<u8>) {
@@ -345,21 +338,13 @@ impl Emu {
                 reply(b"00")
             }
             b"PP" => Self::pp_block(),
-            b"VV" | b"II" => {
-                let mut b = build_reply(&cmd, b"00", None, &[]);
-                b.pop();
-                for kv in [
-                    "VEND:Hokuyo Automatic Co.,Ltd.",
-                    "PROD:SOKUIKI Sensor URG-04LX-UG01 (opennav emulator)",
-                ] {
-                    b.extend_from_slice(kv.as_bytes());
-                    b.push(b';');
-                    b.push(checksum(kv.as_bytes()));
-                    b.push(b'\n');
-                }
-                b.push(b'\n');
-                b
-            }
+            b"VV" | b"II" => build_key_value_reply(
+                &cmd,
+                &[
+                    ("VEND", "Hokuyo Automatic Co.,Ltd."),
+                    ("PROD", "SOKUIKI Sensor URG-04LX-UG01 (opennav emulator)"),
+                ],
+            ),
             b if b.starts_with(b"MD") && b.len() == MD_ECHO.len() => {
                 if b == MD_ECHO {
                     self.streaming = true;
