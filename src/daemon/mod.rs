@@ -37,14 +37,14 @@ pub mod notify;
 pub mod perception;
 pub mod recorder;
 pub mod route;
+mod tasks;
 
-use std::collections::{BTreeSet, HashMap};
+use std::collections::BTreeSet;
 use std::sync::Arc;
 use std::time::Duration;
 
 use serde::Serialize;
 use tokio::sync::{mpsc, watch};
-use tokio::task::JoinSet;
 use tokio_util::sync::CancellationToken;
 
 use crate::actuation::{ActuatorIo, ActuatorStatus};
@@ -71,6 +71,8 @@ pub use estimation::EstimationStats;
 pub use notify::sd_notify;
 pub use recorder::RecordReport;
 use recorder::{RecordItem, RecordSink, Recorder};
+pub use tasks::panic_message;
+use tasks::{injected_panic_after, panic_after, Tasks};
 
 #[derive(Debug, Clone, Default)]
 pub struct RunOptions {
@@ -143,74 +145,6 @@ pub enum DaemonError {
 /// A task of the daemon: its name and the error that ended it.
 type TaskResult = Result<(), String>;
 
-/// The daemon's tasks, watched: any that ends before shutdown is a fault.
-struct Tasks {
-    set: JoinSet<TaskResult>,
-    names: HashMap<tokio::task::Id, String>,
-    inject_panic: Option<(String, Duration)>,
-}
-
-impl Tasks {
-    fn new(inject_panic: Option<(String, Duration)>) -> Tasks {
-        Tasks {
-            set: JoinSet::new(),
-            names: HashMap::new(),
-            inject_panic,
-        }
-    }
-
-    fn spawn(
-        &mut self,
-        name: &str,
-        fut: impl std::future::Future<Output = TaskResult> + Send + 'static,
-    ) {
-        let after = injected_panic_after(&self.inject_panic, name);
-        let h = self.set.spawn(panic_after(after, fut));
-        self.names.insert(h.id(), name.to_string());
-    }
-
-    /// The next task to end: its name and why.
-    async fn next_end(&mut self) -> Option<(String, TaskResult)> {
-        let r = self.set.join_next_with_id().await?;
-        Some(match r {
-            Ok((id, r)) => (self.name(id), r),
-            Err(e) => {
-                let id = e.id();
-                let why = if e.is_panic() {
-                    format!("panicked: {}", panic_message(e.into_panic()))
-                } else {
-                    "cancelled".to_string()
-                };
-                (self.name(id), Err(why))
-            }
-        })
-    }
-
-    fn name(&self, id: tokio::task::Id) -> String {
-        self.names
-            .get(&id)
-            .cloned()
-            .unwrap_or_else(|| format!("task {id}"))
-    }
-}
-
-/// When `name` is the task a fault-injection test names, its delay.
-fn injected_panic_after(inject: &Option<(String, Duration)>, name: &str) -> Option<Duration> {
-    inject.as_ref().filter(|(t, _)| t == name).map(|(_, d)| *d)
-}
-
-/// Runs `fut`; with `after`, panics then unless it has ended (fault
-/// injection).
-async fn panic_after<F: std::future::Future>(after: Option<Duration>, fut: F) -> F::Output {
-    match after {
-        Some(after) => tokio::select! {
-            r = fut => r,
-            _ = tokio::time::sleep(after) => panic!("injected panic (fault-injection test)"),
-        },
-        None => fut.await,
-    }
-}
-
 /// The control step from config.
 fn new_control(settings: &Settings, view: Option<CameraView>, exit_on_arrival: bool) -> Control {
     let mut control = Control::new(
@@ -225,17 +159,6 @@ fn new_control(settings: &Settings, view: Option<CameraView>, exit_on_arrival: b
     // for: the switch menu offers what is around
     control.idle_words = settings.voice.vocabulary.clone();
     control
-}
-
-/// The text of a panic's payload.
-pub fn panic_message(payload: Box<dyn std::any::Any + Send>) -> String {
-    if let Some(s) = payload.downcast_ref::<&str>() {
-        s.to_string()
-    } else if let Some(s) = payload.downcast_ref::<String>() {
-        s.clone()
-    } else {
-        "(no message)".to_string()
-    }
 }
 
 /// Where a source's readings are recorded, and as what.
