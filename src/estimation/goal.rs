@@ -181,6 +181,11 @@ pub const SEARCH_AT_MOST: Duration = Duration::from_secs(90);
 /// A track of the same word this close to where the goal was last seen is
 /// the goal (the tracker split or renumbered it), m.
 const REACQUIRE_M: f64 = 0.6;
+/// Another object of the word, seen now, whose place beside it is this
+/// much nearer than the goal's (straight from the chair), becomes the
+/// goal: the first one seen is often not the nearest, m. Two about as near
+/// never take turns.
+pub const NEARER_BY_M: f64 = 1.0;
 
 impl GoalKeeper {
     pub fn new(settings: GoalSettings) -> GoalKeeper {
@@ -594,6 +599,36 @@ impl GoalKeeper {
                 approach,
             } => match in_view(track, &label) {
                 Some(t) => {
+                    if let Some((nearer, a)) = (!self.refusing)
+                        .then(|| tracker.goal(&label, from))
+                        .flatten()
+                        .filter(|n| {
+                            let d = |c: [f64; 3]| (c[0] - from[0]).hypot(c[1] - from[1]);
+                            n.id != t.id
+                                && n.last_seen.age_at(now) <= s.unseen_after
+                                && d(n.center_m) + NEARER_BY_M < d(t.center_m)
+                        })
+                        .and_then(|n| {
+                            let a = place_beside(
+                                n,
+                                from,
+                                s.standoff_m + s.front_offset_m,
+                                obstacles_odom,
+                                s.clearance_m,
+                            )?;
+                            let d = |a: &ApproachPose| (a.x_m - from[0]).hypot(a.y_m - from[1]);
+                            (d(&a) + NEARER_BY_M < d(&approach)).then_some((n, a))
+                        })
+                    {
+                        self.last_center = Some(nearer.center_m);
+                        self.last_box = Some((nearer.center_m, nearer.size_m));
+                        self.state = GoalState::Tracking {
+                            label: label.clone(),
+                            track: nearer.id,
+                            approach: a,
+                        };
+                        return Some(GoalEvent::Nearer { label });
+                    }
                     let track = t.id;
                     self.last_center = Some(t.center_m);
                     self.last_box = Some((t.center_m, t.size_m));

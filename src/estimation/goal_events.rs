@@ -47,6 +47,11 @@ pub enum GoalEvent {
     OtherSide {
         label: String,
     },
+    /// Another object of the word is nearer than the one the chair was
+    /// going to ([`super::NEARER_BY_M`]): it goes there instead.
+    Nearer {
+        label: String,
+    },
     /// A full search turn without seeing the word: the goal is dropped.
     NotFound {
         label: String,
@@ -90,6 +95,7 @@ impl GoalEvent {
             GoalEvent::OtherSide { label } => {
                 format!("I cannot get to this side of the {label}. Trying another side.")
             }
+            GoalEvent::Nearer { label } => format!("There is a nearer {label}. Going to it."),
             GoalEvent::NotFound { label } => format!("I cannot find a {label} here. Stopped."),
             GoalEvent::GaveUp { label, held_s } => format!(
                 "I cannot get to the {label}: my way has been blocked for {held_s:.0} seconds. \

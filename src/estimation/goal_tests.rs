@@ -569,3 +569,85 @@ fn arrived_only_where_the_object_is_seen_now() {
         Some(GoalEvent::Reached { .. })
     ));
 }
+
+fn chair_at(x: f32, y: f32) -> Object3D {
+    let pts = vec![
+        Point3::new(x - 0.25, y - 0.25, 0.0),
+        Point3::new(x + 0.25, y + 0.25, 0.9),
+    ];
+    Object3D::from_points("chair".into(), 0.9, Frame::Odom, pts, None).expect("object")
+}
+
+/// The first object of the word seen is the goal; another seen later
+/// whose place is more than [`NEARER_BY_M`] nearer becomes the goal (and
+/// the person hears it), and the far one does not take it back; one
+/// about as near does not take it.
+#[test]
+fn a_nearer_object_of_the_word_becomes_the_goal() {
+    let mut g = GoalKeeper::new(crate::config::Settings::defaults().goal_settings());
+    let mut tracker = Tracker::new(crate::config::Settings::defaults().tracker);
+    let chair = Pose2::default();
+    g.set_prompt("chair");
+    let mut k = 0;
+    let mut step = |g: &mut GoalKeeper, tracker: &mut Tracker, seen: &[Object3D]| {
+        let now = t(k as f64 * 0.1);
+        k += 1;
+        tracker.update(now, seen, |_| true);
+        g.update(now, tracker, chair, &[], &|_| true, &|_| true)
+    };
+    let far = chair_at(6.0, 0.0);
+    let mut events = Vec::new();
+    for _ in 0..3 {
+        events.extend(step(&mut g, &mut tracker, std::slice::from_ref(&far)));
+    }
+    assert!(
+        matches!(&events[..], [GoalEvent::Acquired { .. }]),
+        "{events:?}"
+    );
+    let far_id = match g.state() {
+        GoalState::Tracking { track, .. } => *track,
+        s => panic!("{s:?}"),
+    };
+    // about as near, beside it: stays
+    let beside = chair_at(5.8, 1.0);
+    for _ in 0..5 {
+        let e = step(&mut g, &mut tracker, &[far.clone(), beside.clone()]);
+        assert_eq!(e, None);
+    }
+    assert!(matches!(g.state(), GoalState::Tracking { track, .. } if *track == far_id));
+    // a nearer one, once confirmed: the goal, said
+    let near = chair_at(2.5, 1.5);
+    let mut events = Vec::new();
+    for _ in 0..4 {
+        events.extend(step(
+            &mut g,
+            &mut tracker,
+            &[far.clone(), beside.clone(), near.clone()],
+        ));
+    }
+    assert!(
+        matches!(&events[..], [GoalEvent::Nearer { label }] if label == "chair"),
+        "{events:?}"
+    );
+    assert_eq!(events[0].say(), "There is a nearer chair. Going to it.");
+    let (near_id, a) = match g.state() {
+        GoalState::Tracking {
+            track, approach, ..
+        } => (*track, *approach),
+        s => panic!("{s:?}"),
+    };
+    assert_ne!(near_id, far_id);
+    assert!(a.x_m.hypot(a.y_m) < 2.0, "{a:?}");
+    // the far one seen on: no switch back
+    for _ in 0..5 {
+        assert_eq!(
+            step(
+                &mut g,
+                &mut tracker,
+                &[far.clone(), beside.clone(), near.clone()]
+            ),
+            None
+        );
+    }
+    assert!(matches!(g.state(), GoalState::Tracking { track, .. } if *track == near_id));
+}
