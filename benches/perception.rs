@@ -39,7 +39,7 @@ use opennav::msg::Frame;
 use opennav::msg::{DepthImage, RgbImage};
 use opennav::msg::{Intrinsics, RgbdCalibration};
 use opennav::perception::detector::{open_detector, Detection, DetectorSettings, PreparedImage};
-use opennav::perception::image::letterbox_chw;
+use opennav::perception::image::{letterbox_chw, letterbox_hwc_u8};
 use opennav::perception::pipeline::{objects_from_masks, GeometrySettings, Pipeline, Timing};
 use opennav::perception::registration::register_depth_to_color;
 use opennav::perception::runtime::ExecutionProviderKind;
@@ -174,6 +174,11 @@ fn bench_geometry(c: &mut Criterion) {
     c.bench_function("letterbox_640", |b| {
         b.iter(|| letterbox_chw(&img, 640, 114))
     });
+    // the same as bytes, for a model that takes them (the fixture step's
+    // yolo11n_coco_u8.onnx)
+    c.bench_function("letterbox_640_bytes", |b| {
+        b.iter(|| letterbox_hwc_u8(&img, 640, 114))
+    });
 }
 
 fn shared() -> PathBuf {
@@ -250,6 +255,7 @@ fn bench_whole_view(c: &mut Criterion) {
     }
     eprintln!("whole_view: provider {provider}, library {}", lib.display());
     let det = open_detector(&model, &settings, None).expect("model");
+    let layout = det.input_layout();
     let mut p = Pipeline::new(
         det,
         Box::new(DepthBoxSegmenter::default()),
@@ -259,11 +265,14 @@ fn bench_whole_view(c: &mut Criterion) {
     p.set_prompts(&["book".into(), "chair".into(), "person".into()])
         .expect("prompts");
     // the bare model: the same ONNX file in its own session with the same
-    // settings, one pre-made 640×640 input, nothing before or after
-    let bare = opennav::perception::runtime::Model::load(&model, &settings.session).expect("model");
-    let input_name = bare.signature.inputs[0].name.clone();
-    let (chw, _) = letterbox_chw(&color, 640, 114);
-    let mut bare = bare;
+    // settings, one pre-made 640×640 input in its layout, nothing before
+    // or after
+    let mut bare = Bare::load(&model, &settings, &color);
+    // a model other than the shared FP32 one (OPENNAV_BENCH_DETECTOR): the
+    // FP32 model bare too, alternated with the others
+    let fp32_path = shared().join("models/yolo11n_coco.onnx");
+    let mut fp32 = (model != fp32_path && fp32_path.is_file())
+        .then(|| Bare::load(&fp32_path, &settings, &color));
     let mut group = c.benchmark_group("whole_view");
     group.sample_size(30);
     group.bench_function("whole_view_yolo11n_depth", |b| {
@@ -283,17 +292,7 @@ fn bench_whole_view(c: &mut Criterion) {
             t.elapsed()
         })
     });
-    group.bench_function("yolo11n_model_only", |b| {
-        b.iter(|| {
-            let t = ort::value::Tensor::from_array((vec![1usize, 3, 640, 640], chw.clone()))
-                .expect("tensor");
-            let out = bare
-                .session
-                .run(ort::inputs![input_name.as_str() => t])
-                .expect("inference");
-            out.len()
-        })
-    });
+    group.bench_function("yolo11n_model_only", |b| b.iter(|| bare.run(true)));
     // the detector's own share: the model and the decoding of its output
     // into boxes, on an input letterboxed beforehand (copied each time, as
     // the bare model's)
@@ -301,20 +300,16 @@ fn bench_whole_view(c: &mut Criterion) {
     detector
         .set_prompts(&["book".into(), "chair".into(), "person".into()])
         .expect("prompts");
-    let prepared = PreparedImage::letterboxed(&color, 640);
+    let prepared = PreparedImage::letterboxed(&color, 640, layout);
     group.bench_function("yolo11n_detect_prepared", |b| {
         b.iter(|| {
             detector
-                .detect_prepared(PreparedImage {
-                    chw: prepared.chw.clone(),
-                    letterbox: prepared.letterbox,
-                    side: prepared.side,
-                })
+                .detect_prepared(prepared.clone())
                 .expect("detections")
         })
     });
     group.bench_function("letterbox_mrpt", |b| {
-        b.iter(|| PreparedImage::letterboxed(&color, 640))
+        b.iter(|| PreparedImage::letterboxed(&color, 640, layout))
     });
     group.finish();
     // where the view's time goes: each stage's median over 50 views, one
@@ -335,18 +330,14 @@ fn bench_whole_view(c: &mut Criterion) {
     // one view at a time and the bare model, alternated run by run (on a
     // shared host whose speed drifts, each pair sees the same moment):
     // the medians and the median of the pairs' ratios
-    let mut pairs: Vec<(f64, f64)> = Vec::new();
+    let mut pairs: Vec<(f64, f64, f64)> = Vec::new();
     for _ in 0..300 {
         let t = std::time::Instant::now();
         p.process(&color, Some(&depth)).expect("view");
         let view_ms = t.elapsed().as_secs_f64() * 1e3;
-        let input = ort::value::Tensor::from_array((vec![1usize, 3, 640, 640], chw.clone()))
-            .expect("tensor");
-        let t = std::time::Instant::now();
-        bare.session
-            .run(ort::inputs![input_name.as_str() => input])
-            .expect("inference");
-        pairs.push((view_ms, t.elapsed().as_secs_f64() * 1e3));
+        let model_ms = bare.run(false);
+        let fp32_ms = fp32.as_mut().map_or(f64::NAN, |f| f.run(false));
+        pairs.push((view_ms, model_ms, fp32_ms));
     }
     let median = |mut v: Vec<f64>| {
         v.sort_by(f64::total_cmp);
@@ -358,6 +349,13 @@ fn bench_whole_view(c: &mut Criterion) {
         median(pairs.iter().map(|p| p.1).collect()),
         median(pairs.iter().map(|p| p.0 / p.1).collect()),
     );
+    if fp32.is_some() {
+        eprintln!(
+            "whole_view alternated ({provider}): the FP32 model alone {:.3} ms in the same rounds, the view's median ratio to it {:.2}x",
+            median(pairs.iter().map(|p| p.2).collect()),
+            median(pairs.iter().map(|p| p.0 / p.2).collect()),
+        );
+    }
     // the period over one long stream against the bare model over as many
     // runs, alternated: each view's time where the model is the limit
     const LONG: u32 = 300;
@@ -373,17 +371,52 @@ fn bench_whole_view(c: &mut Criterion) {
         let stream_ms = t.elapsed().as_secs_f64() * 1e3 / f64::from(LONG);
         let t = std::time::Instant::now();
         for _ in 0..LONG {
-            let input = ort::value::Tensor::from_array((vec![1usize, 3, 640, 640], chw.clone()))
-                .expect("tensor");
-            bare.session
-                .run(ort::inputs![input_name.as_str() => input])
-                .expect("inference");
+            bare.run(false);
         }
         let model_ms = t.elapsed().as_secs_f64() * 1e3 / f64::from(LONG);
         eprintln!(
             "whole_view_pipelined period ({provider}, {LONG} frames, round {round}): {stream_ms:.3} ms a view against the model alone's {model_ms:.3} ms: {:.2}x",
             stream_ms / model_ms
         );
+    }
+}
+
+/// A model in its own session with a pre-made input in its layout.
+struct Bare {
+    model: opennav::perception::runtime::Model,
+    input_name: String,
+    input: PreparedImage,
+}
+
+impl Bare {
+    fn load(path: &std::path::Path, settings: &DetectorSettings, color: &RgbImage) -> Bare {
+        let layout = open_detector(path, settings, None)
+            .expect("model")
+            .input_layout();
+        let model =
+            opennav::perception::runtime::Model::load(path, &settings.session).expect("model");
+        Bare {
+            input_name: model.signature.inputs[0].name.clone(),
+            model,
+            input: PreparedImage::letterboxed(color, 640, layout),
+        }
+    }
+
+    /// One run, its milliseconds; the input's copy into a tensor timed
+    /// too when `with_input` (criterion's `yolo11n_model_only`), else not.
+    fn run(&mut self, with_input: bool) -> f64 {
+        let t0 = std::time::Instant::now();
+        let input = self.input.clone().into_tensor().expect("tensor");
+        let t = if with_input {
+            t0
+        } else {
+            std::time::Instant::now()
+        };
+        self.model
+            .session
+            .run(ort::inputs![self.input_name.as_str() => input])
+            .expect("inference");
+        t.elapsed().as_secs_f64() * 1e3
     }
 }
 

@@ -207,6 +207,55 @@ fn the_int8_model_finds_the_fp32_models_boxes() {
     assert!(compared >= 12, "only {compared} boxes compared");
 }
 
+/// The uint8-input model the fixture step makes from YOLO11n (the
+/// conversion to float planes inside the graph, for a GPU): on the four
+/// photos and the MRPT frame its detections are the FP32 model's, equal
+/// to the bit, through `detect` and through an input prepared beforehand;
+/// an input made in the other layout is refused with both layouts named.
+#[test]
+fn the_byte_input_model_gives_the_fp32_models_detections() {
+    use opennav::perception::detector::{InputLayout, PreparedImage};
+    common::init_ort();
+    let settings = DetectorSettings {
+        score_threshold: 0.05,
+        ..Default::default()
+    };
+    let open = |path: &std::path::Path| {
+        let mut d = open_detector(path, &settings, None).expect("model opens");
+        assert_eq!(d.backend(), "yolo-closed-vocabulary");
+        d.set_prompts(&coco_names()).expect("prompts");
+        d
+    };
+    let mut fp32 = open(&common::yolo11n());
+    let mut bytes = open(&common::generated("yolo11n_coco_u8.onnx"));
+    assert_eq!(fp32.input_layout(), InputLayout::ChwF32);
+    assert_eq!(bytes.input_layout(), InputLayout::HwcU8);
+    bytes.warm_up().expect("warm-up");
+    let mut compared = 0;
+    let mut images: Vec<std::path::PathBuf> = ["bus.jpg", "zidane.jpg", "person.jpg", "dog.jpg"]
+        .iter()
+        .map(|i| common::shared().join("data/images").join(i))
+        .collect();
+    images.push(common::shared().join("data/rgbd/mrpt_openni2/rgb.png"));
+    for path in images {
+        let img = RgbImage::load(&common::asset(path.clone())).expect("image");
+        let want = fp32.detect(&img).expect("fp32");
+        let got = bytes.detect(&img).expect("uint8");
+        assert_eq!(got, want, "{}", path.display());
+        let prepared = PreparedImage::letterboxed(&img, 640, InputLayout::HwcU8);
+        assert_eq!(bytes.detect_prepared(prepared).expect("prepared"), want);
+        compared += want.len();
+    }
+    assert!(compared >= 30, "only {compared} detections compared");
+    let img = RgbImage::load(&common::shared().join("data/images/bus.jpg")).expect("image");
+    let floats = PreparedImage::letterboxed(&img, 640, InputLayout::ChwF32);
+    let e = bytes
+        .detect_prepared(floats)
+        .expect_err("a float input")
+        .to_string();
+    assert!(e.contains("ChwF32") && e.contains("HwcU8"), "{e}");
+}
+
 /// The warm-up runs the model on a blank input whatever the prompts (none
 /// set yet), and the views after it are the views without it.
 #[test]

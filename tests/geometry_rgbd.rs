@@ -87,6 +87,13 @@ fn back_projection_reproduces_mrpt_cloud() {
 /// The whole pipeline (YOLO11n, the depth segmenter) on the MRPT rig, and
 /// its frame.
 fn mrpt_pipeline(score_threshold: f32) -> (Pipeline, RgbImage, DepthImage) {
+    mrpt_pipeline_with(&common::yolo11n(), score_threshold)
+}
+
+fn mrpt_pipeline_with(
+    model: &std::path::Path,
+    score_threshold: f32,
+) -> (Pipeline, RgbImage, DepthImage) {
     common::init_ort();
     let cal = RgbdCalibration::load(&common::mrpt("calibration.json")).expect("calibration");
     let color = RgbImage::load(&common::mrpt("rgb.png")).expect("rgb");
@@ -96,7 +103,7 @@ fn mrpt_pipeline(score_threshold: f32) -> (Pipeline, RgbImage, DepthImage) {
         score_threshold,
         ..Default::default()
     };
-    let det = open_detector(&common::yolo11n(), &settings, None).expect("model");
+    let det = open_detector(model, &settings, None).expect("model");
     let p = Pipeline::new(
         det,
         Box::new(DepthBoxSegmenter::default()),
@@ -282,4 +289,44 @@ fn a_pipelined_stream_gives_each_frame_its_own_view() {
         seen < 2
     });
     assert_eq!(seen, 2);
+}
+
+/// The uint8-input model the fixture step makes (the conversion to float
+/// planes inside its graph): its views, one at a time and pipelined (the
+/// bytes letterboxed on the preparing thread), are the FP32 model's.
+#[test]
+fn the_byte_input_model_gives_the_fp32_models_views() {
+    let (mut fp32, color, depth) = mrpt_pipeline(0.1);
+    let (mut bytes, _, _) =
+        mrpt_pipeline_with(&common::generated("yolo11n_coco_u8.onnx"), 0.1);
+    let (color_m, depth_m) = mirrored(&color, &depth);
+    let prompts = ["book".to_string(), "chair".to_string(), "person".to_string()];
+    fp32.set_prompts(&prompts).expect("prompts");
+    bytes.set_prompts(&prompts).expect("prompts");
+    let frames = vec![
+        (color.clone(), Some(depth.clone())),
+        (color_m, Some(depth_m)),
+        (color, Some(depth)),
+    ];
+    let want: Vec<_> = frames
+        .iter()
+        .map(|(c, d)| fp32.process(c, d.as_ref()).expect("view"))
+        .collect();
+    assert!(want.iter().all(|v| v.objects.len() >= 3), "{want:#?}");
+    for (k, ((c, d), w)) in frames.iter().zip(&want).enumerate() {
+        let one = bytes.process(c, d.as_ref()).expect("view");
+        assert_eq!(one.detections, w.detections, "frame {k}, one at a time");
+        assert_eq!(one.objects, w.objects, "frame {k}, one at a time");
+    }
+    let mut got = Vec::new();
+    bytes.process_stream(frames.into_iter(), |v| {
+        got.push(v.expect("view"));
+        true
+    });
+    assert_eq!(got.len(), want.len());
+    for (k, (g, w)) in got.iter().zip(&want).enumerate() {
+        assert_eq!(g.detections, w.detections, "frame {k}, pipelined");
+        assert_eq!(g.objects, w.objects, "frame {k}, pipelined");
+        assert_eq!(g.dropped, w.dropped, "frame {k}, pipelined");
+    }
 }

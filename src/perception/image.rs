@@ -34,13 +34,13 @@ impl Letterbox {
 /// bilinear resize with half-pixel centres as OpenCV's INTER_LINEAR).
 pub fn letterbox_chw(img: &RgbImage, size: usize, pad_value: u8) -> (Vec<f32>, Letterbox) {
     let (w, h) = (img.width(), img.height());
-    let r = (size as f32 / h as f32).min(size as f32 / w as f32);
-    let new_w = ((w as f32 * r).round() as usize).clamp(1, size);
-    let new_h = ((h as f32 * r).round() as usize).clamp(1, size);
-    let dw = (size - new_w) as f32 / 2.0;
-    let dh = (size - new_h) as f32 / 2.0;
-    let top = (dh - 0.1).round().max(0.0) as usize;
-    let left = (dw - 0.1).round().max(0.0) as usize;
+    let Placement {
+        new_w,
+        new_h,
+        top,
+        left,
+        letterbox,
+    } = placement(w, h, size);
 
     // each plane written once, row by row: padding, the resized row,
     // padding (the image's own size needs no resize and no copy); byte
@@ -67,16 +67,71 @@ pub fn letterbox_chw(img: &RgbImage, size: usize, pad_value: u8) -> (Vec<f32>, L
     } else {
         planes_in_order(&resized, &layout, &lut)
     };
-    (
-        out,
-        Letterbox {
+    (out, letterbox)
+}
+
+/// Where a `w`×`h` image goes in the `size`×`size` square: resized to
+/// `new_w`×`new_h`, its top-left corner at (`left`, `top`).
+struct Placement {
+    new_w: usize,
+    new_h: usize,
+    top: usize,
+    left: usize,
+    letterbox: Letterbox,
+}
+
+fn placement(w: usize, h: usize, size: usize) -> Placement {
+    let r = (size as f32 / h as f32).min(size as f32 / w as f32);
+    let new_w = ((w as f32 * r).round() as usize).clamp(1, size);
+    let new_h = ((h as f32 * r).round() as usize).clamp(1, size);
+    let dw = (size - new_w) as f32 / 2.0;
+    let dh = (size - new_h) as f32 / 2.0;
+    let top = (dh - 0.1).round().max(0.0) as usize;
+    let left = (dw - 0.1).round().max(0.0) as usize;
+    Placement {
+        new_w,
+        new_h,
+        top,
+        left,
+        letterbox: Letterbox {
             scale: r,
             pad_left: left as f32,
             pad_top: top as f32,
             orig_width: w,
             orig_height: h,
         },
-    )
+    }
+}
+
+/// The same letterbox as [`letterbox_chw`], as the bytes themselves: a
+/// `size`×`size` RGB image (HWC, row by row) whose byte b is the float
+/// plane's b/255. For a model that takes bytes and converts them itself.
+pub fn letterbox_hwc_u8(img: &RgbImage, size: usize, pad_value: u8) -> (Vec<u8>, Letterbox) {
+    let (w, h) = (img.width(), img.height());
+    let Placement {
+        new_w,
+        new_h,
+        top,
+        left,
+        letterbox,
+    } = placement(w, h, size);
+    let resized: std::borrow::Cow<[u8]> = if new_w == w && new_h == h {
+        std::borrow::Cow::Borrowed(img.data())
+    } else {
+        std::borrow::Cow::Owned(resize_bilinear(img, new_w, new_h))
+    };
+    let (shown_w, shown_h) = (new_w.min(size - left), new_h.min(size - top));
+    // rows written in order: padding, the image's row, padding (a copy of
+    // bytes: one thread is enough)
+    let mut out: Vec<u8> = Vec::with_capacity(3 * size * size);
+    out.resize(3 * size * top, pad_value);
+    for row in resized.chunks_exact(new_w * 3).take(shown_h) {
+        out.resize(out.len() + 3 * left, pad_value);
+        out.extend_from_slice(&row[..shown_w * 3]);
+        out.resize(out.len() + 3 * (size - left - shown_w), pad_value);
+    }
+    out.resize(3 * size * size, pad_value);
+    (out, letterbox)
 }
 
 /// Where the image lies in the letterboxed square, input pixels.
@@ -241,6 +296,30 @@ mod tests {
                 }
             }
             assert!(t == want, "{w}x{h}");
+        }
+    }
+
+    #[test]
+    fn the_byte_letterbox_is_the_float_planes_bytes() {
+        // each byte b of the HWC letterbox is the CHW plane's b/255 at the
+        // same pixel, and the placement is the same
+        for (w, h) in [(640, 480), (300, 500), (1000, 330), (640, 640), (17, 9)] {
+            let data: Vec<u8> = (0..w * h * 3)
+                .map(|i| ((i * 53 + i / 11) % 256) as u8)
+                .collect();
+            let img = RgbImage::new(w, h, data).unwrap();
+            let (chw, lb) = letterbox_chw(&img, 640, 114);
+            let (hwc, lb_bytes) = letterbox_hwc_u8(&img, 640, 114);
+            assert_eq!(lb_bytes, lb, "{w}x{h}: placement");
+            assert_eq!(hwc.len(), chw.len(), "{w}x{h}: length");
+            let plane = 640 * 640;
+            for (i, &b) in hwc.iter().enumerate() {
+                let (pixel, c) = (i / 3, i % 3);
+                assert!(
+                    chw[c * plane + pixel] == b as f32 / 255.0,
+                    "{w}x{h}: pixel {pixel} channel {c}"
+                );
+            }
         }
     }
 

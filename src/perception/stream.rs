@@ -17,7 +17,7 @@ use super::{
     check_sizes, depth_in_color, lift_detections, ms, Pipeline, PipelineError, ViewResult,
 };
 use crate::msg::{DepthImage, Frame, RgbImage};
-use crate::perception::detector::{Detection, PreparedImage};
+use crate::perception::detector::{Detection, InputLayout, PreparedImage};
 
 /// One frame of a stream: the colour image and, with a depth camera, its
 /// depth image (in the depth camera, as it comes).
@@ -62,7 +62,9 @@ impl Pipeline {
             geometry,
             prompts,
         } = self;
-        let side = detector.letterbox_side();
+        let side = detector
+            .letterbox_side()
+            .map(|s| (s, detector.input_layout()));
         let calibration = &*calibration;
         // handed over, never queued: a stage that runs ahead waits with
         // its frame, so no frame grows old in a queue
@@ -124,7 +126,7 @@ impl Pipeline {
 fn prepare_stage(
     frames: impl Iterator<Item = StreamFrame>,
     calibration: &crate::msg::RgbdCalibration,
-    side: Option<usize>,
+    side: Option<(usize, InputLayout)>,
     to_model: SyncSender<Prepared>,
 ) {
     for (color, depth) in frames {
@@ -145,7 +147,7 @@ fn prepare_stage(
                     (depth, ms(t))
                 })
             });
-            let input = side.map(|s| PreparedImage::letterboxed(&color, s));
+            let input = side.map(|(s, layout)| PreparedImage::letterboxed(&color, s, layout));
             let registered = registration.map(|h| {
                 h.join().unwrap_or_else(|_| {
                     let e = "the depth registration thread panicked".to_string();

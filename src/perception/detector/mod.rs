@@ -35,6 +35,11 @@ pub enum DetectorError {
     NotPrepared { backend: &'static str },
     #[error("an input made for a {made}×{made} model given to one of {wanted}×{wanted}")]
     PreparedSize { made: usize, wanted: usize },
+    #[error("an input made as {made:?} given to a model that takes {wanted:?}")]
+    PreparedLayout {
+        made: InputLayout,
+        wanted: InputLayout,
+    },
     #[error("{model}: output `{output}` has shape {shape:?}, expected {expected}")]
     Output {
         model: String,
@@ -100,7 +105,9 @@ pub trait Detector: Send {
     /// detector that takes the image itself has its own.
     fn detect(&mut self, image: &RgbImage) -> Result<Vec<Detection>, DetectorError> {
         match self.letterbox_side() {
-            Some(side) => self.detect_prepared(PreparedImage::letterboxed(image, side)),
+            Some(side) => {
+                self.detect_prepared(PreparedImage::letterboxed(image, side, self.input_layout()))
+            }
             None => Err(DetectorError::NotPrepared {
                 backend: self.backend(),
             }),
@@ -114,6 +121,13 @@ pub trait Detector: Send {
     /// None: the detector takes the image itself.
     fn letterbox_side(&self) -> Option<usize> {
         None
+    }
+    /// How the letterboxed input is laid out: float planes (the exports'
+    /// own `[1,3,S,S]`), or the image's bytes as they are (`[1,S,S,3]`
+    /// uint8, a model that converts them itself: on a GPU the conversion
+    /// runs there, and a quarter of the bytes cross to it).
+    fn input_layout(&self) -> InputLayout {
+        InputLayout::ChwF32
     }
     /// Runs the model once on a blank input, whatever the prompts, so that
     /// the first view does not pay the runtime's start (on a GPU: the
@@ -134,28 +148,82 @@ pub trait Detector: Send {
     }
 }
 
+/// The layout of a YOLO model's square image input.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum InputLayout {
+    /// `[1,3,S,S]` float: the colour planes, 0..1.
+    #[default]
+    ChwF32,
+    /// `[1,S,S,3]` uint8: the RGB bytes, row by row.
+    HwcU8,
+}
+
+/// A letterboxed input's pixels, in the model's layout.
+#[derive(Debug, Clone, PartialEq)]
+pub enum InputPixels {
+    /// The colour planes (CHW), byte / 255.
+    ChwF32(Vec<f32>),
+    /// The RGB bytes (HWC).
+    HwcU8(Vec<u8>),
+}
+
+impl InputPixels {
+    pub fn layout(&self) -> InputLayout {
+        match self {
+            InputPixels::ChwF32(_) => InputLayout::ChwF32,
+            InputPixels::HwcU8(_) => InputLayout::HwcU8,
+        }
+    }
+    fn len(&self) -> usize {
+        match self {
+            InputPixels::ChwF32(v) => v.len(),
+            InputPixels::HwcU8(v) => v.len(),
+        }
+    }
+}
+
 /// An image made into a YOLO model's input ahead of the model: its
-/// letterboxed colour planes (CHW, 0..1) and where the image lies in them.
+/// letterboxed pixels and where the image lies in them.
+#[derive(Debug, Clone)]
 pub struct PreparedImage {
-    pub chw: Vec<f32>,
+    pub pixels: InputPixels,
     pub letterbox: Letterbox,
     /// The square input's side, pixels.
     pub side: usize,
 }
 
 impl PreparedImage {
-    pub fn letterboxed(image: &RgbImage, side: usize) -> PreparedImage {
-        let (chw, letterbox) = super::image::letterbox_chw(image, side, yolo::PAD_VALUE);
+    pub fn letterboxed(image: &RgbImage, side: usize, layout: InputLayout) -> PreparedImage {
+        let (pixels, letterbox) = match layout {
+            InputLayout::ChwF32 => {
+                let (chw, l) = super::image::letterbox_chw(image, side, yolo::PAD_VALUE);
+                (InputPixels::ChwF32(chw), l)
+            }
+            InputLayout::HwcU8 => {
+                let (hwc, l) = super::image::letterbox_hwc_u8(image, side, yolo::PAD_VALUE);
+                (InputPixels::HwcU8(hwc), l)
+            }
+        };
         PreparedImage {
-            chw,
+            pixels,
             letterbox,
             side,
         }
     }
 
-    /// The input for a model of this side.
-    pub(crate) fn check_side(&self, wanted: usize) -> Result<(), DetectorError> {
-        if self.side == wanted && self.chw.len() == 3 * wanted * wanted {
+    /// The input for a model of this side and layout.
+    pub(crate) fn check_side(
+        &self,
+        wanted: usize,
+        layout: InputLayout,
+    ) -> Result<(), DetectorError> {
+        if self.pixels.layout() != layout {
+            return Err(DetectorError::PreparedLayout {
+                made: self.pixels.layout(),
+                wanted: layout,
+            });
+        }
+        if self.side == wanted && self.pixels.len() == 3 * wanted * wanted {
             Ok(())
         } else {
             Err(DetectorError::PreparedSize {
@@ -163,6 +231,21 @@ impl PreparedImage {
                 wanted,
             })
         }
+    }
+}
+
+impl PreparedImage {
+    /// The model's input tensor: `[1,3,S,S]` float or `[1,S,S,3]` uint8.
+    pub fn into_tensor(self) -> Result<ort::value::DynValue, ort::Error> {
+        let s = self.side;
+        Ok(match self.pixels {
+            InputPixels::ChwF32(chw) => {
+                ort::value::Tensor::from_array((vec![1usize, 3, s, s], chw))?.into_dyn()
+            }
+            InputPixels::HwcU8(hwc) => {
+                ort::value::Tensor::from_array((vec![1usize, s, s, 3], hwc))?.into_dyn()
+            }
+        })
     }
 }
 

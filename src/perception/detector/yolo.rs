@@ -6,12 +6,10 @@
 //! the prototypes `output1` `[1, M, H, W]`: their boxes are read the same
 //! way (the masks come from the segmenter, as for every detector).
 
-use ort::value::Tensor;
-
 use super::vocab::{parse_class_names, resolve_prompt};
 use super::{
-    decode_yolo_head, Detection, Detector, DetectorError, DetectorSettings, PreparedImage,
-    PromptReport,
+    decode_yolo_head, Detection, Detector, DetectorError, DetectorSettings, InputLayout,
+    InputPixels, PreparedImage, PromptReport,
 };
 use crate::perception::runtime::Model;
 
@@ -23,6 +21,7 @@ pub struct ClosedVocabularyYolo {
     settings: DetectorSettings,
     input_name: String,
     input_size: usize,
+    input_layout: InputLayout,
     names: Vec<String>,
     /// Mask coefficients after the classes (a segmentation export), M.
     mask_channels: usize,
@@ -32,24 +31,29 @@ pub struct ClosedVocabularyYolo {
     active: Vec<(usize, String, String)>,
 }
 
-/// Checks an image input `[1, 3, S, S]` (S fixed) and returns (name, S).
+/// Checks an image input, `[1, 3, S, S]` float or `[1, S, S, 3]` uint8
+/// (S fixed), and returns (name, S, layout).
 pub(crate) fn image_input(
     model: &Model,
     name: Option<&str>,
-) -> Result<(String, usize), DetectorError> {
+) -> Result<(String, usize, InputLayout), DetectorError> {
     let spec = match name {
         Some(n) => model.signature.input(n),
         None => model.signature.inputs.first(),
     }
     .ok_or_else(|| model.signature_error("no image input"))?;
     match spec.shape.as_slice() {
-        [b, 3, h, w] if (*b == 1 || *b == -1) && *h > 0 && h == w => {
-            Ok((spec.name.clone(), *h as usize))
+        [b, 3, h, w] if (*b == 1 || *b == -1) && *h > 0 && h == w && spec.dtype == "float32" => {
+            Ok((spec.name.clone(), *h as usize, InputLayout::ChwF32))
+        }
+        [b, h, w, 3] if (*b == 1 || *b == -1) && *h > 0 && h == w && spec.dtype == "uint8" => {
+            Ok((spec.name.clone(), *h as usize, InputLayout::HwcU8))
         }
         _ => Err(model
             .signature_error(format!(
-                "image input `{}` must be [1,3,S,S] with a fixed square size S",
-                spec.name
+                "image input `{}` ({} {:?}) must be float32 [1,3,S,S] or uint8 [1,S,S,3] \
+                 with a fixed square size S",
+                spec.name, spec.dtype, spec.shape
             ))
             .into()),
     }
@@ -62,7 +66,7 @@ impl ClosedVocabularyYolo {
                 .signature_error("a closed-vocabulary YOLO has exactly one input")
                 .into());
         }
-        let (input_name, input_size) = image_input(&model, None)?;
+        let (input_name, input_size, input_layout) = image_input(&model, None)?;
         let names_text = model.metadata("names").ok_or_else(|| {
             model.signature_error("no `names` metadata: cannot tell what the classes are")
         })?;
@@ -103,6 +107,7 @@ impl ClosedVocabularyYolo {
             settings,
             input_name,
             input_size,
+            input_layout,
             names,
             mask_channels,
             yoloe,
@@ -153,9 +158,24 @@ impl Detector for ClosedVocabularyYolo {
         let name = self.model.name();
         let s = self.input_size;
         // the letterbox's grey, as a view's padding
-        let grey = vec![f32::from(PAD_VALUE) / 255.0; 3 * s * s];
+        let grey = PreparedImage {
+            pixels: match self.input_layout {
+                InputLayout::ChwF32 => {
+                    InputPixels::ChwF32(vec![f32::from(PAD_VALUE) / 255.0; 3 * s * s])
+                }
+                InputLayout::HwcU8 => InputPixels::HwcU8(vec![PAD_VALUE; 3 * s * s]),
+            },
+            letterbox: crate::perception::image::Letterbox {
+                scale: 1.0,
+                pad_left: 0.0,
+                pad_top: 0.0,
+                orig_width: s,
+                orig_height: s,
+            },
+            side: s,
+        };
         let run = |session: &mut ort::session::Session| -> Result<(), ort::Error> {
-            let tensor = Tensor::from_array((vec![1usize, 3, s, s], grey))?;
+            let tensor = grey.into_tensor()?;
             session.run(ort::inputs![self.input_name.as_str() => tensor])?;
             Ok(())
         };
@@ -172,8 +192,12 @@ impl Detector for ClosedVocabularyYolo {
         Some(self.input_size)
     }
 
+    fn input_layout(&self) -> InputLayout {
+        self.input_layout
+    }
+
     fn detect_prepared(&mut self, input: PreparedImage) -> Result<Vec<Detection>, DetectorError> {
-        input.check_side(self.input_size)?;
+        input.check_side(self.input_size, self.input_layout)?;
         if self.active.is_empty() {
             return Ok(Vec::new());
         }
@@ -183,9 +207,8 @@ impl Detector for ClosedVocabularyYolo {
             reason: e.to_string(),
         };
         let out_name = self.model.signature.outputs[0].name.clone();
-        let PreparedImage { chw, letterbox, .. } = input;
-        let s = self.input_size;
-        let tensor = Tensor::from_array((vec![1usize, 3, s, s], chw)).map_err(err)?;
+        let letterbox = input.letterbox;
+        let tensor = input.into_tensor().map_err(err)?;
         let outputs = self
             .model
             .session

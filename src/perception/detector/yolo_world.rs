@@ -7,8 +7,8 @@ use ort::value::Tensor;
 use super::text::TextEmbedder;
 use super::yolo::image_input;
 use super::{
-    decode_yolo_head, Detection, Detector, DetectorError, DetectorSettings, PreparedImage,
-    PromptReport,
+    decode_yolo_head, Detection, Detector, DetectorError, DetectorSettings, InputLayout,
+    PreparedImage, PromptReport,
 };
 use crate::perception::runtime::Model;
 
@@ -18,6 +18,7 @@ pub struct YoloWorld {
     text: TextEmbedder,
     image_name: String,
     input_size: usize,
+    input_layout: InputLayout,
     /// Fixed K of the export, or None when dynamic.
     fixed_k: Option<usize>,
     dim: usize,
@@ -33,7 +34,7 @@ impl YoloWorld {
         settings: DetectorSettings,
         text: TextEmbedder,
     ) -> Result<Self, DetectorError> {
-        let (image_name, input_size) = image_input(&model, Some("images"))?;
+        let (image_name, input_size, input_layout) = image_input(&model, Some("images"))?;
         let t = model
             .signature
             .input("txt_feats")
@@ -63,6 +64,7 @@ impl YoloWorld {
             text,
             image_name,
             input_size,
+            input_layout,
             fixed_k,
             dim,
             active: Vec::new(),
@@ -120,8 +122,12 @@ impl Detector for YoloWorld {
         Some(self.input_size)
     }
 
+    fn input_layout(&self) -> InputLayout {
+        self.input_layout
+    }
+
     fn detect_prepared(&mut self, input: PreparedImage) -> Result<Vec<Detection>, DetectorError> {
-        input.check_side(self.input_size)?;
+        input.check_side(self.input_size, self.input_layout)?;
         if self.active.is_empty() {
             return Ok(Vec::new());
         }
@@ -130,9 +136,8 @@ impl Detector for YoloWorld {
             model: name.clone(),
             reason: e.to_string(),
         };
-        let PreparedImage { chw, letterbox, .. } = input;
-        let s = self.input_size;
-        let img = Tensor::from_array((vec![1usize, 3, s, s], chw)).map_err(err)?;
+        let letterbox = input.letterbox;
+        let img = input.into_tensor().map_err(err)?;
         let txt = Tensor::from_array((vec![1usize, self.k, self.dim], self.txt_feats.clone()))
             .map_err(err)?;
         let out_name = self.model.signature.outputs[0].name.clone();
