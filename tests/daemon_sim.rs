@@ -583,6 +583,12 @@ fn records_a_run_that_replays_through_the_pipeline_to_the_same_objects() {
             &base_from_camera,
             opennav::msg::Frame::BaseLink,
             &settings.geometry_settings(),
+            // the chair's base_link stands on the floor
+            Some(opennav::perception::segmenter::FloorInImage::new(
+                &k,
+                &base_from_camera,
+                0.0,
+            )),
         )
         .expect("replayed");
         let again: Vec<_> = again.objects.iter().map(object_record).collect();

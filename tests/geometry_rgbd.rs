@@ -297,10 +297,13 @@ fn a_pipelined_stream_gives_each_frame_its_own_view() {
 #[test]
 fn the_byte_input_model_gives_the_fp32_models_views() {
     let (mut fp32, color, depth) = mrpt_pipeline(0.1);
-    let (mut bytes, _, _) =
-        mrpt_pipeline_with(&common::generated("yolo11n_coco_u8.onnx"), 0.1);
+    let (mut bytes, _, _) = mrpt_pipeline_with(&common::generated("yolo11n_coco_u8.onnx"), 0.1);
     let (color_m, depth_m) = mirrored(&color, &depth);
-    let prompts = ["book".to_string(), "chair".to_string(), "person".to_string()];
+    let prompts = [
+        "book".to_string(),
+        "chair".to_string(),
+        "person".to_string(),
+    ];
     fp32.set_prompts(&prompts).expect("prompts");
     bytes.set_prompts(&prompts).expect("prompts");
     let frames = vec![

@@ -44,6 +44,12 @@ fn a_recording_reads_back_exactly_and_replays_to_the_same_objects() {
     let mut written_frames = Vec::new();
     let mut written_objects = Vec::new();
     let mut written_dets = Vec::new();
+    // the simulated world's floor: z = 0 in base_link
+    let floor = Some(opennav::perception::segmenter::FloorInImage::new(
+        &k,
+        &base_from_camera,
+        0.0,
+    ));
     for step in 0..150u64 {
         let stamp = Stamp(std::time::Duration::from_millis(10 * step));
         // turning on the spot
@@ -76,6 +82,7 @@ fn a_recording_reads_back_exactly_and_replays_to_the_same_objects() {
                 &base_from_camera,
                 Frame::BaseLink,
                 &geometry,
+                floor,
             )
             .expect("lifted");
             assert!(!lifted.objects.is_empty());
@@ -147,6 +154,7 @@ fn a_recording_reads_back_exactly_and_replays_to_the_same_objects() {
             &base_from_camera,
             Frame::BaseLink,
             &geometry,
+            floor,
         )
         .expect("replayed");
         let again: Vec<_> = again.objects.iter().map(object_record).collect();
@@ -173,7 +181,8 @@ fn a_recording_reads_back_exactly_and_replays_to_the_same_objects() {
     // given the camera's, every view replays to the recorded objects
     let cal = dir.path().join("calibration.json");
     let file = opennav::msg::calibration::CalibrationFile::of(
-        &opennav::msg::calibration::RgbdCalibration::registered(k, base_from_camera),
+        &opennav::msg::calibration::RgbdCalibration::registered(k, base_from_camera)
+            .with_floor_z(0.0),
         None,
     );
     std::fs::write(&cal, serde_json::to_string(&file).expect("json")).expect("write");

@@ -148,6 +148,7 @@ pub fn run(config: Option<&std::path::Path>, args: ReplayArgs) -> Result<(), Fai
                     &cal.base_from_camera,
                     Frame::BaseLink,
                     &geometry,
+                    opennav::perception::pipeline::floor_in_image(cal),
                 )
                 .map_err(failed)?;
                 v.replayed = Some((dets, r.objects));

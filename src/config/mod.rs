@@ -289,6 +289,7 @@ pub struct DepthSegmenterSection {
     pub mode_tolerance_m: f32,
     pub step_m: f32,
     pub step_per_m: f32,
+    pub floor_band_m: f32,
 }
 
 #[derive(Debug, Clone, Deserialize, PartialEq)]
@@ -381,6 +382,7 @@ impl Settings {
             mode_tolerance_m: d.mode_tolerance_m,
             step_m: d.step_m,
             step_per_m: d.step_per_m,
+            floor_band_m: d.floor_band_m,
         }
     }
 

@@ -89,6 +89,12 @@ impl Settings {
             0.0,
             0.2,
         )?;
+        finite_range(
+            "perception.depth_segmenter.floor_band_m",
+            d.floor_band_m as f64,
+            0.0,
+            0.3,
+        )?;
         let sf = &self.safety;
         finite_range("safety.v_forward_max_mps", sf.v_forward_max_mps, 0.01, 2.0)?;
         finite_range("safety.v_reverse_max_mps", sf.v_reverse_max_mps, 0.0, 1.0)?;

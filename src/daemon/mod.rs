@@ -390,6 +390,9 @@ pub async fn run(
             let source = source.map_err(|e| DaemonError::Setup(format!("camera: {e}")))?;
             let mut calibration = source.calibration().clone();
             calibration.base_from_camera = base_from_camera;
+            // the chair's base_link stands on the floor ([camera], the
+            // lasers and the depth obstacles all take z = 0 as the floor)
+            calibration.floor_z_m = Some(0.0);
             recorder::record(&sink, || {
                 RecordItem::Calibration(
                     clock.now(),

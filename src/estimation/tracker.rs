@@ -9,7 +9,7 @@
 use serde::Serialize;
 
 use crate::msg::Stamp;
-use crate::perception::boxes::{Aabb, Object3D};
+use crate::perception::boxes::{Aabb, Object3D, OrientedBox};
 
 /// The tracker's parameters (config `[tracker]`, read directly).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Deserialize)]
@@ -51,6 +51,10 @@ pub struct Track {
     /// the view and not hidden behind something (the goal keeper does not
     /// call a goal lost for being hidden).
     pub expected_seen: bool,
+    /// The latest view's ground outline: its oriented box (odom). The
+    /// upright box above is larger than a turned object (a desk at 30° to
+    /// odom's axes: 1.29 × 1.10 m for 1.14 × 0.61 m), most at its corners.
+    pub footprint: OrientedBox,
     last_update: Stamp,
 }
 
@@ -148,6 +152,7 @@ impl Tracker {
             t.score = t.score.max(o.score);
             t.last_seen = stamp;
             t.expected_seen = true;
+            t.footprint = o.obb;
         }
         // misses where the track should have been seen
         for (ti, t) in self.tracks.iter_mut().enumerate() {
@@ -180,6 +185,7 @@ impl Tracker {
                 first_seen: stamp,
                 last_seen: stamp,
                 expected_seen: true,
+                footprint: o.obb,
                 last_update: stamp,
             });
             self.next_id += 1;
@@ -297,16 +303,41 @@ pub fn approach_pose(
         let ty = if s > 1e-9 { hy / s } else { f64::INFINITY };
         tx.min(ty)
     };
+    // along a from the centre, where the footprint ends (None: the centre
+    // is not inside it)
+    let footprint_reach = |a: f64| -> Option<f64> {
+        let f = &track.footprint;
+        let (c, s) = (f.yaw_rad.cos(), f.yaw_rad.sin());
+        let (px, py) = (cx - f.center_m[0], cy - f.center_m[1]);
+        // the centre and the direction in the footprint's own axes
+        let (x, y) = (px * c + py * s, -px * s + py * c);
+        let (dx, dy) = (a.cos() * c + a.sin() * s, -a.cos() * s + a.sin() * c);
+        let (hl, hw) = (f.size_m[0] / 2.0, f.size_m[1] / 2.0);
+        if x.abs() > hl || y.abs() > hw {
+            return None;
+        }
+        let exit = |p: f64, d: f64, half: f64| {
+            if d > 1e-9 {
+                (half - p) / d
+            } else if d < -1e-9 {
+                (-half - p) / d
+            } else {
+                f64::INFINITY
+            }
+        };
+        Some(exit(x, dx, hl).min(exit(y, dy, hw)))
+    };
     let (hx, hy) = (track.size_m[0] / 2.0, track.size_m[1] / 2.0);
     let is_own = |o: &[f64; 2]| {
         (o[0] - cx).abs() - hx <= OWN_POINT_M && (o[1] - cy).abs() - hy <= OWN_POINT_M
     };
     let own: Vec<[f64; 2]> = obstacles.iter().filter(|o| is_own(o)).copied().collect();
     // the box is upright in odom: an object turned in it is smaller than
-    // its box, most at the box's corners. Where the object's own obstacle
-    // points lie across the chair's way in (within its half width of the
-    // line from the centre), the farthest of them along the line is its
-    // real edge there.
+    // its box, most at the box's corners. Its footprint (the latest view's
+    // oriented box) ends where the object does; and where the object's own
+    // obstacle points lie across the chair's way in (within its half width
+    // of the line from the centre), the farthest of them along the line is
+    // its real edge there.
     let edge_along = |a: f64| {
         let (c, s) = (a.cos(), a.sin());
         let seen = own
@@ -314,7 +345,7 @@ pub fn approach_pose(
             .filter(|o| ((o[0] - cx) * s - (o[1] - cy) * c).abs() <= OWN_FACE_HALF_M)
             .map(|o| (o[0] - cx) * c + (o[1] - cy) * s)
             .fold(f64::NEG_INFINITY, f64::max);
-        let r = reach(a);
+        let r = footprint_reach(a).map_or(reach(a), |f| f.min(reach(a)));
         if seen.is_finite() {
             seen.clamp(0.0, r)
         } else {
@@ -500,6 +531,49 @@ mod tests {
         // something right on the line in the gap: nothing is seen past it
         let p = approach_pose(&t, [0.0, 0.0], 0.6, 0.2, &[[2.6, 0.05]], 0.4, &|_| true).unwrap();
         assert!(p.y_m.abs() > 0.1, "{p:?}");
+    }
+
+    #[test]
+    fn approach_pose_stops_at_a_turned_objects_own_outline() {
+        // a desk 1.2 × 0.6 m turned 45° about (3, 0): its upright box is
+        // 1.27 m square, and towards the chair at the origin the desk
+        // ends 0.42 m from its centre, the box 0.64 m
+        let yaw = 45f64.to_radians();
+        let mut pts = Vec::new();
+        for i in 0..=24 {
+            for j in 0..=12 {
+                for z in [0.0f32, 0.75] {
+                    let (l, w) = (-0.6 + 0.05 * i as f64, -0.3 + 0.05 * j as f64);
+                    pts.push(Point3::new(
+                        (3.0 + l * yaw.cos() - w * yaw.sin()) as f32,
+                        (l * yaw.sin() + w * yaw.cos()) as f32,
+                        z,
+                    ));
+                }
+            }
+        }
+        let desk = Object3D::from_points("desk".into(), 0.8, Frame::Odom, pts, None).unwrap();
+        let mut tr = Tracker::new(TrackerParams {
+            confirm_hits: 1,
+            ..crate::config::Settings::defaults().tracker
+        });
+        tr.update(s(0.0), &[desk], |_| true);
+        let t = tr.goal("desk", [0.0, 0.0]).unwrap().clone();
+        assert!((t.size_m[0] - 0.9 * 2f64.sqrt()).abs() < 0.01, "{t:?}");
+        let edge = 0.3 * 2f64.sqrt();
+        let p = approach_pose(&t, [0.0, 0.0], 0.6, 0.6, &[], 0.4, &|_| true).unwrap();
+        assert!(
+            (p.x_m - (3.0 - edge - 0.6)).abs() < 0.01 && p.y_m.abs() < 1e-6,
+            "{p:?}"
+        );
+        // something low in front of it, inside its upright box but not in
+        // its outline: the desk's edge all the same
+        let low = [[2.45, -0.05], [2.45, 0.05]];
+        let p = approach_pose(&t, [0.0, 0.0], 0.6, 0.6, &low, 0.4, &|_| true).unwrap();
+        assert!(
+            (p.x_m - (3.0 - edge - 0.6)).abs() < 0.01 && p.y_m.abs() < 1e-6,
+            "{p:?}"
+        );
     }
 
     #[test]

@@ -446,6 +446,7 @@ pub fn run_scene(
             &view.world_from_camera,
             Frame::Odom,
             &settings.geometry,
+            None,
         )?;
         let secs = t.elapsed().as_secs_f64();
         view_secs.push(secs);

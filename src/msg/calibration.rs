@@ -177,6 +177,10 @@ pub struct CalibrationFile {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub color_from_depth: Option<TransformSpec>,
     pub base_from_camera: TransformSpec,
+    /// The floor's height in `base_link`, m, where base_link stands on a
+    /// floor (the chair's: 0); absent for a sensor's own frame.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub floor_z_m: Option<f64>,
     /// Free text: where this calibration came from.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub source: Option<String>,
@@ -194,6 +198,7 @@ impl CalibrationFile {
             depth_scale_m: c.depth_scale_m,
             color_from_depth: c.depth.map(|(_, t)| TransformSpec::from_isometry(&t)),
             base_from_camera: TransformSpec::from_isometry(&c.base_from_camera),
+            floor_z_m: c.floor_z_m,
             source,
         }
     }
@@ -209,16 +214,29 @@ pub struct RgbdCalibration {
     pub depth: Option<(Intrinsics, Isometry3<f64>)>,
     pub depth_scale_m: f64,
     pub base_from_camera: Isometry3<f64>,
+    /// The floor's height in `base_link`, m, when base_link stands on a
+    /// floor (the chair's: 0, z up); None when not known (a dataset's
+    /// sensor frame). Objects' masks keep off the floor where it is known.
+    pub floor_z_m: Option<f64>,
 }
 
 impl RgbdCalibration {
-    /// Colour and depth share one registered image, camera at the base origin.
+    /// Colour and depth share one registered image; the floor not known.
     pub fn registered(color: Intrinsics, base_from_camera: Isometry3<f64>) -> Self {
         RgbdCalibration {
             color,
             depth: None,
             depth_scale_m: 0.001,
             base_from_camera,
+            floor_z_m: None,
+        }
+    }
+
+    /// The same rig over a floor at `floor_z_m` in base_link.
+    pub fn with_floor_z(self, floor_z_m: f64) -> Self {
+        RgbdCalibration {
+            floor_z_m: Some(floor_z_m),
+            ..self
         }
     }
 
@@ -272,11 +290,21 @@ impl RgbdCalibration {
             }
             (None, None) => None,
         };
+        if let Some(z) = file
+            .floor_z_m
+            .filter(|z| !(z.is_finite() && z.abs() < 10.0))
+        {
+            return Err(CalibrationError::Invalid {
+                key: "floor_z_m".into(),
+                reason: format!("{z} m is not a floor height (finite, within 10 m)"),
+            });
+        }
         Ok(RgbdCalibration {
             color: file.color,
             depth,
             depth_scale_m: file.depth_scale_m,
             base_from_camera: file.base_from_camera.to_isometry("base_from_camera")?,
+            floor_z_m: file.floor_z_m,
         })
     }
 
@@ -328,5 +356,24 @@ pub(crate) mod tests {
         t.rotation[0][0] = 2.0;
         let e = t.to_isometry("base_from_camera").unwrap_err().to_string();
         assert!(e.contains("base_from_camera.rotation"), "{e}");
+    }
+
+    #[test]
+    fn the_floor_height_goes_through_the_file_and_a_bad_one_is_named() {
+        let rig = RgbdCalibration::registered(intr(), Isometry3::identity());
+        let back = RgbdCalibration::from_file(&CalibrationFile::of(&rig, None)).unwrap();
+        assert_eq!(back.floor_z_m, None);
+        let rig = rig.with_floor_z(-0.02);
+        let file = CalibrationFile::of(&rig, None);
+        let text = serde_json::to_string(&file).unwrap();
+        assert!(text.contains("\"floor_z_m\":-0.02"), "{text}");
+        let back = RgbdCalibration::from_file(&serde_json::from_str(&text).unwrap()).unwrap();
+        assert_eq!(back, rig);
+        for bad in [f64::NAN, 12.0] {
+            let mut f = file.clone();
+            f.floor_z_m = Some(bad);
+            let e = RgbdCalibration::from_file(&f).unwrap_err().to_string();
+            assert!(e.contains("floor_z_m"), "{e}");
+        }
     }
 }

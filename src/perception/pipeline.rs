@@ -13,7 +13,7 @@ use super::detector::{Detection, Detector, DetectorError, PromptReport};
 use super::mask_points::{mask_object, MaskGeometry};
 use super::masks::Mask;
 use super::registration::register_depth_to_color;
-use super::segmenter::{Segmenter, SegmenterError};
+use super::segmenter::{FloorInImage, Segmenter, SegmenterError};
 use crate::msg::Frame;
 use crate::msg::{DepthImage, ImageError, RgbImage};
 use crate::msg::{Intrinsics, RgbdCalibration};
@@ -255,6 +255,7 @@ impl Pipeline {
                 &self.calibration.base_from_camera,
                 Frame::BaseLink,
                 &self.geometry,
+                floor_in_image(&self.calibration),
             )?,
             None => ViewResult {
                 detections,
@@ -314,7 +315,8 @@ fn check_sizes(
 
 /// Steps 2–6 for detections already made: a mask per box, then objects in
 /// the frame of `target_from_camera`. `depth` is registered to `color`, and
-/// `intrinsics` are the colour camera's. Timing covers segmenter and
+/// `intrinsics` are the colour camera's; `floor`, where the floor is in the
+/// image when known ([`floor_in_image`]). Timing covers segmenter and
 /// geometry (`total` is their sum).
 #[allow(clippy::too_many_arguments)]
 pub fn lift_detections(
@@ -326,9 +328,11 @@ pub fn lift_detections(
     target_from_camera: &Isometry3<f64>,
     frame: Frame,
     geometry: &GeometrySettings,
+    floor: Option<FloorInImage>,
 ) -> Result<ViewResult, PipelineError> {
     let boxes: Vec<[f32; 4]> = detections.iter().map(|d| d.box_xyxy).collect();
     let t = Instant::now();
+    segmenter.set_floor(floor);
     let masks = segmenter.segment(color, Some(depth), &boxes)?;
     let segmenter_ms = ms(t);
     if masks.len() != boxes.len() {
@@ -366,6 +370,14 @@ pub fn lift_detections(
             total: segmenter_ms + geometry_ms,
         },
     })
+}
+
+/// Where the floor is in the rig's colour image, when the rig says where
+/// the floor is.
+pub fn floor_in_image(calibration: &crate::msg::RgbdCalibration) -> Option<FloorInImage> {
+    calibration
+        .floor_z_m
+        .map(|z| FloorInImage::new(&calibration.color, &calibration.base_from_camera, z))
 }
 
 #[path = "stream.rs"]
@@ -436,6 +448,7 @@ mod tests {
                     &Isometry3::identity(),
                     Frame::BaseLink,
                     &GeometrySettings::default(),
+                    None,
                 )
                 .unwrap()
             })

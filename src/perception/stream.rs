@@ -199,6 +199,7 @@ fn lift_stage(
                     &calibration.base_from_camera,
                     Frame::BaseLink,
                     geometry,
+                    super::floor_in_image(calibration),
                 )?,
                 None => ViewResult {
                     detections,

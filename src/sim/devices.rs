@@ -304,7 +304,7 @@ pub fn devices_with(
         open: Box::new(move || {
             Ok(Box::new(SimCamera {
                 world: camera_world.clone(),
-                calibration: RgbdCalibration::registered(k, base_from_camera),
+                calibration: RgbdCalibration::registered(k, base_from_camera).with_floor_z(0.0),
                 k,
                 base_from_camera,
                 last: last.clone(),

@@ -9,10 +9,15 @@
 //! 3. Grow 4-connected from the seeds while neighbouring depths differ by at
 //!    most `step_m + step_per_m · z` (a relative step, for depth noise that
 //!    grows with range), staying inside the box.
+//!
+//! With the floor known ([`Segmenter::set_floor`]), pixels within
+//! `floor_band_m` of it or below it neither vote, seed nor join: the floor
+//! runs on at one depth from an object's foot to whatever stands in front
+//! of it, and would join them.
 
 use rayon::prelude::*;
 
-use super::{Segmenter, SegmenterError};
+use super::{FloorInImage, Segmenter, SegmenterError};
 use crate::msg::{DepthImage, RgbImage};
 use crate::perception::masks::Mask;
 
@@ -28,6 +33,9 @@ pub struct DepthSegmenterSettings {
     pub step_m: f32,
     /// Added step per metre of depth.
     pub step_per_m: f32,
+    /// With the floor known, pixels this near it (or below it) are floor,
+    /// metres.
+    pub floor_band_m: f32,
 }
 
 impl Default for DepthSegmenterSettings {
@@ -38,6 +46,7 @@ impl Default for DepthSegmenterSettings {
             mode_tolerance_m: 0.05,
             step_m: 0.02,
             step_per_m: 0.02,
+            floor_band_m: 0.05,
         }
     }
 }
@@ -45,11 +54,16 @@ impl Default for DepthSegmenterSettings {
 #[derive(Debug, Clone, Default)]
 pub struct DepthBoxSegmenter {
     pub settings: DepthSegmenterSettings,
+    /// Where the floor is in the image, when known.
+    pub floor: Option<FloorInImage>,
 }
 
 impl DepthBoxSegmenter {
     pub fn new(settings: DepthSegmenterSettings) -> Self {
-        DepthBoxSegmenter { settings }
+        DepthBoxSegmenter {
+            settings,
+            floor: None,
+        }
     }
 
     /// The mask of one box.
@@ -61,6 +75,10 @@ impl DepthBoxSegmenter {
             return mask;
         }
         let s = &self.settings;
+        // above the floor's band (everything when the floor is not known)
+        let floor = self.floor.map(|f| (f, s.floor_band_m));
+        let above =
+            |u: usize, v: usize, z: f32| floor.is_none_or(|(f, band)| f.height_m(u, v, z) > band);
         let cf = s.center_fraction.clamp(0.05, 1.0);
         let cx0 = x0 + ((bw as f32 * (1.0 - cf) / 2.0) as usize);
         let cy0 = y0 + ((bh as f32 * (1.0 - cf) / 2.0) as usize);
@@ -73,7 +91,7 @@ impl DepthBoxSegmenter {
         let central = || {
             (cy0..cy1.min(h))
                 .flat_map(move |v| (cx0..cx1.min(w)).map(move |u| (u, v)))
-                .filter_map(|(u, v)| depth.at(u, v))
+                .filter_map(|(u, v)| depth.at(u, v).filter(|&z| above(u, v, z)))
         };
         let bin_of = |z: f32| (z / s.bin_m) as u32;
         let Some(bin) = fullest_bin(central().map(bin_of)) else {
@@ -91,7 +109,7 @@ impl DepthBoxSegmenter {
         for v in cy0..cy1.min(h) {
             for u in cx0..cx1.min(w) {
                 if let Some(z) = depth.at(u, v) {
-                    if (z - mode).abs() <= tolerance && mask.set(u, v, true) {
+                    if (z - mode).abs() <= tolerance && above(u, v, z) && mask.set(u, v, true) {
                         stack.push(((u - x0) as u32, (v - y0) as u32, z));
                     }
                 }
@@ -107,7 +125,10 @@ impl DepthBoxSegmenter {
                     return;
                 }
                 let nz = data[(y0 + ny) * stride + x0 + nx];
-                if crate::msg::is_valid_depth(nz) && (nz - z).abs() <= step {
+                if crate::msg::is_valid_depth(nz)
+                    && (nz - z).abs() <= step
+                    && above(x0 + nx, y0 + ny, nz)
+                {
                     bits[j] = true;
                     stack.push((nx as u32, ny as u32, nz));
                 }
@@ -166,6 +187,10 @@ impl Segmenter for DepthBoxSegmenter {
         "depth-box"
     }
 
+    fn set_floor(&mut self, floor: Option<FloorInImage>) {
+        self.floor = floor;
+    }
+
     fn segment(
         &mut self,
         _image: &RgbImage,
@@ -190,6 +215,173 @@ impl Segmenter for DepthBoxSegmenter {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::msg::Intrinsics;
+    use nalgebra::Isometry3;
+
+    /// A desk on the floor, seen by a camera 0.9 m up and pitched 20° down
+    /// (160×120, f = 120 px), and a low box (0.1 m) on the floor in front
+    /// of it, with floor in sight between them; the detector's box runs
+    /// below the desk's foot over the low box, as a loose box does. The
+    /// floor runs on at one depth from the desk's foot to the low box.
+    /// Returns the depth image, the intrinsics, base_from_camera and the
+    /// detector's box.
+    fn desk_and_low_box() -> (DepthImage, Intrinsics, Isometry3<f64>, [f32; 4]) {
+        let k = Intrinsics {
+            width: 160,
+            height: 120,
+            fx: 120.0,
+            fy: 120.0,
+            cx: 80.0,
+            cy: 60.0,
+        };
+        let p = 20f64.to_radians();
+        // the optical axes (x right, y down, z forward) in base_link
+        let r = nalgebra::Matrix3::new(
+            0.0,
+            -p.sin(),
+            p.cos(),
+            -1.0,
+            0.0,
+            0.0,
+            0.0,
+            -p.cos(),
+            -p.sin(),
+        );
+        let rotation = nalgebra::UnitQuaternion::from_rotation_matrix(
+            &nalgebra::Rotation3::from_matrix_unchecked(r),
+        );
+        let base_from_camera =
+            Isometry3::from_parts(nalgebra::Translation3::new(0.0, 0.0, 0.9), rotation);
+        let desk = ([2.0, -0.6, 0.0], [2.6, 0.6, 0.75]);
+        let low = ([1.45, -0.3, 0.0], [1.6, 0.3, 0.1]);
+        let o = base_from_camera.translation.vector;
+        let mut d = vec![0.0f32; 160 * 120];
+        for v in 0..120 {
+            for u in 0..160 {
+                let ray = nalgebra::Vector3::new(
+                    (u as f64 - 80.0) / 120.0,
+                    (v as f64 - 60.0) / 120.0,
+                    1.0,
+                );
+                let dir = base_from_camera.rotation * ray;
+                // the nearest hit along the ray (t is the optical depth)
+                let mut t_hit = f64::INFINITY;
+                if dir.z < 0.0 {
+                    t_hit = -o.z / dir.z;
+                }
+                for (lo, hi) in [desk, low] {
+                    let (mut t0, mut t1) = (0.0f64, f64::INFINITY);
+                    for a in 0..3 {
+                        let (ta, tb) = ((lo[a] - o[a]) / dir[a], (hi[a] - o[a]) / dir[a]);
+                        t0 = t0.max(ta.min(tb));
+                        t1 = t1.min(ta.max(tb));
+                    }
+                    if t0 <= t1 {
+                        t_hit = t_hit.min(t0);
+                    }
+                }
+                if t_hit.is_finite() && t_hit < 10.0 {
+                    d[v * 160 + u] = t_hit as f32;
+                }
+            }
+        }
+        // the desk's corners in the image, the box run on to row 90
+        let (mut u0, mut u1, mut v0) = (f64::MAX, f64::MIN, f64::MAX);
+        for x in [desk.0[0], desk.1[0]] {
+            for y in [desk.0[1], desk.1[1]] {
+                for z in [desk.0[2], desk.1[2]] {
+                    let c =
+                        base_from_camera.inverse_transform_point(&nalgebra::Point3::new(x, y, z));
+                    let (u, v) = (80.0 + 120.0 * c.x / c.z, 60.0 + 120.0 * c.y / c.z);
+                    u0 = u0.min(u);
+                    u1 = u1.max(u);
+                    v0 = v0.min(v);
+                }
+            }
+        }
+        let depth = DepthImage::new(160, 120, d).unwrap();
+        (
+            depth,
+            k,
+            base_from_camera,
+            [u0 as f32, v0 as f32, u1 as f32, 90.0],
+        )
+    }
+
+    /// Each masked pixel's point in base_link.
+    fn mask_points_in_base(
+        mask: &Mask,
+        depth: &DepthImage,
+        base_from_camera: &Isometry3<f64>,
+    ) -> Vec<nalgebra::Point3<f64>> {
+        mask.pixels()
+            .filter_map(|(u, v)| {
+                let z = depth.at(u, v)? as f64;
+                let c = nalgebra::Point3::new(
+                    (u as f64 - 80.0) / 120.0 * z,
+                    (v as f64 - 60.0) / 120.0 * z,
+                    z,
+                );
+                Some(base_from_camera * c)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_floor_is_where_the_camera_sees_it() {
+        let (depth, k, base_from_camera, _) = desk_and_low_box();
+        let floor = FloorInImage::new(&k, &base_from_camera, 0.0);
+        let mut checked = 0;
+        for v in 0..120 {
+            for u in 0..160 {
+                if let Some(z) = depth.at(u, v) {
+                    let c = nalgebra::Point3::new(
+                        (u as f64 - 80.0) / 120.0 * z as f64,
+                        (v as f64 - 60.0) / 120.0 * z as f64,
+                        z as f64,
+                    );
+                    let want = (base_from_camera * c).z;
+                    let got = floor.height_m(u, v, z) as f64;
+                    assert!(
+                        (got - want).abs() < 1e-4,
+                        "({u}, {v}): {got} against {want}"
+                    );
+                    checked += 1;
+                }
+            }
+        }
+        assert!(checked > 10_000, "{checked}");
+    }
+
+    #[test]
+    fn the_floor_does_not_join_an_object_to_what_stands_in_front() {
+        let (depth, k, base_from_camera, b) = desk_and_low_box();
+        let mut seg = DepthBoxSegmenter::default();
+        // the floor not known: the desk's mask runs over the floor to the
+        // low box (points nearer than the desk's face, 2.0 m)
+        let leaked = seg.segment_box(&depth, b);
+        let pts = mask_points_in_base(&leaked, &depth, &base_from_camera);
+        assert!(
+            pts.iter().any(|p| p.x < 1.6 && p.z > 0.05),
+            "the low box is not in it"
+        );
+        assert!(
+            pts.iter().any(|p| p.x < 1.9 && p.z.abs() < 0.01),
+            "no floor in it"
+        );
+        // known: the desk alone
+        seg.set_floor(Some(FloorInImage::new(&k, &base_from_camera, 0.0)));
+        let mask = seg.segment_box(&depth, b);
+        let pts = mask_points_in_base(&mask, &depth, &base_from_camera);
+        assert!(pts.len() > 1_000, "{} points", pts.len());
+        assert!(
+            pts.iter().all(|p| p.x > 1.99 && p.z > 0.05),
+            "{:?}",
+            pts.iter().find(|p| p.x <= 1.99 || p.z <= 0.05)
+        );
+        // and the desk's face down to its foot's band
+        assert!(pts.iter().any(|p| p.z < 0.1), "the desk's foot is cut off");
+    }
 
     /// 40×30 scene: wall at 3 m, a 10×10 box object at 1.5 m at (15..25, 10..20),
     /// a second object at 1.0 m at (0..5, 0..30) outside the prompt box.
@@ -341,6 +533,7 @@ mod tests {
                 mode_tolerance_m: rng.range(0.0, 0.2) as f32,
                 step_m: rng.range(0.0, 0.1) as f32,
                 step_per_m: rng.range(0.0, 0.05) as f32,
+                floor_band_m: 0.05,
             };
             let x0 = rng.range(-5.0, w as f64) as f32;
             let y0 = rng.range(-5.0, h as f64) as f32;

@@ -126,7 +126,8 @@ impl RealSenseSource {
         let mut source = RealSenseSource {
             pipeline,
             align,
-            calibration: RgbdCalibration::registered(placeholder, base_from_camera),
+            calibration: RgbdCalibration::registered(placeholder, base_from_camera)
+                .with_floor_z(0.0),
             clock,
             // librealsense timestamps: milliseconds as f64; mapped in µs
             device_clock: DeviceClock::new(62, 1e-6, 120),
