@@ -158,6 +158,22 @@ fn cuda_request_on_the_cpu_library_falls_back_and_still_detects() {
     assert!((d[0].score - 0.94).abs() < 0.01);
 }
 
+/// A detector of `path` for all COCO classes at `score_threshold`.
+fn open_all_classes(
+    path: &std::path::Path,
+    score_threshold: f32,
+) -> Box<dyn opennav::perception::Detector> {
+    common::init_ort();
+    let settings = DetectorSettings {
+        score_threshold,
+        ..Default::default()
+    };
+    let mut d = open_detector(path, &settings, None).expect("model opens");
+    assert_eq!(d.backend(), "yolo-closed-vocabulary");
+    d.set_prompts(&coco_names()).expect("prompts");
+    d
+}
+
 /// The INT8 detector mode (`[perception] detector` = the quantised model
 /// the fixture step makes from YOLO11n, calibrated on the MRPT frame only)
 /// against the FP32 model, box by box, on the four photos it never saw:
@@ -165,19 +181,8 @@ fn cuda_request_on_the_cpu_library_falls_back_and_still_detects() {
 /// score within 0.1, and INT8 finds nothing above 0.35 that FP32 lacks.
 #[test]
 fn the_int8_model_finds_the_fp32_models_boxes() {
-    common::init_ort();
-    let settings = DetectorSettings {
-        score_threshold: 0.25,
-        ..Default::default()
-    };
-    let open = |path: &std::path::Path| {
-        let mut d = open_detector(path, &settings, None).expect("model opens");
-        assert_eq!(d.backend(), "yolo-closed-vocabulary");
-        d.set_prompts(&coco_names()).expect("prompts");
-        d
-    };
-    let mut fp32 = open(&common::yolo11n());
-    let mut int8 = open(&common::generated("yolo11n_int8.onnx"));
+    let mut fp32 = open_all_classes(&common::yolo11n(), 0.25);
+    let mut int8 = open_all_classes(&common::generated("yolo11n_int8.onnx"), 0.25);
     let mut compared = 0;
     for image in ["bus.jpg", "zidane.jpg", "person.jpg", "dog.jpg"] {
         let img = RgbImage::load(&common::asset(
@@ -215,19 +220,8 @@ fn the_int8_model_finds_the_fp32_models_boxes() {
 #[test]
 fn the_byte_input_model_gives_the_fp32_models_detections() {
     use opennav::perception::detector::{InputLayout, PreparedImage};
-    common::init_ort();
-    let settings = DetectorSettings {
-        score_threshold: 0.05,
-        ..Default::default()
-    };
-    let open = |path: &std::path::Path| {
-        let mut d = open_detector(path, &settings, None).expect("model opens");
-        assert_eq!(d.backend(), "yolo-closed-vocabulary");
-        d.set_prompts(&coco_names()).expect("prompts");
-        d
-    };
-    let mut fp32 = open(&common::yolo11n());
-    let mut bytes = open(&common::generated("yolo11n_coco_u8.onnx"));
+    let mut fp32 = open_all_classes(&common::yolo11n(), 0.05);
+    let mut bytes = open_all_classes(&common::generated("yolo11n_coco_u8.onnx"), 0.05);
     assert_eq!(fp32.input_layout(), InputLayout::ChwF32);
     assert_eq!(bytes.input_layout(), InputLayout::HwcU8);
     bytes.warm_up().expect("warm-up");

@@ -33,6 +33,50 @@ impl Letterbox {
 /// padding with `pad_value` as Ultralytics' `LetterBox` does (centred,
 /// bilinear resize with half-pixel centres as OpenCV's INTER_LINEAR).
 pub fn letterbox_chw(img: &RgbImage, size: usize, pad_value: u8) -> (Vec<f32>, Letterbox) {
+    let Placed {
+        resized,
+        row_bytes,
+        top,
+        left,
+        shown_w,
+        shown_h,
+        letterbox,
+    } = place(img, size);
+    // each plane written once, row by row: padding, the resized row,
+    // padding (the image's own size needs no resize and no copy); byte
+    // values through a table of their /255 floats (the same values)
+    let lut: [f32; 256] = std::array::from_fn(|b| b as f32 / 255.0);
+    let layout = Layout {
+        size,
+        top,
+        left,
+        shown_w,
+        shown_h,
+        row_bytes,
+        pad: pad_value as f32 / 255.0,
+    };
+    let out = if super::pool_is_parallel() {
+        planes_by_rows(&resized, &layout, &lut)
+    } else {
+        planes_in_order(&resized, &layout, &lut)
+    };
+    (out, letterbox)
+}
+
+/// An image placed in the `size`×`size` square: its rows (resized when
+/// its size is not the placed size), their bytes, the top-left corner
+/// and how much of it shows.
+struct Placed<'a> {
+    resized: std::borrow::Cow<'a, [u8]>,
+    row_bytes: usize,
+    top: usize,
+    left: usize,
+    shown_w: usize,
+    shown_h: usize,
+    letterbox: Letterbox,
+}
+
+fn place(img: &RgbImage, size: usize) -> Placed<'_> {
     let (w, h) = (img.width(), img.height());
     let Placement {
         new_w,
@@ -41,33 +85,20 @@ pub fn letterbox_chw(img: &RgbImage, size: usize, pad_value: u8) -> (Vec<f32>, L
         left,
         letterbox,
     } = placement(w, h, size);
-
-    // each plane written once, row by row: padding, the resized row,
-    // padding (the image's own size needs no resize and no copy); byte
-    // values through a table of their /255 floats (the same values)
-    let lut: [f32; 256] = std::array::from_fn(|b| b as f32 / 255.0);
-    let pad = pad_value as f32 / 255.0;
     let resized: std::borrow::Cow<[u8]> = if new_w == w && new_h == h {
         std::borrow::Cow::Borrowed(img.data())
     } else {
         std::borrow::Cow::Owned(resize_bilinear(img, new_w, new_h))
     };
-    let (shown_w, shown_h) = (new_w.min(size - left), new_h.min(size - top));
-    let layout = Layout {
-        size,
+    Placed {
+        resized,
+        row_bytes: new_w * 3,
         top,
         left,
-        shown_w,
-        shown_h,
-        row_bytes: new_w * 3,
-        pad,
-    };
-    let out = if super::pool_is_parallel() {
-        planes_by_rows(&resized, &layout, &lut)
-    } else {
-        planes_in_order(&resized, &layout, &lut)
-    };
-    (out, letterbox)
+        shown_w: new_w.min(size - left),
+        shown_h: new_h.min(size - top),
+        letterbox,
+    }
 }
 
 /// Where a `w`×`h` image goes in the `size`×`size` square: resized to
@@ -107,31 +138,19 @@ fn placement(w: usize, h: usize, size: usize) -> Placement {
 /// `size`×`size` RGB image (HWC, row by row) whose byte b is the float
 /// plane's b/255. For a model that takes bytes and converts them itself.
 pub fn letterbox_hwc_u8(img: &RgbImage, size: usize, pad_value: u8) -> (Vec<u8>, Letterbox) {
-    let (w, h) = (img.width(), img.height());
-    let Placement {
-        new_w,
-        new_h,
-        top,
-        left,
-        letterbox,
-    } = placement(w, h, size);
-    let resized: std::borrow::Cow<[u8]> = if new_w == w && new_h == h {
-        std::borrow::Cow::Borrowed(img.data())
-    } else {
-        std::borrow::Cow::Owned(resize_bilinear(img, new_w, new_h))
-    };
-    let (shown_w, shown_h) = (new_w.min(size - left), new_h.min(size - top));
+    let p = place(img, size);
+    let (top, left, shown_w) = (p.top, p.left, p.shown_w);
     // rows written in order: padding, the image's row, padding (a copy of
     // bytes: one thread is enough)
     let mut out: Vec<u8> = Vec::with_capacity(3 * size * size);
     out.resize(3 * size * top, pad_value);
-    for row in resized.chunks_exact(new_w * 3).take(shown_h) {
+    for row in p.resized.chunks_exact(p.row_bytes).take(p.shown_h) {
         out.resize(out.len() + 3 * left, pad_value);
         out.extend_from_slice(&row[..shown_w * 3]);
         out.resize(out.len() + 3 * (size - left - shown_w), pad_value);
     }
     out.resize(3 * size * size, pad_value);
-    (out, letterbox)
+    (out, p.letterbox)
 }
 
 /// Where the image lies in the letterboxed square, input pixels.
@@ -261,15 +280,23 @@ mod tests {
         assert_eq!(b, [0.0, 0.0, 1280.0, 640.0]);
     }
 
+    /// Images to letterbox: resized (tall, wide, small) and unresized,
+    /// their bytes a pattern of `mul` and `div`.
+    fn pattern_images(mul: usize, div: usize) -> impl Iterator<Item = (usize, usize, RgbImage)> {
+        [(640, 480), (300, 500), (1000, 330), (640, 640), (17, 9)]
+            .into_iter()
+            .map(move |(w, h)| {
+                let data: Vec<u8> = (0..w * h * 3)
+                    .map(|i| ((i * mul + i / div) % 256) as u8)
+                    .collect();
+                (w, h, RgbImage::new(w, h, data).unwrap())
+            })
+    }
+
     #[test]
     fn letterbox_writes_what_pixel_by_pixel_placing_writes() {
-        // the resized (tall, wide, small) and the unresized image, against
-        // the padded tensor filled pixel by pixel
-        for (w, h) in [(640, 480), (300, 500), (1000, 330), (640, 640), (17, 9)] {
-            let data: Vec<u8> = (0..w * h * 3)
-                .map(|i| ((i * 37 + i / 7) % 256) as u8)
-                .collect();
-            let img = RgbImage::new(w, h, data).unwrap();
+        // against the padded tensor filled pixel by pixel
+        for (w, h, img) in pattern_images(37, 7) {
             // in order on one thread, and row by row on four
             let pool = |n| {
                 rayon::ThreadPoolBuilder::new()
@@ -303,11 +330,7 @@ mod tests {
     fn the_byte_letterbox_is_the_float_planes_bytes() {
         // each byte b of the HWC letterbox is the CHW plane's b/255 at the
         // same pixel, and the placement is the same
-        for (w, h) in [(640, 480), (300, 500), (1000, 330), (640, 640), (17, 9)] {
-            let data: Vec<u8> = (0..w * h * 3)
-                .map(|i| ((i * 53 + i / 11) % 256) as u8)
-                .collect();
-            let img = RgbImage::new(w, h, data).unwrap();
+        for (w, h, img) in pattern_images(53, 11) {
             let (chw, lb) = letterbox_chw(&img, 640, 114);
             let (hwc, lb_bytes) = letterbox_hwc_u8(&img, 640, 114);
             assert_eq!(lb_bytes, lb, "{w}x{h}: placement");
