@@ -326,6 +326,18 @@ pub fn vec3(a: [f64; 3]) -> Vector3<f64> {
 pub(crate) mod tests {
     use super::*;
 
+    /// A 160×120 pinhole camera for tests, f 120, centred.
+    pub(crate) fn intr_160x120() -> Intrinsics {
+        Intrinsics {
+            width: 160,
+            height: 120,
+            fx: 120.0,
+            fy: 120.0,
+            cx: 80.0,
+            cy: 60.0,
+        }
+    }
+
     /// A small pinhole camera for tests (64×48, f 50).
     pub(crate) fn intr() -> Intrinsics {
         Intrinsics {

@@ -424,14 +424,7 @@ mod tests {
     #[test]
     fn objects_are_the_same_on_one_thread_and_on_several() {
         let (depth, detections) = scene();
-        let k = Intrinsics {
-            width: 160,
-            height: 120,
-            fx: 120.0,
-            fy: 120.0,
-            cx: 80.0,
-            cy: 60.0,
-        };
+        let k = crate::msg::calibration::tests::intr_160x120();
         let color = RgbImage::filled(160, 120, [0, 0, 0]).unwrap();
         let lift = |threads: usize| {
             let pool = rayon::ThreadPoolBuilder::new()

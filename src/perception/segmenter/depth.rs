@@ -226,14 +226,7 @@ mod tests {
     /// Returns the depth image, the intrinsics, base_from_camera and the
     /// detector's box.
     fn desk_and_low_box() -> (DepthImage, Intrinsics, Isometry3<f64>, [f32; 4]) {
-        let k = Intrinsics {
-            width: 160,
-            height: 120,
-            fx: 120.0,
-            fy: 120.0,
-            cx: 80.0,
-            cy: 60.0,
-        };
+        let k = crate::msg::calibration::tests::intr_160x120();
         let p = 20f64.to_radians();
         // the optical axes (x right, y down, z forward) in base_link
         let r = nalgebra::Matrix3::new(
