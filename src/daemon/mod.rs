@@ -368,10 +368,12 @@ pub async fn run(
     let (objects_tx, objects_rx) = mpsc::channel::<Stamped<Vec<crate::msg::Object3D>>>(4);
     let (prompts_tx, prompts_rx) = watch::channel::<Vec<String>>(Vec::new());
     let (scans_tx, scans_rx) = mpsc::channel::<Stamped<DepthScan>>(4);
-    let depth_obstacles = settings
-        .depth_obstacles
-        .enabled
-        .then_some(settings.depth_obstacles);
+    let depth_obstacles = settings.depth_obstacles.enabled.then_some(
+        crate::perception::depth_obstacles::DepthObstacleSettings {
+            chair_front_m: Some(settings.safety.front_offset_m),
+            ..settings.depth_obstacles
+        },
+    );
     let view = match camera {
         Some(CameraDevice {
             mut open,

@@ -7,7 +7,7 @@
 //! inside the chair), or when it is farther than the memory radius.
 //! Pure: each frame's cells and the chair's pose at its stamp in.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 
 use nalgebra::Isometry3;
 
@@ -39,6 +39,10 @@ pub struct ObstacleMap {
     radius_m: f64,
     cells: Cells,
     view: Option<MapView>,
+    /// Cells where the floor was seen (within the radius): a drop-off
+    /// that may lie out of view ([`DepthScan::drop_offs_unseen_base`]) is
+    /// not put where the floor is known.
+    floor_seen: BTreeSet<(i32, i32)>,
 }
 
 /// What a depth frame could see, for [`ObstacleMap::with_view`].
@@ -116,6 +120,7 @@ impl ObstacleMap {
             radius_m,
             cells: BTreeMap::new(),
             view: None,
+            floor_seen: BTreeSet::new(),
         }
     }
 
@@ -143,12 +148,32 @@ impl ObstacleMap {
         for q in &scan.floor_base {
             if let Some(k) = self.cell(to_odom(q)) {
                 self.cells.remove(&k);
+                self.floor_seen.insert(k);
             }
         }
+        for q in &scan.drop_offs_base {
+            if let Some(k) = self.cell(to_odom(q)) {
+                self.floor_seen.remove(&k);
+            }
+        }
+        // where the floor may end out of view: not where it was seen
+        let unseen: Vec<[f32; 2]> = scan
+            .drop_offs_unseen_base
+            .iter()
+            .filter(|q| {
+                self.cell(to_odom(q))
+                    .is_some_and(|k| !self.floor_seen.contains(&k))
+            })
+            .copied()
+            .collect();
         // this frame's points by cell: they replace what the cell held
         // where this frame could see it
         let mut seen = Cells::new();
-        let drop_offs = scan.drop_offs_base.iter().map(|q| ([q[0], q[1]], 0.0));
+        let drop_offs = scan
+            .drop_offs_base
+            .iter()
+            .chain(&unseen)
+            .map(|q| ([q[0], q[1]], 0.0));
         let obstacles = scan.obstacles_base.iter().map(|q| ([q[0], q[1]], q[2]));
         let points = drop_offs
             .map(|(q, z)| (q, z, CellKind::DropOff))
@@ -203,6 +228,11 @@ impl ObstacleMap {
             points.retain(keep);
             !points.is_empty()
         });
+        let cell_m = self.cell_m;
+        self.floor_seen.retain(|&(i, j)| {
+            let (x, y) = ((i as f64 + 0.5) * cell_m, (j as f64 + 0.5) * cell_m);
+            (x - pose.x_m).hypot(y - pose.y_m) <= r
+        });
     }
 
     /// The remembered cells' points in `odom`, of one kind.
@@ -253,6 +283,35 @@ mod tests {
             floor_base: floor.to_vec(),
             ..Default::default()
         }
+    }
+
+    #[test]
+    fn a_drop_off_that_may_lie_out_of_view_is_put_only_where_the_floor_was_not_seen() {
+        let mut m = ObstacleMap::new(0.05, 4.0);
+        let maybe = |at: &[[f32; 2]]| DepthScan {
+            drop_offs_unseen_base: at.to_vec(),
+            ..Default::default()
+        };
+        // never seen: a drop-off
+        m.insert(at(0.0, 0.0, 0.0), &maybe(&[[0.6, 0.0]]), F);
+        assert_eq!(m.points(CellKind::DropOff).len(), 1);
+        // the floor seen there (from 1 m back, facing +x): gone, and not
+        // put there again; a cell beside it still is
+        m.insert(at(-1.0, 0.0, 0.0), &scan(&[], &[[1.625, 0.025]]), F);
+        assert!(m.is_empty());
+        m.insert(at(0.0, 0.0, 0.0), &maybe(&[[0.6, 0.0], [0.6, 0.2]]), F);
+        let drops = m.points(CellKind::DropOff);
+        assert_eq!(drops.len(), 1, "{drops:?}");
+        assert!((drops[0][1] - 0.2).abs() < 1e-6);
+        // a drop-off seen in that cell makes it unknown floor again
+        let seen_drop = DepthScan {
+            drop_offs_base: vec![[0.61, 0.01]],
+            ..Default::default()
+        };
+        m.insert(at(0.0, 0.0, 0.0), &seen_drop, F);
+        assert_eq!(m.points(CellKind::DropOff).len(), 2);
+        let cell = m.cell([0.6, 0.0]).expect("cell");
+        assert!(!m.floor_seen.contains(&cell));
     }
 
     #[test]

@@ -50,6 +50,12 @@ pub struct DepthObstacleSettings {
     /// chair, so what leaves the camera's view near the chair stays an
     /// obstacle (metres, 1..10).
     pub memory_radius_m: f64,
+    /// The chair's front edge, ahead of base_link (the daemon's
+    /// `safety.front_offset_m`; not a config key): a floor missing in the
+    /// image's bottom row may begin anywhere between it and where that
+    /// row sees (None: only where the rays cross the floor plane).
+    #[serde(skip)]
+    pub chair_front_m: Option<f64>,
 }
 
 impl Default for DepthObstacleSettings {
@@ -64,6 +70,7 @@ impl Default for DepthObstacleSettings {
             cell_m: 0.05,
             min_hits: 2,
             memory_radius_m: 4.0,
+            chair_front_m: None,
         }
     }
 }
@@ -77,6 +84,10 @@ pub struct DepthScan {
     /// in their cell (the height at which the cell can be seen at all).
     pub obstacles_base: Vec<[f32; 3]>,
     pub drop_offs_base: Vec<[f32; 2]>,
+    /// Where the floor may end out of view, nearer than the image's
+    /// bottom row sees through it (`chair_front_m`): drop-offs wherever
+    /// the floor was not seen before ([`crate::estimation::obstacle_map`]).
+    pub drop_offs_unseen_base: Vec<[f32; 2]>,
     pub floor_base: Vec<[f32; 2]>,
     /// The nearest surface in each block of the frame: what hides what.
     pub nearest: NearestDepth,
@@ -178,6 +189,15 @@ fn cell_of(x: f64, y: f64, cell_m: f64) -> Option<Cell> {
 
 /// The cells of one depth frame. `base_from_depth` is the depth camera's
 /// optical frame (z forward, x right, y down) in `base_link`.
+///
+/// Where the image's bottom row sees through the floor, the floor's edge
+/// lies somewhere between the chair's front and that row's view of the
+/// floor plane, out of the camera's view (a chair started, or turned,
+/// facing a step down a few decimetres ahead sees only beyond it): with
+/// the chair's front known (`chair_front_m`), drop-offs are put along
+/// the ray's track on the floor from its crossing back to the front
+/// ([`DepthScan::drop_offs_unseen_base`]: where earlier frames saw the
+/// floor, it is there).
 pub fn scan(
     depth: &DepthImage,
     k: &Intrinsics,
@@ -189,6 +209,7 @@ pub fn scan(
     // per cell: its points' count and extremes
     let mut obstacles: BTreeMap<Cell, Extremes> = BTreeMap::new();
     let mut drops: BTreeMap<Cell, Extremes> = BTreeMap::new();
+    let mut drops_unseen: BTreeMap<Cell, Extremes> = BTreeMap::new();
     let mut floor: BTreeMap<Cell, Extremes> = BTreeMap::new();
     let (w, h) = (depth.width().min(k.width), depth.height().min(k.height));
     let mut nearest = NearestDepth::new(k, base_from_depth, w, h);
@@ -224,13 +245,25 @@ pub fn scan(
                     continue;
                 }
                 let t = origin.z / dz;
-                (
-                    &mut drops,
-                    (
-                        origin.x + t * (p.x - origin.x),
-                        origin.y + t * (p.y - origin.y),
-                    ),
-                )
+                let crossing = (
+                    origin.x + t * (p.x - origin.x),
+                    origin.y + t * (p.y - origin.y),
+                );
+                if v + stride >= h {
+                    // the image's bottom row: the floor may end anywhere
+                    // nearer, out of view
+                    if let Some(front_m) = s.chair_front_m {
+                        drops_out_of_view(
+                            &mut drops_unseen,
+                            origin,
+                            crossing,
+                            front_m,
+                            p.z,
+                            s.cell_m,
+                        );
+                    }
+                }
+                (&mut drops, crossing)
             } else if p.z.abs() <= s.floor_band_m {
                 (&mut floor, (p.x, p.y))
             } else {
@@ -278,6 +311,7 @@ pub fn scan(
     DepthScan {
         obstacles_base: keep_with_height(obstacles),
         drop_offs_base: keep(drops),
+        drop_offs_unseen_base: keep(drops_unseen),
         floor_base: floor_cells(floor),
         nearest,
     }
@@ -325,6 +359,35 @@ impl Extremes {
             if !out[start..].contains(&q) {
                 out.push(q);
             }
+        }
+    }
+}
+
+/// Drop-offs every `cell_m` along the floor track of a bottom-row ray,
+/// from its `crossing` of the floor plane back towards the camera's foot
+/// (`origin`, base_link), no nearer than `front_m` ahead of base_link.
+fn drops_out_of_view(
+    drops: &mut BTreeMap<Cell, Extremes>,
+    origin: nalgebra::Vector3<f64>,
+    crossing: (f64, f64),
+    front_m: f64,
+    z_m: f64,
+    cell_m: f64,
+) {
+    let (dx, dy) = (origin.x - crossing.0, origin.y - crossing.1);
+    let len = dx.hypot(dy);
+    if !(len.is_finite() && cell_m > 0.0) {
+        return;
+    }
+    let steps = (len / cell_m).ceil() as usize;
+    for k in 1..=steps {
+        let f = (k as f64 * cell_m / len).min(1.0);
+        let q = (crossing.0 + f * dx, crossing.1 + f * dy);
+        if q.0 < front_m {
+            break;
+        }
+        if let Some(c) = cell_of(q.0, q.1, cell_m) {
+            drops.entry(c).or_default().add([q.0, q.1], z_m);
         }
     }
 }
@@ -548,6 +611,55 @@ mod tests {
             .fold(f32::INFINITY, f32::min);
         assert!(nearest < 2.15, "nearest drop-off {nearest}");
         assert!(s.obstacles_base.is_empty());
+    }
+
+    #[test]
+    fn a_step_down_out_of_view_ahead_of_the_chair_is_put_at_its_front() {
+        // pitched 30° down, the bottom row sees the floor from x = 0.68 m
+        // on; the floor drops 0.25 m from x = 0.62 m, 7 cm ahead of the
+        // chair's front (0.55 m), out of the camera's view
+        let t = base_from_camera(30.0);
+        let step = render(&t, |x, _| if x >= 0.62 { -0.25 } else { 0.0 }, None);
+        let nearest = |s: &DepthScan| {
+            s.drop_offs_base
+                .iter()
+                .chain(&s.drop_offs_unseen_base)
+                .filter(|c| c[1].abs() < 0.35)
+                .map(|c| c[0])
+                .fold(f32::INFINITY, f32::min)
+        };
+        // where the rays cross the floor plane alone: beyond the edge
+        let plain = scan(&step, &k(), &t, &DepthObstacleSettings::default());
+        assert!(nearest(&plain) > 0.66, "{}", nearest(&plain));
+        assert!(plain.drop_offs_unseen_base.is_empty());
+        // with the chair's front known: from there on, all across its width
+        let front = DepthObstacleSettings {
+            chair_front_m: Some(0.55),
+            ..DepthObstacleSettings::default()
+        };
+        let s = scan(&step, &k(), &t, &front);
+        let n = nearest(&s);
+        assert!((0.55..0.61).contains(&n), "nearest drop-off {n}");
+        assert!(s.drop_offs_unseen_base.iter().all(|c| c[0] >= 0.55));
+        // (what the rays saw is apart from what may be there)
+        assert_eq!(s.drop_offs_base, plain.drop_offs_base);
+        for y in [-0.3f64, 0.0, 0.3] {
+            assert!(
+                any_in(&s.drop_offs_unseen_base, (0.55, 0.62), (y - 0.05, y + 0.05)),
+                "none at y = {y}"
+            );
+        }
+        // a step the camera sees, and a flat floor: nothing added
+        let seen = scan(
+            &render(&t, |x, _| if x >= 2.0 { -0.15 } else { 0.0 }, None),
+            &k(),
+            &t,
+            &front,
+        );
+        assert!(seen.drop_offs_base.iter().all(|c| c[0] >= 1.95));
+        assert!(seen.drop_offs_unseen_base.is_empty());
+        let flat = scan(&render(&t, |_, _| 0.0, None), &k(), &t, &front);
+        assert!(flat.drop_offs_base.is_empty() && flat.drop_offs_unseen_base.is_empty());
     }
 
     #[test]
