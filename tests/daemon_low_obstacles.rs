@@ -196,3 +196,103 @@ async fn a_step_down_the_camera_cannot_see_at_the_start_is_not_driven_over() {
     // front corners by less than that)
     assert!(w.min_drop_clearance_m > front_gap_m - 0.02, "{s:?}");
 }
+
+/// A room 3 m wide whose floor steps down 0.15 m from `EDGE_X_M` on, a
+/// cabinet at its other end; the chair starts facing the step with its
+/// front `front_gap_m` before the edge, the cabinet behind it, and the
+/// person answers "yes" once a second from `answers_from` on (`None`:
+/// never).
+async fn facing_a_step_with_the_goal_behind(
+    front_gap_m: f64,
+    answers_from: Option<Duration>,
+) -> (RunReport, SimSummary) {
+    let settings = Settings::load(None).expect("defaults");
+    let mut world = SimWorld::living_room(settings.drive_params());
+    let width_m = 3.0;
+    world.room = Room {
+        size_m: [7.0, width_m, 2.8],
+        objects: vec![object("cabinet", [0.0, 1.0, 0.0], [0.5, 1.0, 1.8])],
+        pits: vec![Pit {
+            min_m: [EDGE_X_M, -1.0],
+            max_m: [EDGE_X_M + 1.0, width_m + 1.0],
+            depth_m: 0.15,
+        }],
+    };
+    let start = Pose2 {
+        x_m: EDGE_X_M - 0.55 - front_gap_m,
+        y_m: width_m / 2.0,
+        theta_rad: 0.0,
+    };
+    world.truth = start;
+    world.start = start;
+    world.report.truth = start;
+    let mut words = vec![(Duration::ZERO, UserInput::Goto("cabinet".into()))];
+    if let Some(from) = answers_from {
+        words.push((from, UserInput::Yes));
+        words.extend((0..40).map(|_| (Duration::from_secs(1), UserInput::Yes)));
+    }
+    common::sim_run(
+        &settings,
+        world,
+        words,
+        RunOptions {
+            exit_on_arrival: true,
+            max_duration: Some(Duration::from_secs(60)),
+            ..Default::default()
+        },
+        |_, _| {},
+    )
+    .await
+}
+
+#[tokio::test(start_paused = true)]
+async fn facing_a_step_it_cannot_see_the_chair_turns_only_once_told_it_is_clear_around() {
+    // the front 0.3 m before the edge: the camera sees the floor from
+    // about 1.1 m ahead of base_link, beyond the edge; the floor before
+    // it may end anywhere from the chair's front on, inside the circle a
+    // turn on the spot sweeps
+    let front_gap_m = 0.3;
+    let (r, s) =
+        facing_a_step_with_the_goal_behind(front_gap_m, Some(Duration::from_secs(2))).await;
+    let w = &s.world;
+    eprintln!(
+        "travelled {:.2} m, drop clearance {:.3} m, final x {:.2} m, outcome {:?}, said {:?}",
+        w.distance_travelled_m, w.min_drop_clearance_m, w.truth.x_m, r.outcome, r.said
+    );
+    assert!(
+        r.said.iter().any(|l| l.contains("Is it clear around me?")),
+        "{:?}",
+        r.said
+    );
+    assert_eq!(
+        r.outcome,
+        opennav::daemon::control::Outcome::Arrived,
+        "{r:?}"
+    );
+    assert!(w.truth.x_m < 2.0, "not at the cabinet: {s:?}");
+    assert_eq!(w.fell_steps, 0, "{s:?}");
+    // turning on the spot, the front corners (0.55 m ahead, 0.35 m
+    // aside) swing 0.10 m nearer the edge than the front was; no nearer
+    let corner_reach_m = 0.55f64.hypot(0.35);
+    assert!(
+        w.min_drop_clearance_m > front_gap_m - (corner_reach_m - 0.55) - 0.01,
+        "{s:?}"
+    );
+    // nobody answers: it stays where it is, asking about all around
+    // (held for the rear it has not seen either)
+    let (r, s) = facing_a_step_with_the_goal_behind(front_gap_m, None).await;
+    let w = &s.world;
+    assert!(w.distance_travelled_m < 0.05, "{s:?}");
+    assert_eq!(w.fell_steps, 0, "{s:?}");
+    assert!(
+        r.said.iter().any(|l| l.contains("Is it clear around me?")),
+        "{:?}",
+        r.said
+    );
+    assert!(
+        [StopReason::FloorUnseen, StopReason::RearUnseen]
+            .map(SupervisorState::Stopped)
+            .contains(&r.supervisor),
+        "{r:?}"
+    );
+}

@@ -58,6 +58,7 @@ fn trip(asked: impl Fn(f64, f64) -> VelocityCmd) -> Trip {
     let rear = RearView {
         seen: true,
         reverse_seen: true,
+        around_vouched: false,
         points_base: Vec::new(),
     };
     let mut obstacles = None;

@@ -126,6 +126,9 @@ pub struct Control {
     asked_rear: Option<crate::msg::Pose2>,
     /// What was asked about the rear was backing up, not a turn.
     asked_back_up: bool,
+    /// What was asked was whether it is clear all around (the floor the
+    /// turn sweeps was never seen), not only behind.
+    asked_around: bool,
     /// "yes" arrived: vouch for the rear at the next step.
     rear_yes: bool,
     /// Since when a search turn is held by an obstacle.
@@ -136,6 +139,8 @@ pub struct Control {
     goal_held_since: Option<Stamp>,
     /// Standing still on the way with nothing holding the chair.
     stand_still: held::StandStill,
+    /// The chair staying in one place on the way, turning or not.
+    in_place: held::StandStill,
     /// The MPC's last predicted path (odom), for the live view.
     pub planned_path: Vec<[f64; 2]>,
     /// The chair asked "Did you say the X?" (an unsure utterance).
@@ -166,6 +171,9 @@ pub const NEAR_ENOUGH_M: f64 = 0.3;
 /// Standing still this long on the way with nothing holding the chair
 /// counts as held (then [`ARRIVE_HELD_AFTER`] as for a hold).
 pub const STAND_STILL_FOR: std::time::Duration = std::time::Duration::from_secs(2);
+/// Staying in one place this long on the way to an object, turning this
+/// way and that, is held too (the hold's time counts from then).
+pub const IN_PLACE_FOR: std::time::Duration = std::time::Duration::from_secs(10);
 
 /// Held on the way this long without a break (no detour, no room to back
 /// off): the person is told, once per hold; the chair keeps trying.
@@ -225,11 +233,13 @@ impl Control {
             rear_clear_since: None,
             asked_rear: None,
             asked_back_up: false,
+            asked_around: false,
             rear_yes: false,
             turn_held_since: None,
             back_off: BackOff::default(),
             goal_held_since: None,
             stand_still: held::StandStill::default(),
+            in_place: held::StandStill::in_place(),
             planned_path: Vec::new(),
             asked_goal: None,
             acknowledged: false,
@@ -372,7 +382,21 @@ impl Control {
                 ..supervisor_inputs
             },
         );
-        self.ask_about_rear(now, cmd.state, inputs.odometry.map(|o| o.value.pose));
+        // floor never seen in the circle a turn on the spot sweeps
+        let floor_unseen = camera.as_ref().is_some_and(|c| {
+            let unseen = Obstacles {
+                drop_offs_base: c.value.drop_offs_unseen_base.clone(),
+                ..Default::default()
+            };
+            let crawl = self.supervisor.crawl_turn_radps();
+            self.supervisor.turn_blocked(&unseen, 0.0, crawl)
+        });
+        self.ask_about_rear(
+            now,
+            cmd.state,
+            inputs.odometry.map(|o| o.value.pose),
+            floor_unseen,
+        );
         if self.done.is_some() {
             // the trip is over: the last command the chair gets is zero
             cmd.cmd = VelocityCmd::default();
@@ -399,16 +423,35 @@ impl Control {
         self.planned_path.clear();
         self.aim_odom = None;
         // everything the chair must not enter, in base_link: the lasers'
-        // points, the camera's obstacles and its drop-offs
+        // points, the camera's obstacles and its drop-offs (those that may
+        // lie out of its view too)
         let mut points_base = lasers.value.points_base.clone();
         if let Some(c) = camera {
             points_base.extend(&c.value.points_base);
             points_base.extend(&c.value.drop_offs_base);
+            points_base.extend(&c.value.drop_offs_unseen_base);
         }
         let o = Obstacles {
             points_base,
             ..Default::default()
         };
+        // a turn on the spot the person said is clear all around: the
+        // drop-offs that may lie out of the camera's view do not hold it
+        let o_turn = camera
+            .filter(|c| {
+                !c.value.drop_offs_unseen_base.is_empty()
+                    && self.rear.around_vouched_at(now, &odo.value.pose)
+            })
+            .map(|c| {
+                let mut points_base = lasers.value.points_base.clone();
+                points_base.extend(&c.value.points_base);
+                points_base.extend(&c.value.drop_offs_base);
+                Obstacles {
+                    points_base,
+                    ..Default::default()
+                }
+            });
+        let o_turn = o_turn.as_ref().unwrap_or(&o);
         let Odometry {
             pose,
             v_mps,
@@ -491,9 +534,10 @@ impl Control {
         // the rear seen: it refuses a blind reverse), then the planner tries
         // again from there
         let held = state == SupervisorState::Stopped(crate::msg::StopReason::Obstacle);
+        let in_place = self.in_place.update(now, pose, tracking, IN_PLACE_FOR);
         let gave_up = self.tell_if_held(
             now,
-            match (target.is_some(), held, stood_still) {
+            match (target.is_some(), held, stood_still || in_place) {
                 (false, _, _) => None,
                 (true, true, _) => Some(held::Held::Supervisor),
                 // (not while waiting for an answer about the rear)
@@ -532,7 +576,7 @@ impl Control {
             let aim = match (door, self.route.as_mut()) {
                 (Some(PassageCmd::Drive(cmd)), _) => {
                     // through a doorway: its own steering
-                    self.planner_cmd = Some(Stamped::new(now, self.turn_within_room(cmd, &o)));
+                    self.planner_cmd = Some(Stamped::new(now, self.turn_within_room(cmd, o_turn)));
                     return self.finish_step(event);
                 }
                 (Some(PassageCmd::Aim(p)), _) => p,
@@ -555,7 +599,7 @@ impl Control {
             // no room to turn on the spot (something in the corners'
             // circle): the planner's arc instead, which keeps its clearance
             let crawl_turn = self.supervisor.crawl_turn_radps();
-            let room_to_turn = !self.supervisor.turn_blocked(&o, 0.0, crawl_turn);
+            let room_to_turn = !self.supervisor.turn_blocked(o_turn, 0.0, crawl_turn);
             let turn_first = self.route.is_some() && far && bearing.abs() > limit && room_to_turn;
             let mut out = self.planner.step(
                 UnicycleState {
@@ -580,11 +624,11 @@ impl Control {
                 // corridor is the narrow one
                 out.cmd.v_mps = out.cmd.v_mps.min(CRAWL_MPS);
             }
-            Some(Stamped::new(now, self.turn_within_room(out.cmd, &o)))
+            Some(Stamped::new(now, self.turn_within_room(out.cmd, o_turn)))
         } else {
             self.goal
                 .search_command()
-                .map(|c| Stamped::new(now, self.turn_within_room(c, &o)))
+                .map(|c| Stamped::new(now, self.turn_within_room(c, o_turn)))
         };
         self.finish_step(event);
     }

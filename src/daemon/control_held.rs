@@ -69,6 +69,9 @@ impl Control {
             &obs.value.drop_offs_base,
             inputs.camera.map_or(no_points, |c| &c.value.points_base),
             inputs.camera.map_or(no_points, |c| &c.value.drop_offs_base),
+            inputs
+                .camera
+                .map_or(no_points, |c| &c.value.drop_offs_unseen_base),
             inputs.rear.map_or(no_points, |r| &r.points_base),
         ]
         .concat();
@@ -179,13 +182,30 @@ pub(super) enum Held {
 #[derive(Debug, Clone, Default)]
 pub(super) struct StandStill {
     since: Option<(Stamp, crate::msg::Pose2)>,
+    /// Turning on the spot is standing still too, and creeping within
+    /// [`IN_PLACE_WITHIN_M`] ([`StandStill::in_place`]).
+    any_heading: bool,
 }
+
+/// Staying within this of one place is staying in place (m).
+pub(super) const IN_PLACE_WITHIN_M: f64 = 0.15;
 
 /// Moving less than this from where it stood is standing still (m, rad).
 pub(super) const STILL_WITHIN_M: f64 = 0.02;
 pub(super) const STILL_WITHIN_RAD: f64 = 0.05;
 
 impl StandStill {
+    /// Staying in one place ([`IN_PLACE_WITHIN_M`]), whatever the
+    /// heading: a chair that only turns this way and that and creeps (a
+    /// detour turning on the spot where the way on stays held, a drop-off
+    /// before it) is getting nowhere.
+    pub(super) fn in_place() -> Self {
+        StandStill {
+            since: None,
+            any_heading: true,
+        }
+    }
+
     /// Whether the chair, `driving` to a goal, has stood within
     /// [`STILL_WITHIN_M`] and [`STILL_WITHIN_RAD`] of one pose for at least
     /// `long`.
@@ -202,9 +222,15 @@ impl StandStill {
         }
         match self.since {
             Some((t, p))
-                if (p.x_m - pose.x_m).hypot(p.y_m - pose.y_m) <= STILL_WITHIN_M
-                    && crate::msg::wrap_angle(p.theta_rad - pose.theta_rad).abs()
-                        <= STILL_WITHIN_RAD =>
+                if (p.x_m - pose.x_m).hypot(p.y_m - pose.y_m)
+                    <= if self.any_heading {
+                        IN_PLACE_WITHIN_M
+                    } else {
+                        STILL_WITHIN_M
+                    }
+                    && (self.any_heading
+                        || crate::msg::wrap_angle(p.theta_rad - pose.theta_rad).abs()
+                            <= STILL_WITHIN_RAD) =>
             {
                 t.age_at(now) >= long
             }
@@ -235,6 +261,14 @@ mod tests {
         assert!(!s.update(at(0.0), pose(0.0, 0.0), true, long));
         assert!(!s.update(at(1.9), pose(0.015, 0.03), true, long));
         assert!(s.update(at(2.0), pose(0.01, 0.0), true, long));
+        // turning on the spot: not standing still, but in place
+        let mut turning = StandStill::default();
+        let mut in_place = StandStill::in_place();
+        for k in 0..=20 {
+            let p = pose(0.005 * k as f64, 0.3 * (k % 2) as f64);
+            assert!(!turning.update(at(0.1 * k as f64), p, true, long));
+            assert_eq!(in_place.update(at(0.1 * k as f64), p, true, long), k == 20);
+        }
         // it moved: the time starts again
         assert!(!s.update(at(2.1), pose(0.05, 0.0), true, long));
         assert!(!s.update(at(4.0), pose(0.05, 0.0), true, long));

@@ -1,6 +1,10 @@
 //! Asking the person whether it is clear behind: a turn on the spot the
 //! supervisor refuses for an unseen rear is asked about after a while,
-//! and their "yes" vouches for the rear the lasers cannot see.
+//! and their "yes" vouches for the rear the lasers cannot see. One it
+//! refuses for floor the camera never saw in the turn's circle (a step
+//! down may lie just before the front of a chair that started facing it)
+//! is asked about as "is it clear around me?", and that "yes" vouches for
+//! both.
 
 use super::Control;
 use crate::msg::{Obstacles, Stamp, Stamped, SupervisorState};
@@ -30,6 +34,8 @@ impl Control {
             if let Some(at) = self.asked_rear.take() {
                 if self.asked_back_up {
                     self.rear.confirm_backing(now, at, BACK_UP_VOUCHED_M);
+                } else if self.asked_around {
+                    self.rear.confirm_around(now, at);
                 } else {
                     self.rear.confirm(now, at);
                 }
@@ -38,15 +44,23 @@ impl Control {
         self.rear.view(now, pose)
     }
 
-    /// A turn on the spot refused for an unseen rear for a second: ask
-    /// the person whether it is clear behind (once per wait).
+    /// A turn on the spot refused for an unseen rear or unseen floor for
+    /// a second: ask the person whether it is clear behind, or all around
+    /// where `floor_unseen` (floor the camera never saw in the turn's
+    /// circle), once per wait.
     pub(super) fn ask_about_rear(
         &mut self,
         now: Stamp,
         state: SupervisorState,
         pose: Option<crate::msg::Pose2>,
+        floor_unseen: bool,
     ) {
-        if state != SupervisorState::Stopped(crate::msg::StopReason::RearUnseen) {
+        use crate::msg::StopReason::{FloorUnseen, RearUnseen};
+        let waiting = matches!(
+            state,
+            SupervisorState::Stopped(RearUnseen) | SupervisorState::Stopped(FloorUnseen)
+        );
+        if !waiting {
             // the wait is over (turned, or no turn needed any more) once
             // it has been over a while: a chair creeping on between
             // refused turns (the planner's command switching between a
@@ -69,9 +83,16 @@ impl Control {
                     .as_ref()
                     .is_some_and(|c| c.value.v_mps < 0.0);
                 self.asked_back_up = backing;
+                let around =
+                    !backing && (state == SupervisorState::Stopped(FloorUnseen) || floor_unseen);
+                self.asked_around = around;
                 self.say(if backing {
                     "I need to back up a little, and I cannot see behind me. \
                      Is it clear behind? Say yes to let me back up, or no."
+                        .into()
+                } else if around {
+                    "I need to turn on the spot, and I cannot see the floor all around me. \
+                     Is it clear around me? Say yes to let me turn, or no."
                         .into()
                 } else {
                     "I need to turn on the spot, and I cannot see behind me. \

@@ -597,19 +597,33 @@ fn turns_refused_between_crawls_still_ask_about_the_rear_once() {
         } else {
             SupervisorState::Navigating
         };
-        c.ask_about_rear(at(50 * k), state, pose);
+        c.ask_about_rear(at(50 * k), state, pose, false);
     }
     assert_eq!(asked(&c), 1, "{:?}", c.said);
     assert!(c.asking(), "waits for the answer");
     // turns allowed for a second: that wait is over, a later one asks again
     for k in 40..62u64 {
-        c.ask_about_rear(at(50 * k), SupervisorState::Navigating, pose);
+        c.ask_about_rear(at(50 * k), SupervisorState::Navigating, pose, false);
     }
     assert!(!c.asking());
     for k in 62..90u64 {
-        c.ask_about_rear(at(50 * k), rear_unseen, pose);
+        c.ask_about_rear(at(50 * k), rear_unseen, pose, false);
     }
     assert_eq!(asked(&c), 2, "{:?}", c.said);
+    // floor never seen in the turn's circle: asked about all around
+    let floor_unseen = SupervisorState::Stopped(crate::msg::StopReason::FloorUnseen);
+    for (state, unseen) in [(rear_unseen, true), (floor_unseen, false)] {
+        let mut c = control(false);
+        for k in 0..30u64 {
+            c.ask_about_rear(at(50 * k), state, pose, unseen);
+        }
+        let around = c
+            .said
+            .iter()
+            .filter(|l| l.contains("Is it clear around me?"));
+        assert_eq!(around.count(), 1, "{:?}", c.said);
+        assert!(c.asked_around && c.asking());
+    }
 }
 
 /// A chair (0.5 m square, 0.9 m high) centred at (`x_m`, `y_m`) in odom.

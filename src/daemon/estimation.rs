@@ -161,6 +161,7 @@ impl Estimation {
             MapObstacles {
                 obstacles_odom: map.points(CellKind::Obstacle),
                 drop_offs_odom: map.points(CellKind::DropOff),
+                drop_offs_unseen_odom: map.points(CellKind::UnseenDropOff),
             },
         ))
     }

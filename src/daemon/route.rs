@@ -135,7 +135,16 @@ impl Router {
         }
         if let Some(c) = camera.filter(|c| Some(c.stamp) != self.camera) {
             self.camera = Some(c.stamp);
-            map.set_camera(&c.value.obstacles_odom, &c.value.drop_offs_odom);
+            // a drop-off that may lie out of view is kept clear of as one
+            // seen
+            let drop_offs: Vec<[f64; 2]> = c
+                .value
+                .drop_offs_odom
+                .iter()
+                .chain(&c.value.drop_offs_unseen_odom)
+                .copied()
+                .collect();
+            map.set_camera(&c.value.obstacles_odom, &drop_offs);
             // what the camera looked at, from where the chair is now
             if let Some(v) = view {
                 let odom_from_camera = pose.to_isometry3() * v.base_from_camera;

@@ -19,6 +19,21 @@ use crate::perception::depth_obstacles::DepthScan;
 pub enum CellKind {
     Obstacle,
     DropOff,
+    /// A drop-off that may lie out of view, where the floor was never
+    /// seen ([`DepthScan::drop_offs_unseen_base`]).
+    UnseenDropOff,
+}
+
+impl CellKind {
+    /// What a frame puts in a cell that holds another kind: an obstacle
+    /// over a drop-off, a seen drop-off over one that may lie out of view.
+    fn rank(self) -> u8 {
+        match self {
+            CellKind::UnseenDropOff => 0,
+            CellKind::DropOff => 1,
+            CellKind::Obstacle => 2,
+        }
+    }
 }
 
 /// Cells in `odom`, each with the points the latest frame that saw it put
@@ -169,22 +184,29 @@ impl ObstacleMap {
         // this frame's points by cell: they replace what the cell held
         // where this frame could see it
         let mut seen = Cells::new();
-        let drop_offs = scan
-            .drop_offs_base
-            .iter()
-            .chain(&unseen)
-            .map(|q| ([q[0], q[1]], 0.0));
+        let drop_offs = scan.drop_offs_base.iter().map(|q| ([q[0], q[1]], 0.0));
+        let unseen = unseen.iter().map(|q| ([q[0], q[1]], 0.0));
         let obstacles = scan.obstacles_base.iter().map(|q| ([q[0], q[1]], q[2]));
         let points = drop_offs
             .map(|(q, z)| (q, z, CellKind::DropOff))
+            .chain(unseen.map(|(q, z)| (q, z, CellKind::UnseenDropOff)))
             .chain(obstacles.map(|(q, z)| (q, z, CellKind::Obstacle)));
         for (q, z_m, kind) in points {
             let p = to_odom(&q);
             if let Some(k) = self.cell(p) {
+                // one that may lie out of view never replaces what was
+                // seen in its cell before
+                if kind == CellKind::UnseenDropOff
+                    && self.cells.get(&k).is_some_and(|(old, _)| *old != kind)
+                {
+                    continue;
+                }
                 let e = seen.entry(k).or_insert((kind, Vec::new()));
-                if e.0 != kind {
+                if e.0.rank() < kind.rank() {
                     // an obstacle over a drop-off: the obstacle
                     *e = (kind, Vec::new());
+                } else if e.0.rank() > kind.rank() {
+                    continue;
                 }
                 e.1.push([p[0], p[1], z_m as f64]);
             }
@@ -292,26 +314,34 @@ mod tests {
             drop_offs_unseen_base: at.to_vec(),
             ..Default::default()
         };
-        // never seen: a drop-off
+        // never seen: a drop-off that may lie there, kept apart from the
+        // seen ones
         m.insert(at(0.0, 0.0, 0.0), &maybe(&[[0.6, 0.0]]), F);
-        assert_eq!(m.points(CellKind::DropOff).len(), 1);
+        assert_eq!(m.points(CellKind::UnseenDropOff).len(), 1);
+        assert!(m.points(CellKind::DropOff).is_empty());
         // the floor seen there (from 1 m back, facing +x): gone, and not
         // put there again; a cell beside it still is
         m.insert(at(-1.0, 0.0, 0.0), &scan(&[], &[[1.625, 0.025]]), F);
         assert!(m.is_empty());
         m.insert(at(0.0, 0.0, 0.0), &maybe(&[[0.6, 0.0], [0.6, 0.2]]), F);
-        let drops = m.points(CellKind::DropOff);
+        let drops = m.points(CellKind::UnseenDropOff);
         assert_eq!(drops.len(), 1, "{drops:?}");
         assert!((drops[0][1] - 0.2).abs() < 1e-6);
-        // a drop-off seen in that cell makes it unknown floor again
+        // a drop-off seen in that cell makes it unknown floor again, and
+        // one seen where one may lie takes its cell
         let seen_drop = DepthScan {
-            drop_offs_base: vec![[0.61, 0.01]],
+            drop_offs_base: vec![[0.61, 0.01], [0.61, 0.21]],
             ..Default::default()
         };
         m.insert(at(0.0, 0.0, 0.0), &seen_drop, F);
         assert_eq!(m.points(CellKind::DropOff).len(), 2);
+        assert!(m.points(CellKind::UnseenDropOff).is_empty());
         let cell = m.cell([0.6, 0.0]).expect("cell");
         assert!(!m.floor_seen.contains(&cell));
+        // and a later guess there does not undo what was seen
+        m.insert(at(0.0, 0.0, 0.0), &maybe(&[[0.6, 0.0], [0.6, 0.2]]), F);
+        assert_eq!(m.points(CellKind::DropOff).len(), 2);
+        assert!(m.points(CellKind::UnseenDropOff).is_empty());
     }
 
     #[test]

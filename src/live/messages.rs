@@ -407,11 +407,17 @@ pub fn tracks_scene(s: &StepView, ts: fg::Timestamp) -> fg::SceneUpdate {
     }
 }
 
-/// The camera's remembered obstacles (`kind` 0) and drop-offs (1), in
-/// odom: x, y, z (0), kind as f32.
+/// The camera's remembered obstacles (`kind` 0), drop-offs (1) and
+/// drop-offs that may lie out of its view (2), in odom: x, y, z (0), kind
+/// as f32.
 pub fn camera_cloud(c: &MapObstacles, ts: fg::Timestamp) -> fg::PointCloud {
-    let mut data = Vec::with_capacity((c.obstacles_odom.len() + c.drop_offs_odom.len()) * 16);
-    for (points, kind) in [(&c.obstacles_odom, 0.0f32), (&c.drop_offs_odom, 1.0)] {
+    let n = c.obstacles_odom.len() + c.drop_offs_odom.len() + c.drop_offs_unseen_odom.len();
+    let mut data = Vec::with_capacity(n * 16);
+    for (points, kind) in [
+        (&c.obstacles_odom, 0.0f32),
+        (&c.drop_offs_odom, 1.0),
+        (&c.drop_offs_unseen_odom, 2.0),
+    ] {
         for p in points {
             for v in [p[0] as f32, p[1] as f32, 0.0, kind] {
                 data.extend_from_slice(&v.to_le_bytes());

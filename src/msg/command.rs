@@ -30,6 +30,9 @@ pub enum StopReason {
     /// A turn on the spot would sweep the chair's rear through space no
     /// sensor has seen and nobody vouched for.
     RearUnseen,
+    /// A turn on the spot would sweep the chair over floor the camera
+    /// never saw (a step down may lie there) and nobody vouched for.
+    FloorUnseen,
     /// A stop from any input (socket, switch, voice).
     UserStop,
     /// The user deflected the real joystick.

@@ -49,6 +49,12 @@ pub struct Obstacles {
     /// Where the floor is missing (a step down, a kerb): cells the chair
     /// must not enter, same frame. The lasers never report any.
     pub drop_offs_base: Vec<[f32; 2]>,
+    /// Where the floor may end out of the camera's view (floor it has
+    /// never seen between the chair's front and where its view of the
+    /// floor begins): the chair does not enter them either, but a turn on
+    /// the spot over them may be vouched for by the person in the chair
+    /// (`safety::rear`). Same frame; the lasers never report any.
+    pub drop_offs_unseen_base: Vec<[f32; 2]>,
     /// Every laser step as a ray, to know what the lasers could not see.
     pub rays_base: Vec<LaserRay>,
 }
@@ -104,7 +110,11 @@ pub fn line_crosses_box(o: [f64; 2], d: [f64; 2], t_max: f64, lo: [f64; 2], hi: 
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct MapObstacles {
     pub obstacles_odom: Vec<[f64; 2]>,
+    /// Drop-offs the camera saw.
     pub drop_offs_odom: Vec<[f64; 2]>,
+    /// Drop-offs that may lie out of its view, where it never saw the
+    /// floor ([`Obstacles::drop_offs_unseen_base`]).
+    pub drop_offs_unseen_odom: Vec<[f64; 2]>,
 }
 
 impl MapObstacles {
@@ -121,6 +131,7 @@ impl MapObstacles {
         Obstacles {
             points_base: self.obstacles_odom.iter().map(to_base).collect(),
             drop_offs_base: self.drop_offs_odom.iter().map(to_base).collect(),
+            drop_offs_unseen_base: self.drop_offs_unseen_odom.iter().map(to_base).collect(),
             rays_base: Vec::new(),
         }
     }

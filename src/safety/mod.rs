@@ -118,10 +118,13 @@ fn all_points(o: &Obstacles) -> impl Iterator<Item = &[f32; 2]> {
 }
 
 /// Every point the chair must not enter, base_link: the lasers' points
-/// and drop-offs, the depth camera's, the remembered rear.
+/// and drop-offs, the depth camera's, the remembered rear; the drop-offs
+/// that may lie out of the camera's view unless `vouched_turn` (a turn
+/// on the spot the person said is clear all around).
 fn all_inputs<'a>(
     inputs: &'a SupervisorInputs,
     obs: &'a Stamped<Obstacles>,
+    vouched_turn: bool,
 ) -> impl Iterator<Item = &'a [[f32; 2]]> {
     let camera = inputs.camera.map(|c| &c.value);
     [
@@ -129,9 +132,25 @@ fn all_inputs<'a>(
         &obs.value.drop_offs_base,
         camera.map_or(&[][..], |c| &c.points_base),
         camera.map_or(&[][..], |c| &c.drop_offs_base),
+        if vouched_turn {
+            &[][..]
+        } else {
+            camera.map_or(&[][..], |c| &c.drop_offs_unseen_base)
+        },
         inputs.rear.map_or(&[][..], |r| &r.points_base),
     ]
     .into_iter()
+}
+
+/// Whether `(v, w)`, with the chair's motion now `v_now` and the last
+/// output `v_last`, is a turn on the spot (or a stop) the person said is
+/// clear all around here: drop-offs that may lie out of the camera's view
+/// do not hold it.
+fn vouched_turn(inputs: &SupervisorInputs, v: f64, v_now: f64, v_last: f64) -> bool {
+    inputs.rear.is_some_and(|r| r.around_vouched)
+        && v.abs() < 0.05
+        && v_now.abs() < MOVING_MPS
+        && v_last.abs() < MOVING_MPS
 }
 
 fn fresh(stamp: Option<Stamp>, now: Stamp, max: Duration) -> bool {
@@ -537,6 +556,18 @@ impl Supervisor {
             Some(StopReason::RearUnseen)
         } else if blocked_by(&[camera.map_or(no_points, |c| &c.drop_offs_base)]) {
             Some(StopReason::DropOff)
+        } else if !vouched_turn(inputs, v, v_now, v_last)
+            && blocked_by(&[camera.map_or(no_points, |c| &c.drop_offs_unseen_base)])
+        {
+            // floor never seen, where a step down may lie: driven onto,
+            // a drop-off; swept by a turn on the spot, the person may
+            // vouch for it
+            let turn_only = v.abs() < 0.05 && rolling(v_now) == 0.0 && rolling(v_last) == 0.0;
+            Some(if turn_only {
+                StopReason::FloorUnseen
+            } else {
+                StopReason::DropOff
+            })
         } else if self.way_unseen(
             &obs.value.rays_base,
             &[v, rolling(v_now), rolling(v_last)],
@@ -616,8 +647,11 @@ impl Supervisor {
                     // what the chair starts to do is the ramped command, a
                     // different arc from the one asked for when it starts
                     // from rest: it must not close on a point either
+                    let v_now = inputs.odometry.map_or(0.0, |o| o.value.v_mps);
+                    let v_last = self.last.map_or(0.0, |(c, _)| c.v_mps);
+                    let vouched = vouched_turn(inputs, out.v_mps, v_now, v_last);
                     if self.closing_hits(
-                        all_inputs(inputs, obs).flat_map(|p| p.iter()),
+                        all_inputs(inputs, obs, vouched).flat_map(|p| p.iter()),
                         out.v_mps,
                         out.omega_radps,
                     ) {

@@ -14,7 +14,11 @@
 //!   `confirm_for`.
 //!
 //! Otherwise the supervisor refuses the turn (`RearUnseen`) and the chair
-//! asks. Pure: scans with the chair's pose and the time in.
+//! asks. The same word, asked as "is it clear around me?", vouches for
+//! the floor all round the turn where the camera never saw it (drop-offs
+//! that may lie out of its view, `FloorUnseen`): a chair that starts
+//! facing a step down has not seen the floor just before its front.
+//! Pure: scans with the chair's pose and the time in.
 
 use std::collections::VecDeque;
 use std::time::Duration;
@@ -60,6 +64,9 @@ pub struct RearView {
     /// Seen for a reverse: seen, or the person said it is clear for
     /// backing up along the line the chair is on.
     pub reverse_seen: bool,
+    /// The person said it is clear all around the chair, here: a turn on
+    /// the spot may sweep floor the camera never saw.
+    pub around_vouched: bool,
     /// Remembered laser points near the chair, in `base_link` now.
     pub points_base: Vec<[f32; 2]>,
 }
@@ -73,6 +80,8 @@ pub struct RearWatch {
     points: VecDeque<(Stamp, [f64; 2])>,
     cells: std::collections::HashSet<(i64, i64)>,
     confirmed: Option<(Stamp, Pose2)>,
+    /// Whether that word was for all around the chair, not only behind.
+    confirmed_around: bool,
     /// The person's word for backing up from a pose: when, from where,
     /// and how far straight back it holds (m). Not for a turn: they
     /// looked at the strip behind, not at the circle the corners sweep.
@@ -104,6 +113,7 @@ impl RearWatch {
             points: VecDeque::new(),
             cells: Default::default(),
             confirmed: None,
+            confirmed_around: false,
             confirmed_back: None,
         }
     }
@@ -139,6 +149,14 @@ impl RearWatch {
     /// The person said it is clear behind, with the chair at `pose`.
     pub fn confirm(&mut self, stamp: Stamp, pose: Pose2) {
         self.confirmed = Some((stamp, pose));
+        self.confirmed_around = false;
+    }
+
+    /// The person said it is clear all around the chair (behind it and
+    /// the floor the corners sweep), with the chair at `pose`.
+    pub fn confirm_around(&mut self, stamp: Stamp, pose: Pose2) {
+        self.confirmed = Some((stamp, pose));
+        self.confirmed_around = true;
     }
 
     /// The person said it is clear behind for backing up `back_m`
@@ -184,6 +202,12 @@ impl RearWatch {
     /// step down too), and that holds at `pose` now.
     pub fn vouched_at(&self, now: Stamp, pose: &Pose2) -> bool {
         self.vouched(now, pose)
+    }
+
+    /// Whether the person said it is clear all around the chair, and
+    /// that holds at `pose` now.
+    pub fn around_vouched_at(&self, now: Stamp, pose: &Pose2) -> bool {
+        self.confirmed_around && self.vouched(now, pose)
     }
 
     /// Whether the person's "clear behind" holds at `pose` now.
@@ -246,6 +270,7 @@ impl RearWatch {
         RearView {
             seen,
             reverse_seen: seen || self.vouched_backing(now, &pose),
+            around_vouched: self.around_vouched_at(now, &pose),
             // only what lies out of the lasers' sight now: where they look,
             // the live scan says what is there (a person who walked past
             // in front no longer holds the chair)
@@ -329,6 +354,25 @@ mod tests {
         assert!(w.view(at(5.0), pose(0.0, 120.0)).seen);
         assert!(!w.view(at(5.0), pose(0.5, 0.0)).seen, "another spot");
         assert!(!w.view(at(61.0), pose(0.0, 0.0)).seen, "expired");
+        // a word for behind is not one for all around
+        assert!(!w.view(at(5.0), pose(0.0, 0.0)).around_vouched);
+    }
+
+    #[test]
+    fn the_persons_word_for_all_around_vouches_for_the_floor_too_here_for_a_while() {
+        let mut w = RearWatch::new(RearSettings::default());
+        w.confirm_around(at(0.0), pose(0.0, 0.0));
+        let v = w.view(at(5.0), pose(0.0, 120.0));
+        assert!(v.seen && v.around_vouched);
+        assert!(
+            !w.view(at(5.0), pose(0.5, 0.0)).around_vouched,
+            "another spot"
+        );
+        assert!(!w.view(at(61.0), pose(0.0, 0.0)).around_vouched, "expired");
+        // a later word for behind only replaces it
+        w.confirm(at(6.0), pose(0.0, 0.0));
+        let v = w.view(at(7.0), pose(0.0, 0.0));
+        assert!(v.seen && !v.around_vouched);
     }
 
     #[test]

@@ -33,6 +33,7 @@ impl World {
             rear: rear::RearView {
                 seen: true,
                 reverse_seen: true,
+                around_vouched: false,
                 points_base: Vec::new(),
             },
             cmd: Stamped::new(
@@ -316,6 +317,65 @@ fn the_depth_cameras_obstacles_and_drop_offs_stop_like_the_lasers() {
     let mut s = moving(0.0);
     let mut w = World::new(20, 0.0, 0.5);
     w.camera.value.drop_offs_base = vec![[0.0, 0.7]];
+    assert_eq!(
+        s.step(ms(20), &w.inputs()).state,
+        SupervisorState::Stopped(StopReason::DropOff)
+    );
+}
+
+#[test]
+fn floor_never_seen_holds_a_turn_until_the_person_vouches_for_all_around() {
+    // a step down may lie just before the front (the camera sees the
+    // floor only from 1.1 m ahead): 0.6 m ahead, inside the corners'
+    // circle, outside the crawl's stop corridor at rest
+    let unseen =
+        |w: &mut World| w.camera.value.drop_offs_unseen_base = vec![[0.6, 0.0], [0.6, 0.2]];
+    // a turn on the spot: held for the unseen floor (the chair asks)
+    let mut s = moving(0.0);
+    let mut w = World::new(20, 0.0, 0.5);
+    unseen(&mut w);
+    let c = s.step(ms(20), &w.inputs());
+    assert_eq!(c.state, SupervisorState::Stopped(StopReason::FloorUnseen));
+    assert_eq!(c.cmd, VelocityCmd::default());
+    // a word for behind only does not cover it
+    w.rear.seen = true;
+    assert_eq!(
+        s.step(ms(30), &w.inputs()).state,
+        SupervisorState::Stopped(StopReason::FloorUnseen)
+    );
+    // "clear around me": the turn goes
+    let mut s = moving(0.0);
+    w.rear.around_vouched = true;
+    let c = s.step(ms(20), &w.inputs());
+    assert_eq!(c.state, SupervisorState::Navigating);
+    assert!(c.cmd.omega_radps > 0.0);
+    // driving onto it is a drop-off, vouched or not
+    for vouched in [false, true] {
+        let mut s = moving(0.2);
+        let mut w = World::new(20, 0.2, 0.0);
+        unseen(&mut w);
+        w.rear.around_vouched = vouched;
+        assert_eq!(
+            s.step(ms(20), &w.inputs()).state,
+            SupervisorState::Stopped(StopReason::DropOff),
+            "vouched {vouched}"
+        );
+    }
+    // and a turn while still rolling forward is not on the spot
+    let mut s = moving(0.2);
+    let mut w = World::new(20, 0.0, 0.5);
+    unseen(&mut w);
+    w.rear.around_vouched = true;
+    w.odom.value.v_mps = 0.2;
+    assert_eq!(
+        s.step(ms(20), &w.inputs()).state,
+        SupervisorState::Stopped(StopReason::DropOff)
+    );
+    // a drop-off the camera saw holds the turn whatever the person says
+    let mut s = moving(0.0);
+    let mut w = World::new(20, 0.0, 0.5);
+    w.camera.value.drop_offs_base = vec![[0.6, 0.0]];
+    w.rear.around_vouched = true;
     assert_eq!(
         s.step(ms(20), &w.inputs()).state,
         SupervisorState::Stopped(StopReason::DropOff)

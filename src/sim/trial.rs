@@ -85,11 +85,22 @@ const CLEAR_BEHIND_M: f64 = 0.70;
 const CLEAR_BACK_M: f64 = 0.40;
 const CLEAR_BACK_HALF_WIDTH_M: f64 = 0.40;
 
-/// What a truthful person sees behind the chair (walls, boxes taller than
+/// Where the chair asked the person to look.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Look {
+    /// Behind, for a turn on the spot.
+    Behind,
+    /// All around, for a turn on the spot.
+    Around,
+    /// Behind, for backing up.
+    Back,
+}
+
+/// What a truthful person sees around the chair (walls, boxes taller than
 /// 5 cm, steps down): for a turn, nothing within [`CLEAR_BEHIND_M`] of
-/// base_link on the rear half; backing up, nothing in the strip the rear
-/// backs into ([`CLEAR_BACK_M`]).
-fn clear_behind(w: &super::world::SimWorld, backing_up: bool) -> bool {
+/// base_link on the rear half (`Behind`) or all round (`Around`); backing
+/// up, nothing in the strip the rear backs into ([`CLEAR_BACK_M`]).
+fn clear_behind(w: &super::world::SimWorld, look: Look) -> bool {
     let t = w.truth;
     let (c, s) = (t.theta_rad.cos(), t.theta_rad.sin());
     let [sx, sy, _] = w.room.size_m;
@@ -109,7 +120,7 @@ fn clear_behind(w: &super::world::SimWorld, backing_up: bool) -> bool {
         ([sx, -1.0], [sx + 1.0, sy + 1.0]),
     ]);
     // sample the rear half-disc, or the strip behind
-    let samples: Vec<[f64; 2]> = if backing_up {
+    let samples: Vec<[f64; 2]> = if look == Look::Back {
         (0..=8)
             .flat_map(|i| {
                 (0..=8).map(move |k| {
@@ -121,9 +132,19 @@ fn clear_behind(w: &super::world::SimWorld, backing_up: bool) -> bool {
             })
             .collect()
     } else {
-        (0..=12)
-            .flat_map(|i| {
-                let a = std::f64::consts::FRAC_PI_2 + std::f64::consts::PI * i as f64 / 12.0;
+        // the rear half in 13 bearings, or the whole circle in 25
+        let (from, bearings) = match look {
+            Look::Around => (0.0, 24),
+            _ => (std::f64::consts::FRAC_PI_2, 12),
+        };
+        let span = if look == Look::Around {
+            std::f64::consts::TAU
+        } else {
+            std::f64::consts::PI
+        };
+        (0..=bearings)
+            .flat_map(move |i| {
+                let a = from + span * i as f64 / bearings as f64;
                 (1..=8).map(move |k| {
                     let r = CLEAR_BEHIND_M * k as f64 / 8.0;
                     [r * a.cos(), r * a.sin()]
@@ -158,12 +179,22 @@ async fn person(
             return;
         }
         while let Some(sentence) = heard.recv().await {
-            let answer = if sentence.contains("Is it clear behind?") {
+            let look = if sentence.contains("Is it clear around me?") {
+                Some(Look::Around)
+            } else if sentence.contains("Is it clear behind?") {
+                Some(if sentence.contains("back up") {
+                    Look::Back
+                } else {
+                    Look::Behind
+                })
+            } else {
+                None
+            };
+            let answer = if let Some(look) = look {
                 tokio::time::sleep(ANSWER_AFTER).await;
-                let backing_up = sentence.contains("back up");
                 let clear = world
                     .lock()
-                    .map(|w| clear_behind(&w, backing_up))
+                    .map(|w| clear_behind(&w, look))
                     .unwrap_or(false);
                 Some(if clear { UserInput::Yes } else { UserInput::No })
             } else if sentence.starts_with("Staying here.") {
