@@ -158,14 +158,31 @@ async fn a_turn_on_the_spot_waits_until_someone_says_it_is_clear_behind() {
         .abs();
     assert!(turned < 0.05, "turned {turned} rad without a seen rear");
     assert!(s.world.distance_travelled_m < 0.02, "{s:?}");
-    // "no": the chair stays and says so
+    // "no": the chair says it will not turn here, does not ask again
+    // here, and never turns on the spot where it was asked
     let words = vec![
         (Duration::ZERO, UserInput::Goto("cabinet".into())),
         (Duration::from_millis(2500), UserInput::No),
     ];
     let (r, s) = trip(words, opts, |_, _| {}).await;
-    assert!(r.said.iter().any(|l| l == "Staying here."), "{:?}", r.said);
-    assert!(s.world.distance_travelled_m < 0.02, "{s:?}");
+    assert!(
+        r.said
+            .iter()
+            .any(|l| l.starts_with("I will not turn here.")),
+        "{:?}",
+        r.said
+    );
+    let asked = r.said.iter().filter(|l| l.contains(REAR_QUESTION)).count();
+    assert_eq!(asked, 1, "{:?}", r.said);
+    assert_eq!(s.world.collision_steps, 0, "{s:?}");
+    // (base_link stays put on the spot: any turn came with driving on)
+    let start = SimWorld::living_room(Settings::defaults().drive_params()).start;
+    let w = &s.world;
+    let turned = (w.truth.theta_rad - start.theta_rad).abs();
+    assert!(
+        turned < 0.05 || w.distance_travelled_m > 0.05,
+        "turned {turned} rad on the spot: {s:?}"
+    );
 }
 
 #[tokio::test(start_paused = true)]

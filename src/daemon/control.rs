@@ -129,6 +129,10 @@ pub struct Control {
     /// What was asked was whether it is clear all around (the floor the
     /// turn sweeps was never seen), not only behind.
     asked_around: bool,
+    /// The person said no to a turn on the spot here: the chair neither
+    /// turns nor asks again within [`REFUSED_TURN_WITHIN_M`] of it, and
+    /// looks for another way (arcs, another place to search from).
+    turn_refused_at: Option<crate::msg::Pose2>,
     /// "yes" arrived: vouch for the rear at the next step.
     rear_yes: bool,
     /// Since when a search turn is held by an obstacle.
@@ -171,6 +175,9 @@ pub const NEAR_ENOUGH_M: f64 = 0.3;
 /// Standing still this long on the way with nothing holding the chair
 /// counts as held (then [`ARRIVE_HELD_AFTER`] as for a hold).
 pub const STAND_STILL_FOR: std::time::Duration = std::time::Duration::from_secs(2);
+/// A "no" to a turn on the spot holds within this of where it was said
+/// (the rear watch's spot), m.
+pub const REFUSED_TURN_WITHIN_M: f64 = 0.15;
 /// Staying in one place this long on the way to an object, turning this
 /// way and that, is held too (the hold's time counts from then).
 pub const IN_PLACE_FOR: std::time::Duration = std::time::Duration::from_secs(10);
@@ -234,6 +241,7 @@ impl Control {
             asked_rear: None,
             asked_back_up: false,
             asked_around: false,
+            turn_refused_at: None,
             rear_yes: false,
             turn_held_since: None,
             back_off: BackOff::default(),
@@ -600,7 +608,11 @@ impl Control {
             // circle): the planner's arc instead, which keeps its clearance
             let crawl_turn = self.supervisor.crawl_turn_radps();
             let room_to_turn = !self.supervisor.turn_blocked(o_turn, 0.0, crawl_turn);
-            let turn_first = self.route.is_some() && far && bearing.abs() > limit && room_to_turn;
+            let turn_first = self.route.is_some()
+                && far
+                && bearing.abs() > limit
+                && room_to_turn
+                && !self.turn_refused_here(&pose);
             let mut out = self.planner.step(
                 UnicycleState {
                     x_m: pose.x_m,
@@ -683,6 +695,12 @@ impl Control {
 
     pub fn state(&self) -> SupervisorState {
         self.supervisor.state()
+    }
+
+    /// Whether the person said no to a turn on the spot here (`pose`).
+    pub(super) fn turn_refused_here(&self, pose: &crate::msg::Pose2) -> bool {
+        self.turn_refused_at
+            .is_some_and(|p| (p.x_m - pose.x_m).hypot(p.y_m - pose.y_m) <= REFUSED_TURN_WITHIN_M)
     }
 
     /// The chair asked a question and waits for "yes" or "no".

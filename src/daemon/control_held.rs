@@ -38,13 +38,13 @@ impl Control {
             return None;
         }
         let held = self.supervisor.hold_reason(inputs, obs, v, w);
-        if !matches!(
-            held,
-            Some(crate::msg::StopReason::Obstacle | crate::msg::StopReason::DropOff)
-        ) {
+        let pose = odo.value.pose;
+        use crate::msg::StopReason::{DropOff, FloorUnseen, Obstacle, RearUnseen};
+        let refused =
+            matches!(held, Some(RearUnseen | FloorUnseen)) && self.turn_refused_here(&pose);
+        if !matches!(held, Some(Obstacle | DropOff)) && !refused {
             return None;
         }
-        let pose = odo.value.pose;
         // within reach of the place beside the object: held there, the
         // trip ends as near as it safely goes (no manoeuvre for the rest)
         if self

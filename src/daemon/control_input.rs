@@ -86,10 +86,15 @@ impl Control {
                     self.say("Staying here.".into());
                 }
             }
-            UserInput::No if self.asked_rear.take().is_some() => {
-                self.goal.clear();
-                self.planner_cmd = None;
-                self.say("Staying here.".into());
+            UserInput::No if self.asked_rear.is_some() => {
+                // not clear: no turn on the spot here; the trip goes on
+                // another way (the planner's arcs, another place to look
+                // from), and "stop" stays
+                self.turn_refused_at = self.asked_rear.take();
+                self.say(
+                    "I will not turn here. I will look for another way; say stop to stay here."
+                        .into(),
+                );
             }
             UserInput::AckFault => match self.supervisor.state() {
                 SupervisorState::Fault(FaultReason::Task) => self

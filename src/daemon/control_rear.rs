@@ -56,10 +56,13 @@ impl Control {
         floor_unseen: bool,
     ) {
         use crate::msg::StopReason::{FloorUnseen, RearUnseen};
-        let waiting = matches!(
-            state,
-            SupervisorState::Stopped(RearUnseen) | SupervisorState::Stopped(FloorUnseen)
-        );
+        // where the person said no, not asked again
+        let refused = pose.is_some_and(|p| self.turn_refused_here(&p));
+        let waiting = !refused
+            && matches!(
+                state,
+                SupervisorState::Stopped(RearUnseen) | SupervisorState::Stopped(FloorUnseen)
+            );
         if !waiting {
             // the wait is over (turned, or no turn needed any more) once
             // it has been over a while: a chair creeping on between

@@ -36,9 +36,13 @@ impl Control {
     ) -> Option<GoalEvent> {
         // a search turn held by something in the turn's circle: as good as
         // done from here; the keeper looks further, somewhere with room
+        // (or one the person said no to here)
+        use crate::msg::StopReason::{FloorUnseen, Obstacle, RearUnseen};
+        let state = self.supervisor.state();
         let turn_held = matches!(self.goal.state(), GoalState::Searching { .. })
-            && self.supervisor.state()
-                == SupervisorState::Stopped(crate::msg::StopReason::Obstacle);
+            && (state == SupervisorState::Stopped(Obstacle)
+                || (matches!(state, SupervisorState::Stopped(RearUnseen | FloorUnseen))
+                    && self.turn_refused_here(&pose)));
         if !turn_held {
             self.turn_held_since = None;
         }
