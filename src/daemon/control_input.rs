@@ -15,8 +15,10 @@ impl Control {
                 self.pending = Some(word);
             }
             UserInput::Goto(word) => {
-                // a sure word answers the question too
+                // a sure word answers the question too; a new trip asks
+                // about turning afresh
                 self.asked_goal = None;
+                self.turn_refused_at = None;
                 self.goal.set_prompt(&word);
                 self.say(format!("Looking for a {word}."));
             }

@@ -119,6 +119,35 @@ fn an_unseen_rear_is_asked_about_once_and_yes_lets_the_search_turn() {
         turning |= step_empty(&mut c, 50 * k).cmd.cmd.omega_radps > 0.0;
     }
     assert!(turning, "{:?}", c.state());
+    // "no": the trip goes on, not turning here and not asked again here;
+    // a new word asks afresh
+    let asked_in = |c: &mut Control, from: u64| {
+        let mut said = Vec::new();
+        for k in from..from + 40 {
+            let out = step_empty(c, 50 * k);
+            assert!(out.cmd.cmd.omega_radps.abs() < 1e-9 || out.cmd.cmd.v_mps.abs() >= 0.05);
+            said.extend(out.said);
+        }
+        let n = said
+            .iter()
+            .filter(|l| l.contains("cannot see behind me"))
+            .count();
+        (n, said)
+    };
+    let mut c = control(false);
+    c.supervisor.limits.turn_needs_seen_rear = true;
+    c.on_input(UserInput::Goto("chair".into()));
+    assert_eq!(asked_in(&mut c, 0).0, 1);
+    c.on_input(UserInput::No);
+    let (n, said) = asked_in(&mut c, 40);
+    assert_eq!(n, 0, "{said:?}");
+    assert!(
+        said.iter().any(|l| l.starts_with("I will not turn here.")),
+        "{said:?}"
+    );
+    assert_ne!(*c.goal_state(), GoalState::None, "the trip goes on");
+    c.on_input(UserInput::Goto("chair".into()));
+    assert_eq!(asked_in(&mut c, 80).0, 1);
     // "yes" with nothing asked changes nothing
     let mut c = control(false);
     c.supervisor.limits.turn_needs_seen_rear = true;
