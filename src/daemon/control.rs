@@ -110,7 +110,7 @@ pub struct Control {
     pending: Option<String>,
     /// The motor interface: when it came up, whether it took over, and
     /// what has been said about it.
-    motors: Motors,
+    motors: input::Motors,
     /// What the latest fault was, in words.
     fault_reason: Option<String>,
     /// What is known of the space behind the chair.
@@ -196,22 +196,6 @@ pub(super) const CLOCKWISE_SHORTER_BY_RAD: f64 = 0.5;
 /// A search turn held this long by an obstacle ends there.
 pub(super) const TURN_HELD_FOR: std::time::Duration = std::time::Duration::from_secs(3);
 
-/// The motor interface up but not driving this long: the takeover failed.
-const TAKEOVER_WITHIN: std::time::Duration = std::time::Duration::from_secs(1);
-/// No joystick module heard this long: said once.
-const JSM_WITHIN: std::time::Duration = std::time::Duration::from_secs(5);
-
-#[derive(Debug, Default)]
-struct Motors {
-    first_step: Option<Stamp>,
-    ready_at: Option<Stamp>,
-    /// When the Ready event arrived but no step has stamped it yet.
-    ready_pending: bool,
-    active: bool,
-    said_no_answer: bool,
-    said_no_takeover: bool,
-}
-
 impl Control {
     pub fn new(
         supervisor: Supervisor,
@@ -232,7 +216,7 @@ impl Control {
             done: None,
             latched: false,
             pending: None,
-            motors: Motors::default(),
+            motors: input::Motors::default(),
             fault_reason: None,
             rear: RearWatch::new(RearSettings::default()),
             rear_scan: None,
@@ -318,37 +302,6 @@ impl Control {
     /// this configuration).
     pub fn say_at_start(&mut self, s: &str) {
         self.say(s.to_string());
-    }
-
-    /// A takeover that does not happen is said and latched as a fault; a
-    /// chair whose joystick module never answers is said once.
-    fn watch_motors(&mut self, now: Stamp) {
-        let m = &mut self.motors;
-        let first = *m.first_step.get_or_insert(now);
-        if m.ready_pending {
-            m.ready_pending = false;
-            m.ready_at.get_or_insert(now);
-        }
-        if m.active {
-            return;
-        }
-        match m.ready_at {
-            Some(t) if t.age_at(now) > TAKEOVER_WITHIN && !m.said_no_takeover => {
-                m.said_no_takeover = true;
-                self.supervisor.can_fault(FaultReason::Takeover);
-                self.goal.clear();
-                self.say(
-                    "I cannot take over the chair's joystick: its joystick module keeps \
-                     control. Stopped."
-                        .into(),
-                );
-            }
-            None if first.age_at(now) > JSM_WITHIN && !m.said_no_answer => {
-                m.said_no_answer = true;
-                self.say("The chair's joystick module does not answer: I cannot drive.".into());
-            }
-            _ => {}
-        }
     }
 
     /// One step at `now`.
@@ -697,12 +650,6 @@ impl Control {
         self.supervisor.state()
     }
 
-    /// Whether the person said no to a turn on the spot here (`pose`).
-    pub(super) fn turn_refused_here(&self, pose: &crate::msg::Pose2) -> bool {
-        self.turn_refused_at
-            .is_some_and(|p| (p.x_m - pose.x_m).hypot(p.y_m - pose.y_m) <= REFUSED_TURN_WITHIN_M)
-    }
-
     /// The chair asked a question and waits for "yes" or "no".
     pub fn asking(&self) -> bool {
         self.asked_rear.is_some() || self.asked_goal.is_some()
@@ -721,7 +668,8 @@ mod held;
 #[path = "control_search.rs"]
 mod search;
 
-/// Asking the person whether it is clear behind before a turn.
+/// Asking the person whether it is clear behind (or all around) before a
+/// turn, and where they said no.
 #[path = "control_rear.rs"]
 mod rear_question;
 

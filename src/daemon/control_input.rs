@@ -4,6 +4,22 @@
 
 use super::*;
 
+/// The motor interface up but not driving this long: the takeover failed.
+const TAKEOVER_WITHIN: std::time::Duration = std::time::Duration::from_secs(1);
+/// No joystick module heard this long: said once.
+const JSM_WITHIN: std::time::Duration = std::time::Duration::from_secs(5);
+
+#[derive(Debug, Default)]
+pub(super) struct Motors {
+    first_step: Option<Stamp>,
+    ready_at: Option<Stamp>,
+    /// When the Ready event arrived but no step has stamped it yet.
+    ready_pending: bool,
+    active: bool,
+    said_no_answer: bool,
+    said_no_takeover: bool,
+}
+
 impl Control {
     /// A word, a stop or a quit from the user.
     pub fn on_input(&mut self, input: UserInput) {
@@ -158,5 +174,36 @@ impl Control {
             task: task.to_string(),
             reason: reason.to_string(),
         });
+    }
+
+    /// A takeover that does not happen is said and latched as a fault; a
+    /// chair whose joystick module never answers is said once.
+    pub(super) fn watch_motors(&mut self, now: Stamp) {
+        let m = &mut self.motors;
+        let first = *m.first_step.get_or_insert(now);
+        if m.ready_pending {
+            m.ready_pending = false;
+            m.ready_at.get_or_insert(now);
+        }
+        if m.active {
+            return;
+        }
+        match m.ready_at {
+            Some(t) if t.age_at(now) > TAKEOVER_WITHIN && !m.said_no_takeover => {
+                m.said_no_takeover = true;
+                self.supervisor.can_fault(FaultReason::Takeover);
+                self.goal.clear();
+                self.say(
+                    "I cannot take over the chair's joystick: its joystick module keeps \
+                     control. Stopped."
+                        .into(),
+                );
+            }
+            None if first.age_at(now) > JSM_WITHIN && !m.said_no_answer => {
+                m.said_no_answer = true;
+                self.say("The chair's joystick module does not answer: I cannot drive.".into());
+            }
+            _ => {}
+        }
     }
 }

@@ -6,7 +6,7 @@
 //! is asked about as "is it clear around me?", and that "yes" vouches for
 //! both.
 
-use super::Control;
+use super::{Control, REFUSED_TURN_WITHIN_M};
 use crate::msg::{Obstacles, Stamp, Stamped, SupervisorState};
 
 /// A turn refused for an unseen rear this long: the person is asked.
@@ -18,6 +18,12 @@ pub(super) const BACK_UP_VOUCHED_M: f64 = 0.45;
 pub(super) const REAR_WAIT_OVER_AFTER: std::time::Duration = std::time::Duration::from_secs(1);
 
 impl Control {
+    /// Whether the person said no to a turn on the spot here (`pose`).
+    pub(super) fn turn_refused_here(&self, pose: &crate::msg::Pose2) -> bool {
+        self.turn_refused_at
+            .is_some_and(|p| (p.x_m - pose.x_m).hypot(p.y_m - pose.y_m) <= REFUSED_TURN_WITHIN_M)
+    }
+
     /// Feeds the rear watch the newest scan (seen from the pose now) and
     /// the person's "yes"; what it knows of the rear now.
     pub(super) fn watch_rear(
