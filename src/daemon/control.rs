@@ -343,15 +343,20 @@ impl Control {
                 ..supervisor_inputs
             },
         );
-        // floor never seen in the circle a turn on the spot sweeps
-        let floor_unseen = camera.as_ref().is_some_and(|c| {
-            let unseen = Obstacles {
-                drop_offs_base: c.value.drop_offs_unseen_base.clone(),
-                ..Default::default()
-            };
-            let crawl = self.supervisor.crawl_turn_radps();
-            self.supervisor.turn_blocked(&unseen, 0.0, crawl)
-        });
+        // floor never seen in the circle a turn on the spot sweeps (only
+        // asked about a turn held for the rear: held for that floor, the
+        // question is about it anyway)
+        let held_for_rear =
+            cmd.state == SupervisorState::Stopped(crate::msg::StopReason::RearUnseen);
+        let floor_unseen = held_for_rear
+            && camera.as_ref().is_some_and(|c| {
+                let unseen = Obstacles {
+                    drop_offs_base: c.value.drop_offs_unseen_base.clone(),
+                    ..Default::default()
+                };
+                let crawl = self.supervisor.crawl_turn_radps();
+                self.supervisor.turn_blocked(&unseen, 0.0, crawl)
+            });
         self.ask_about_rear(
             now,
             cmd.state,
