@@ -3,32 +3,78 @@
 //! the real recording of the shared data, through the same `hear` the
 //! daemon uses. Scored for right targets (acted on, the right word), wrong
 //! targets (acted on, another word), asked back, stop recall, and
-//! sentences outside the grammar sent anywhere. Needs the `voice` feature,
-//! espeak-ng and sox.
+//! sentences outside the grammar sent anywhere: first with the model as
+//! installed, then with each voice enrolled (`opennav voice enroll` on
+//! the 30 sentences, read once by that voice). Needs the `voice` feature,
+//! espeak-ng, sox, and for the enrollment sphinxtrain, sphinxbase-utils and
+//! pocketsphinx.
 //!
 //!   cargo bench --features voice --bench voice_commands
+//!
+//! `OPENNAV_BENCH_ENROLL=no|yes|both` (both), `OPENNAV_BENCH_VOICES=en,…`
+//! (all three), `OPENNAV_BENCH_SET=tuning` (the set thresholds are chosen
+//! on, not the measured one). Each utterance's evidence is a line on
+//! stderr starting with EVIDENCE.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use opennav::config::Settings;
 use opennav::msg::UserInput;
+use opennav::voice::enroll;
+use opennav::voice::grammar::read_dictionary;
 use opennav::voice::intent::Decision;
-use opennav::voice::listen::{hear, recogniser};
+use opennav::voice::listen::{hear, recogniser, with_noise_floor};
 use opennav::voice::wav::read_audio;
 
-const TARGETS: [&str; 6] = ["chair", "door", "toilet", "table", "bed", "sofa"];
-const PHRASES: [&str; 4] = ["{}", "go to the {}", "take me to the {}", "find the {}"];
-const STOPS: [&str; 3] = ["stop", "stop please", "halt"];
-const OUTSIDE: [&str; 4] = [
-    "the quick brown fox jumps over the lazy dog",
-    "what time is it",
-    "I would like a cup of tea",
-    "good morning",
-];
+/// What is spoken: targets in phrases, stops, sentences outside the
+/// grammar, at speeds and pitches.
+struct Set {
+    targets: [&'static str; 6],
+    phrases: [&'static str; 4],
+    stops: [&'static str; 3],
+    outside: [&'static str; 4],
+    speeds: [u32; 2],
+    pitches: [u32; 2],
+}
+
+/// The measured set.
+const TEST: Set = Set {
+    targets: ["chair", "door", "toilet", "table", "bed", "sofa"],
+    phrases: ["{}", "go to the {}", "take me to the {}", "find the {}"],
+    stops: ["stop", "stop please", "halt"],
+    outside: [
+        "the quick brown fox jumps over the lazy dog",
+        "what time is it",
+        "I would like a cup of tea",
+        "good morning",
+    ],
+    speeds: [130, 175],
+    pitches: [35, 65],
+};
+
+/// The set thresholds are chosen on (`OPENNAV_BENCH_SET=tuning`): other
+/// words, phrasings, speeds, pitches and sentences than [`TEST`]'s.
+const TUNING: Set = Set {
+    targets: ["desk", "sink", "window", "lamp", "fridge", "plant"],
+    phrases: [
+        "drive to the {}",
+        "{} please",
+        "go to a {}",
+        "take me to a {}",
+    ],
+    stops: ["stop now", "halt please", "stop stop"],
+    outside: [
+        "where did i leave my glasses",
+        "it is very cold in here today",
+        "hello how are you",
+        "can you call my daughter",
+    ],
+    speeds: [110, 200],
+    pitches: [20, 80],
+};
+
 const VOICES: [&str; 3] = ["en", "en-us", "en-gb-scotland"];
-const SPEEDS: [u32; 2] = [130, 175];
-const PITCHES: [u32; 2] = [35, 65];
 /// None: clean; Some(dB): white noise at that signal-to-noise ratio.
 const NOISE: [Option<u32>; 3] = [None, Some(20), Some(10)];
 
@@ -96,6 +142,25 @@ fn make(
     noisy
 }
 
+/// One utterance's evidence on stderr (tab-separated, after "EVIDENCE"),
+/// to choose thresholds on the tuning set.
+fn evidence(
+    kind: &str,
+    said: &str,
+    h: &opennav::voice::listen::Heard,
+    (voice, speed, pitch, noise, enrolled): (&str, u32, u32, Option<u32>, bool),
+) {
+    let num = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.3}"));
+    eprintln!(
+        "EVIDENCE\t{kind}\t{said}\t{voice}\t{speed}\t{pitch}\t{noise:?}\t{enrolled}\t{:?}\t{:?}\t{:.3}\t{}\t{}",
+        h.heard.as_deref().unwrap_or(""),
+        h.decision,
+        h.confidence,
+        num(h.margin_per_frame),
+        num(h.phone_excess_per_frame)
+    );
+}
+
 #[derive(Default)]
 struct Score {
     go: usize,
@@ -113,32 +178,125 @@ struct Score {
     outside_asked: usize,
 }
 
+/// The voice's enrollment as a person's would be: the sentences of
+/// `opennav voice sentences` read once (the voice's middle speed and pitch,
+/// no noise), the model adapted to them (`opennav voice enroll`).
+fn enrolled_model(dir: &Path, voice: &str, hmm: &Path, dict_path: &Path) -> PathBuf {
+    let dict = read_dictionary(dict_path).expect("dictionary");
+    let recs: Vec<enroll::Recording> = enroll::SENTENCES
+        .iter()
+        .enumerate()
+        .map(|(i, text)| {
+            let f = make(dir, 100_000 + i, text, voice, 150, 50, None);
+            enroll::Recording {
+                name: format!("{voice} sentence {i}"),
+                samples: read_audio(&f).expect("audio"),
+                text: text.to_string(),
+            }
+        })
+        .collect();
+    let out = dir.join(format!("model-{voice}"));
+    let made = enroll::enroll(
+        &enroll::Tools::debian().expect("sphinxtrain, sphinxbase-utils, pocketsphinx"),
+        &enroll::Model {
+            hmm,
+            dict_path,
+            dict: &dict,
+        },
+        &recs,
+        &dir.join(format!("enroll-{voice}")),
+        &out,
+        with_noise_floor,
+    )
+    .expect("enrolls");
+    println!(
+        "  {voice}: enrolled on {:.0} s of speech, {} of {} sentences aligned",
+        made.seconds,
+        made.used,
+        recs.len()
+    );
+    out
+}
+
 fn main() {
     let settings = Settings::load(None).expect("defaults");
+    let dir = tempfile::tempdir().expect("tmp");
+    let modes = std::env::var("OPENNAV_BENCH_ENROLL").unwrap_or_else(|_| "both".into());
+    for enrolled in [false, true] {
+        let wanted = match modes.as_str() {
+            "both" => true,
+            "no" => !enrolled,
+            "yes" => enrolled,
+            other => panic!("OPENNAV_BENCH_ENROLL={other:?}: both, no or yes"),
+        };
+        if wanted {
+            let set = match std::env::var("OPENNAV_BENCH_SET").as_deref() {
+                Ok("tuning") => &TUNING,
+                Ok("test") | Err(_) => &TEST,
+                Ok(other) => panic!("OPENNAV_BENCH_SET={other:?}: test or tuning"),
+            };
+            measure(&settings, dir.path(), enrolled, set);
+        }
+    }
+    real_recording(&settings);
+}
+
+fn measure(settings: &Settings, dir: &Path, enrolled: bool, set: &Set) {
     let v = &settings.voice;
     let vocabulary: Vec<String> = v.vocabulary.clone();
-    let (mut r, g) = recogniser(v, &vocabulary).expect("recogniser");
-    let dir = tempfile::tempdir().expect("tmp");
+    println!(
+        "{}",
+        if enrolled {
+            "each voice enrolled (opennav voice enroll on the 30 sentences):"
+        } else {
+            "the model as installed:"
+        }
+    );
     let mut score = Score::default();
+    // (voice, noise) → (commands, right, wrong)
+    let mut by: std::collections::BTreeMap<(String, String), (usize, usize, usize)> =
+        Default::default();
     let mut n = 0usize;
     let t0 = std::time::Instant::now();
+    let only = std::env::var("OPENNAV_BENCH_VOICES").ok();
     for voice in VOICES {
-        for speed in SPEEDS {
-            for pitch in PITCHES {
+        if only
+            .as_ref()
+            .is_some_and(|o| !o.split(',').any(|x| x == voice))
+        {
+            continue;
+        }
+        let mut vs = v.clone();
+        if enrolled {
+            let hmm = enrolled_model(dir, voice, Path::new(&v.hmm), Path::new(&v.dict));
+            vs.hmm = hmm.display().to_string();
+            vs.max_phone_excess_per_frame = opennav::voice::intent::MAX_PHONE_EXCESS_ENROLLED;
+        }
+        let v = &vs;
+        let (mut r, g) = recogniser(v, &vocabulary).expect("recogniser");
+        for speed in set.speeds {
+            for pitch in set.pitches {
                 for noise in NOISE {
-                    for target in TARGETS {
-                        for phrase in PHRASES {
+                    for target in set.targets {
+                        for phrase in set.phrases {
                             n += 1;
                             let text = phrase.replace("{}", target);
-                            let f = make(dir.path(), n, &text, voice, speed, pitch, noise);
+                            let f = make(dir, n, &text, voice, speed, pitch, noise);
                             let h = hear(&mut r, &g, v, &read_audio(&f).expect("audio"))
                                 .expect("decodes");
+                            evidence("go", target, &h, (voice, speed, pitch, noise, enrolled));
                             score.go += 1;
+                            let cell = by
+                                .entry((voice.to_string(), format!("{noise:?}")))
+                                .or_default();
+                            cell.0 += 1;
                             match h.decision {
                                 Decision::Act(UserInput::Goto(l)) if l == target => {
+                                    cell.1 += 1;
                                     score.right += 1
                                 }
                                 Decision::Act(UserInput::Goto(_)) => {
+                                    cell.2 += 1;
                                     eprintln!("wrong target: {text:?} ({voice} {speed} {pitch} {noise:?}) heard {:?}", h.heard);
                                     score.wrong += 1
                                 }
@@ -148,11 +306,12 @@ fn main() {
                             }
                         }
                     }
-                    for text in STOPS {
+                    for text in set.stops {
                         n += 1;
-                        let f = make(dir.path(), n, text, voice, speed, pitch, noise);
+                        let f = make(dir, n, text, voice, speed, pitch, noise);
                         let h =
                             hear(&mut r, &g, v, &read_audio(&f).expect("audio")).expect("decodes");
+                        evidence("stop", text, &h, (voice, speed, pitch, noise, enrolled));
                         score.stops += 1;
                         match &h.decision {
                             Decision::Act(UserInput::Stop) => {
@@ -166,11 +325,12 @@ fn main() {
                             d => eprintln!("stop missed: {text:?} ({voice} {speed} {pitch} {noise:?}) heard {:?}, {d:?}", h.heard),
                         }
                     }
-                    for text in OUTSIDE {
+                    for text in set.outside {
                         n += 1;
-                        let f = make(dir.path(), n, text, voice, speed, pitch, noise);
+                        let f = make(dir, n, text, voice, speed, pitch, noise);
                         let h =
                             hear(&mut r, &g, v, &read_audio(&f).expect("audio")).expect("decodes");
+                        evidence("outside", text, &h, (voice, speed, pitch, noise, enrolled));
                         score.outside += 1;
                         match h.decision {
                             Decision::Act(UserInput::Goto(_)) => score.outside_sent += 1,
@@ -211,7 +371,18 @@ fn main() {
         pct(score.outside_sent, score.outside),
         pct(score.outside_asked, score.outside)
     );
-    // the real recording: "go forward ten meters" with "forward" a target
+    for ((voice, noise), (n, right, wrong)) in &by {
+        println!(
+            "    {voice:>15} {noise:>9}: right {:5.1} %, wrong {:4.1} % of {n}",
+            pct(*right, *n),
+            pct(*wrong, *n)
+        );
+    }
+}
+
+/// The real recording: "go forward ten meters" with "forward" a target.
+fn real_recording(settings: &Settings) {
+    let v = &settings.voice;
     let real = std::env::var_os("OPENNAV_SHARED")
         .map(PathBuf::from)
         .unwrap_or_else(|| PathBuf::from("../shared"))

@@ -19,9 +19,11 @@ step "system packages"
 # vcan HIL VM (tests/vcan/run-vm.sh; binutils for objcopy); systemd +
 # iproute2: `systemd-analyze verify/security` on the units (tests/systemd_units.rs);
 # espeak-ng: the chair's spoken sentences (src/speech.rs); PocketSphinx:
-# speech recognition (the `voice` feature), sox to prepare test speech
+# speech recognition (the `voice` feature), sox to prepare test speech;
+# sphinxtrain, sphinxbase-utils, pocketsphinx: `opennav voice enroll` (the
+# person's voice, src/voice/enroll.rs)
 apt_pkgs=(make gcc binutils gcc-avr avr-libc simavr libsimavr-dev libelf-dev qemu-system-x86 busybox-static cpio systemd iproute2 espeak-ng
-  libpocketsphinx-dev libsphinxbase-dev pocketsphinx-en-us sox)
+  libpocketsphinx-dev libsphinxbase-dev pocketsphinx-en-us sox sphinxtrain sphinxbase-utils pocketsphinx)
 # a python3 with venv already on PATH (pyenv, say) is enough; else Debian's
 python3 -c 'import venv, ensurepip' 2>/dev/null || apt_pkgs+=(python3 python3-venv python3-pip)
 missing=()

@@ -206,8 +206,26 @@ fn run_listening(
     max: &str,
     exit_on_arrival: bool,
 ) -> serde_json::Value {
+    run_listening_with(wav, confirm, max, exit_on_arrival, None)
+}
+
+/// The same, with the acoustic model adapted to the voice in `adapted`
+/// (`opennav voice enroll`'s directory) when given.
+fn run_listening_with(
+    wav: &std::path::Path,
+    confirm: &str,
+    max: &str,
+    exit_on_arrival: bool,
+    adapted: Option<&std::path::Path>,
+) -> serde_json::Value {
     let _cores = cores();
     let mut c = std::process::Command::new(env!("CARGO_BIN_EXE_opennav"));
+    if let Some(model) = adapted {
+        c.env("OPENNAV_VOICE__HMM", model).env(
+            "OPENNAV_VOICE__MAX_PHONE_EXCESS_PER_FRAME",
+            opennav::voice::intent::MAX_PHONE_EXCESS_ENROLLED.to_string(),
+        );
+    }
     c.args(["run", "--sim", "--clock", "realtime", "--no-stdin"]);
     if exit_on_arrival {
         c.arg("--exit-on-arrival");
@@ -236,15 +254,19 @@ fn run_listening(
 #[test]
 fn a_spoken_command_drives_the_chair_and_a_spoken_stop_brings_it_to_rest() {
     let dir = tempfile::tempdir().expect("tmp");
-    // a sure command goes at once (confirm = unsure); US English, the acoustic model's own accent (accuracy over voices,
-    // speeds and noise is benches/voice_commands.rs's)
+    // a sure command goes at once (confirm = unsure): the person's voice
+    // enrolled, as it is set up on the chair (with Debian's model as
+    // installed this one is asked back: free phones fit the VAD's cut of it
+    // by 27.0 per frame better than the command, over the 26 allowed;
+    // accuracy over voices, speeds and noise is benches/voice_commands.rs's)
+    let model = enrolled_model(dir.path(), "en-us");
     let wav = spoken_sequence(
         dir.path(),
         "chair",
         "en-us",
         &[("take me to the chair", 1.0)],
     );
-    let r = run_listening(&wav, "unsure", "30s", true);
+    let r = run_listening_with(&wav, "unsure", "30s", true, Some(&model));
     assert_eq!(r["outcome"], "arrived", "{r}");
     assert_eq!(r["sim"]["world"]["collision_steps"], 0, "{r}");
     // "stop" three seconds into the trip (the trip under way: its start
@@ -255,7 +277,7 @@ fn a_spoken_command_drives_the_chair_and_a_spoken_stop_brings_it_to_rest() {
         "en-us",
         &[("take me to the chair", 3.0), ("stop", 2.0)],
     );
-    let r = run_listening(&wav, "unsure", "12s", false);
+    let r = run_listening_with(&wav, "unsure", "12s", false, Some(&model));
     assert_eq!(r["outcome"], "timeout", "{r}");
     assert!(r["said"].to_string().contains("Stopped."), "{r}");
     assert_eq!(r["supervisor"]["Stopped"], "UserStop", "{r}");
@@ -296,4 +318,194 @@ fn an_unsure_utterance_is_asked_back_and_the_chair_waits() {
             < 0.01,
         "{r}"
     );
+}
+
+/// The enrollment sentences read by espeak-ng's `voice` into `dir` as
+/// NN.wav with NN.txt (as an occupational therapist records them).
+fn enrollment_recordings(dir: &std::path::Path, voice: &str) {
+    let made = tempfile::tempdir().expect("tmp");
+    for (i, text) in opennav::voice::enroll::SENTENCES.iter().enumerate() {
+        let wav = spoken_in(made.path(), &format!("{i:02}"), text, voice);
+        std::fs::copy(&wav, dir.join(format!("{i:02}.wav"))).expect("copy");
+        std::fs::write(dir.join(format!("{i:02}.txt")), text).expect("text");
+    }
+}
+
+/// `voice`'s enrollment sentences through `opennav voice enroll`: the
+/// adapted model's directory (under `dir`).
+fn enrolled_model(dir: &std::path::Path, voice: &str) -> std::path::PathBuf {
+    let recordings = dir.join(format!("recordings-{voice}"));
+    std::fs::create_dir(&recordings).expect("dir");
+    enrollment_recordings(&recordings, voice);
+    let model = dir.join(format!("model-{voice}"));
+    let _cores = cores();
+    let out = opennav(&[
+        std::ffi::OsStr::new("voice"),
+        std::ffi::OsStr::new("enroll"),
+        std::ffi::OsStr::new("--dir"),
+        recordings.as_os_str(),
+        std::ffi::OsStr::new("--out"),
+        model.as_os_str(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    model
+}
+
+fn opennav(args: &[&std::ffi::OsStr]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_opennav"))
+        .args(args)
+        .output()
+        .expect("runs")
+}
+
+#[test]
+fn a_persons_enrollment_adapts_the_model_and_a_doubtful_command_is_then_heard() {
+    use std::ffi::OsStr;
+    let dir = tempfile::tempdir().expect("tmp");
+    let recordings = dir.path().join("recordings");
+    std::fs::create_dir(&recordings).expect("dir");
+    enrollment_recordings(&recordings, "en-gb-scotland");
+    let model = dir.path().join("model");
+    let out = {
+        let _cores = cores();
+        opennav(&[
+            OsStr::new("voice"),
+            OsStr::new("enroll"),
+            OsStr::new("--dir"),
+            recordings.as_os_str(),
+            OsStr::new("--out"),
+            model.as_os_str(),
+        ])
+    };
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let line: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON line");
+    assert_eq!(line["recordings"], 30, "{line}");
+    assert!(
+        line["config"]
+            .as_str()
+            .is_some_and(|c| c.contains("max_phone_excess_per_frame = 22")),
+        "{line}"
+    );
+    let used = line["used"].as_u64().expect("used");
+    assert!(used >= 25, "{line}");
+    assert_eq!(
+        line["not_aligned"].as_array().expect("list").len() as u64,
+        30 - used,
+        "{line}"
+    );
+    for f in [
+        "means",
+        "variances",
+        "mixture_weights",
+        "transition_matrices",
+        "mdef",
+        "feat.params",
+        "noisedict",
+    ] {
+        assert!(model.join(f).is_file(), "{f} missing in the adapted model");
+    }
+    // a command the installed model is unsure of (the same voice; no
+    // command is among the sentences): asked back before, acted on after
+    let wav = spoken_sequence(
+        dir.path(),
+        "command",
+        "en-gb-scotland",
+        &[("take me to the chair", 1.0)],
+    );
+    let before = &opennav_check_voice(&[&wav], "chair,door,toilet,table,bed,sofa")[0];
+    assert_eq!(before["intent"], "unsure", "{before}");
+    let config = dir.path().join("adapted.toml");
+    std::fs::write(
+        &config,
+        format!(
+            "[voice]\nhmm = {:?}\nmax_phone_excess_per_frame = {}\n",
+            model.display().to_string(),
+            opennav::voice::intent::MAX_PHONE_EXCESS_ENROLLED
+        ),
+    )
+    .expect("config");
+    let after = {
+        let _cores = cores();
+        common::opennav_json_lines(&[
+            OsStr::new("--config"),
+            config.as_os_str(),
+            OsStr::new("check"),
+            OsStr::new("voice"),
+            OsStr::new("--vocabulary"),
+            OsStr::new("chair,door,toilet,table,bed,sofa"),
+            OsStr::new("--wav"),
+            wav.as_os_str(),
+        ])
+    };
+    assert_eq!(after[0]["intent"], "go", "{}", after[0]);
+    assert_eq!(after[0]["label"], "chair", "{}", after[0]);
+    assert!(
+        after[0]["confidence"].as_f64().expect("c") > before["confidence"].as_f64().expect("c"),
+        "{before} → {}",
+        after[0]
+    );
+}
+
+#[test]
+fn an_enrollment_with_bad_recordings_names_what_is_wrong() {
+    use std::ffi::OsStr;
+    let dir = tempfile::tempdir().expect("tmp");
+    let enroll = |recordings: &std::path::Path| {
+        let out = opennav(&[
+            OsStr::new("voice"),
+            OsStr::new("enroll"),
+            OsStr::new("--dir"),
+            recordings.as_os_str(),
+            OsStr::new("--out"),
+            dir.path().join("model").as_os_str(),
+        ]);
+        assert!(!out.status.success());
+        assert!(
+            !dir.path().join("model").exists(),
+            "no model from bad input"
+        );
+        String::from_utf8_lossy(&out.stderr).to_string()
+    };
+    let e = enroll(&dir.path().join("nowhere"));
+    assert!(e.contains("nowhere"), "{e}");
+    let recs = dir.path().join("recs");
+    std::fs::create_dir(&recs).expect("dir");
+    let e = enroll(&recs);
+    assert!(e.contains("no .wav recordings"), "{e}");
+    // a recording without its text
+    let made = tempfile::tempdir().expect("tmp");
+    let wav = spoken_in(made.path(), "a", "the water in the glass is cold", "en");
+    std::fs::copy(&wav, recs.join("01.wav")).expect("copy");
+    let e = enroll(&recs);
+    assert!(
+        e.contains("01.wav: its text") && e.contains("01.txt"),
+        "{e}"
+    );
+    // a word the dictionary lacks
+    std::fs::write(recs.join("01.txt"), "the water in the glazz is cold").expect("text");
+    for i in 2..=6 {
+        std::fs::copy(&wav, recs.join(format!("{i:02}.wav"))).expect("copy");
+        std::fs::write(
+            recs.join(format!("{i:02}.txt")),
+            "the water in the glass is cold",
+        )
+        .expect("text");
+    }
+    let e = enroll(&recs);
+    assert!(e.contains("01.wav") && e.contains("glazz"), "{e}");
+    // too few
+    std::fs::write(recs.join("01.txt"), "the water in the glass is cold").expect("text");
+    for i in 2..=6 {
+        std::fs::remove_file(recs.join(format!("{i:02}.wav"))).expect("rm");
+    }
+    let e = enroll(&recs);
+    assert!(e.contains("1 recordings: at least 5"), "{e}");
 }

@@ -8,6 +8,7 @@ pub mod eval;
 pub mod replay;
 pub mod run;
 pub mod sim;
+pub mod voice;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -31,6 +32,10 @@ pub enum Command {
     /// motors, on the chair's devices (or the simulator with --sim). Words
     /// on stdin (or --prompt): an object to go to, `stop`, `quit`.
     Run(run::RunArgs),
+    /// The person's own voice: the sentences to read, and the speaker
+    /// adaptation made from their recordings.
+    #[command(subcommand)]
+    Voice(voice::VoiceCommand),
     /// Detect prompted objects in one RGB(-D) image: 2D boxes, and 3D objects with depth.
     Detect(detect::DetectArgs),
     /// Play a recording back through perception and the tracker: one JSON
@@ -209,6 +214,7 @@ fn dispatch(cli: Cli) -> Result<(), Failure> {
         Command::Sim(args) => sim::run(config, args),
         Command::Check(cmd) => check::run(config, cmd),
         Command::Run(args) => run::run(config, args),
+        Command::Voice(cmd) => voice::run(config, cmd),
         Command::Detect(args) => detect::run(Settings::load(config).map_err(bad_input)?, args),
         Command::Replay(args) => replay::run(config, args),
         Command::AckFault(socket) => {

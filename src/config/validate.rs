@@ -369,6 +369,12 @@ impl Settings {
             })?;
         }
         finite_range("voice.min_confidence", self.voice.min_confidence, 0.0, 1.0)?;
+        finite_range(
+            "voice.max_phone_excess_per_frame",
+            self.voice.max_phone_excess_per_frame,
+            0.0,
+            1000.0,
+        )?;
         self.live.socket_addr()?;
         let r = &self.ros2;
         range("ros2.depth", r.depth, 1, 1000)?;

@@ -71,6 +71,7 @@ pub fn recogniser(
             hmm: PathBuf::from(&s.hmm),
             dict: dict_path,
             english_lm: PathBuf::from(&s.english_lm),
+            phone_lm: PathBuf::from(&s.phone_lm),
         },
         &g.jsgf,
         &g.extra_pronunciations,
@@ -131,6 +132,11 @@ pub struct Heard {
     pub intent: intent::Intent,
     pub label: Option<String>,
     pub decision: Decision,
+    /// The evidence (for the log and the technician): a heard target's
+    /// acoustic margin per frame over its best rival, and how much better
+    /// per frame free phones explain the audio than the grammar's path.
+    pub margin_per_frame: Option<f64>,
+    pub phone_excess_per_frame: Option<f64>,
 }
 
 impl Heard {
@@ -221,7 +227,11 @@ pub fn hear(
             .count();
         same as f64 / h.top_paths.len() as f64
     });
-    tracing::debug!(heard = ?heard, margin_per_frame, nbest_agreement, inner_silence = h.as_ref().map_or(0, |h| h.inner_silence_frames), "voice: evidence");
+    let phone_excess_per_frame = h.as_ref().and_then(|h| {
+        h.phone_score
+            .map(|p| (p as f64 - h.score as f64) / h.frames.max(1) as f64)
+    });
+    tracing::debug!(heard = ?heard, margin_per_frame, phone_excess_per_frame, nbest_agreement, inner_silence = h.as_ref().map_or(0, |h| h.inner_silence_frames), "voice: evidence");
     let confidence = intent::confidence(
         &meant,
         label.as_deref(),
@@ -231,7 +241,9 @@ pub fn hear(
             bare: label.as_deref().is_some_and(bare),
             nbest_agreement,
             inner_silence_frames: h.as_ref().map_or(0, |h| h.inner_silence_frames),
+            phone_excess_per_frame,
         },
+        s.max_phone_excess_per_frame,
     );
     let decision = intent::decide(
         &meant,
@@ -246,6 +258,8 @@ pub fn hear(
         intent: meant,
         label,
         decision,
+        margin_per_frame,
+        phone_excess_per_frame,
     })
 }
 

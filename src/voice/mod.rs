@@ -3,6 +3,7 @@
 //! heard and the decision (act, ask back, ignore) are pure; the recogniser
 //! is PocketSphinx (Debian's 0.8 libraries) behind the `voice` feature.
 
+pub mod enroll;
 pub mod grammar;
 pub mod intent;
 #[cfg(feature = "voice")]
@@ -33,4 +34,12 @@ pub struct VoiceSettings {
     pub dict: String,
     /// A general English language model, to check what the grammar heard.
     pub english_lm: String,
+    /// A phonetic language model, to check how much better than the
+    /// grammar free phones explain what was heard.
+    pub phone_lm: String,
+    /// How much better per frame free phones may explain an utterance than
+    /// the grammar's path for its margin to count (`intent::
+    /// MAX_PHONE_EXCESS_INSTALLED` for Debian's model,
+    /// `MAX_PHONE_EXCESS_ENROLLED` for one adapted to the person).
+    pub max_phone_excess_per_frame: f64,
 }

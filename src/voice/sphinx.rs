@@ -40,6 +40,7 @@ extern "C" {
     fn ps_set_jsgf_string(ps: *mut Decoder, name: *const c_char, jsgf: *const c_char) -> c_int;
     fn ps_set_search(ps: *mut Decoder, name: *const c_char) -> c_int;
     fn ps_set_lm_file(ps: *mut Decoder, name: *const c_char, path: *const c_char) -> c_int;
+    fn ps_set_allphone_file(ps: *mut Decoder, name: *const c_char, path: *const c_char) -> c_int;
     fn ps_start_stream(ps: *mut Decoder) -> c_int;
     fn ps_start_utt(ps: *mut Decoder) -> c_int;
     fn ps_process_raw(
@@ -111,6 +112,9 @@ pub struct ModelPaths {
     /// A general English language model: the same audio decoded without
     /// the grammar says whether the grammar's words were really spoken.
     pub english_lm: PathBuf,
+    /// A phonetic language model: the same audio decoded as free phones
+    /// says how much better than the grammar anything at all explains it.
+    pub phone_lm: PathBuf,
 }
 
 impl ModelPaths {
@@ -121,6 +125,7 @@ impl ModelPaths {
             hmm: base.join("en-us"),
             dict: base.join("cmudict-en-us.dict"),
             english_lm: base.join("en-us.lm.bin"),
+            phone_lm: base.join("en-us-phone.lm.bin"),
         }
     }
 }
@@ -151,6 +156,9 @@ pub struct Hypothesis {
     /// What a general English decode of the same audio heard (free
     /// words, no grammar): agreement with `text` is the confidence.
     pub english: Option<String>,
+    /// The acoustic score of the best free phone sequence (no words, no
+    /// grammar): how well anything at all explains the audio.
+    pub phone_score: Option<i32>,
     /// The grammar's next-best readings of the same audio, best first (a
     /// "stop" among them is not ignored).
     pub alternatives: Vec<String>,
@@ -196,7 +204,12 @@ impl Recognizer {
         jsgf: &str,
         extra: &[(String, String)],
     ) -> Result<Recognizer, SphinxError> {
-        for p in [&models.hmm, &models.dict, &models.english_lm] {
+        for p in [
+            &models.hmm,
+            &models.dict,
+            &models.english_lm,
+            &models.phone_lm,
+        ] {
             if !p.exists() {
                 return Err(SphinxError::Model {
                     path: p.display().to_string(),
@@ -207,13 +220,16 @@ impl Recognizer {
         let path = |p: &Path| cstring("a model path", &p.display().to_string());
         let (hmm, dict) = (path(&models.hmm)?, path(&models.dict)?);
         let k = |s: &str| cstring("an option", s);
-        let (k_hmm, k_dict, k_log, v_log, k_bs, v_bs) = (
+        let (k_hmm, k_dict, k_log, v_log, k_bs, v_bs, k_ci) = (
             k("-hmm")?,
             k("-dict")?,
             k("-logfn")?,
             k("/dev/null")?,
             k("-bestpath")?,
             k("yes")?,
+            // the free phone pass with context-independent phones: as
+            // fast as the grammar's (with triphones it takes seconds)
+            k("-allphone_ci")?,
         );
         // SAFETY: the variadic list is (name, value) C strings that live
         // until the call returns, terminated by NULL, as cmd_ln_init reads it
@@ -229,6 +245,8 @@ impl Recognizer {
                 k_log.as_ptr(),
                 v_log.as_ptr(),
                 k_bs.as_ptr(),
+                v_bs.as_ptr(),
+                k_ci.as_ptr(),
                 v_bs.as_ptr(),
                 std::ptr::null::<c_char>(),
             )
@@ -268,6 +286,14 @@ impl Recognizer {
                 reason: "PocketSphinx could not load it".into(),
             });
         }
+        let (name, phones) = (cstring("a search name", "phones")?, path(&models.phone_lm)?);
+        // SAFETY: valid decoder and NUL-terminated strings
+        if unsafe { ps_set_allphone_file(r.ps, name.as_ptr(), phones.as_ptr()) } != 0 {
+            return Err(SphinxError::Model {
+                path: models.phone_lm.display().to_string(),
+                reason: "PocketSphinx could not load it as a phonetic model".into(),
+            });
+        }
         r.set_grammar(jsgf)?;
         Ok(r)
     }
@@ -288,7 +314,7 @@ impl Recognizer {
 
     /// Adds another grammar under `name` (searched only by [`Self::read`]).
     pub fn add_grammar(&mut self, name: &str, jsgf: &str) -> Result<(), SphinxError> {
-        if name == "opennav" || name == "english" {
+        if name == "opennav" || name == "english" || name == "phones" {
             return Err(SphinxError::Grammar(format!(
                 "{name:?} is a reserved search name"
             )));
@@ -457,6 +483,8 @@ impl Recognizer {
         let frames = unsafe { ps_get_n_frames(self.ps) };
         self.select("english")?;
         let english = self.pass(samples);
+        self.select("phones")?;
+        let phones = self.pass(samples);
         self.select("opennav")?;
         Ok(Some(Hypothesis {
             text,
@@ -464,6 +492,7 @@ impl Recognizer {
             probability,
             inner_silence_frames,
             english: english?.map(|p| p.text),
+            phone_score: phones?.map(|p| p.score),
             alternatives,
             top_paths,
             frames,

@@ -1,0 +1,643 @@
+//! The person's own voice, learnt: a speaker-adapted copy of the acoustic
+//! model from a few minutes of their speech, as CMU Sphinx's adaptation
+//! recipe makes it — features with `sphinx_fe`, state statistics with
+//! SphinxTrain's `bw`, then maximum a posteriori re-estimation of the
+//! Gaussians, mixture weights and transitions with `map_adapt`. The
+//! adapted model is a directory the recogniser loads in place of Debian's
+//! (`[voice] hmm`); an occupational therapist makes it once, the chair
+//! keeps it, and the original stays untouched beside it.
+//!
+//! Debian's `pocketsphinx-en-us` ships its mixture weights only in the
+//! decoder's quantised form (`sendump`); `bw` and `map_adapt` read
+//! SphinxTrain's `mixture_weights`. [`mixture_weights_from_sendump`] undoes
+//! the quantisation (each weight is `1.0001^-(q << 10)`, renormalised).
+//!
+//! The pure parts (the conversion, the transcript check) take bytes and
+//! text; [`enroll`] runs the tools in a working directory.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use super::grammar::Dictionary;
+
+/// Sentences to read aloud for the adaptation (plain words of home life,
+/// every one in the US English dictionary; none of them a command, so the
+/// commands are not learnt from themselves). About two minutes of speech.
+pub const SENTENCES: [&str; 30] = [
+    "please open the window in the kitchen",
+    "the morning light is warm on the garden wall",
+    "my brother will visit us on sunday afternoon",
+    "we keep the books on the shelf near the lamp",
+    "the dog sleeps in the hall by the front step",
+    "turn the radio down a little before the news",
+    "she bought fresh bread and cheese at the market",
+    "the water in the glass is cold and clear",
+    "could you bring my jacket from the car",
+    "a yellow bird sang outside the bedroom window",
+    "the nurse comes every tuesday at nine o'clock",
+    "there is a long queue at the post office today",
+    "he painted the fence a pale shade of green",
+    "i would rather watch a film than play cards",
+    "the kettle is boiling so let us make coffee",
+    "our neighbour grows tomatoes and potatoes every summer",
+    "the thunder woke the children in the middle of the night",
+    "put the plates away and wipe the counter",
+    "the bus was late because of the heavy snow",
+    "my phone battery is almost empty again",
+    "the carpet in the living room needs cleaning",
+    "we walked along the river until the sun went down",
+    "the doctor said i should drink more water",
+    "a quiet evening with a good book is all i need",
+    "the shop on the corner sells newspapers and sweets",
+    "her voice was soft but very clear",
+    "move the box of toys out of the way",
+    "the clock on the wall is five minutes fast",
+    "we should fix the broken handle on the cupboard",
+    "thank you for helping me with the shopping",
+];
+
+/// Fewer utterances than this give too few frames for a transform.
+pub const MIN_RECORDINGS: usize = 5;
+
+/// One recorded sentence: 16 kHz mono samples and what was said.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Recording {
+    /// Where it came from (named in errors and in the report).
+    pub name: String,
+    pub samples: Vec<i16>,
+    pub text: String,
+}
+
+/// SphinxTrain's `mixture_weights` (an s3 file: header, byte-order
+/// magic, dimensions senones × streams × densities, float32 weights) from
+/// PocketSphinx's `sendump` (a header of length-prefixed strings, then for
+/// each stream and density one byte per senone: `q`, the weight being
+/// `1.0001^-(q << 10)`). Only the unclustered 8-bit form (`cluster_count
+/// 0`) exists in Debian's models; others are refused by name.
+pub fn mixture_weights_from_sendump(sendump: &[u8]) -> Result<Vec<u8>, String> {
+    let mut at = 0usize;
+    let int = |at: &mut usize, what: &str| -> Result<i32, String> {
+        let b = sendump
+            .get(*at..*at + 4)
+            .ok_or_else(|| format!("sendump: ends inside {what} at byte {at}"))?;
+        *at += 4;
+        Ok(i32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+    };
+    let (mut streams, mut clusters) = (None, 0i32);
+    loop {
+        let n = int(&mut at, "a header length")?;
+        if n == 0 {
+            break;
+        }
+        if !(1..=4096).contains(&n) {
+            return Err(format!(
+                "sendump: header string of length {n} at byte {} (a big-endian or damaged file?)",
+                at - 4
+            ));
+        }
+        let s = sendump
+            .get(at..at + n as usize)
+            .ok_or_else(|| format!("sendump: ends inside the header at byte {at}"))?;
+        at += n as usize;
+        let text = String::from_utf8_lossy(s.strip_suffix(&[0]).unwrap_or(s)).to_string();
+        let mut kv = text.split_whitespace();
+        match (kv.next(), kv.next().and_then(|v| v.parse::<i32>().ok())) {
+            (Some("feature_count"), Some(v)) => streams = Some(v),
+            (Some("cluster_count"), Some(v)) => clusters = v,
+            _ => {}
+        }
+    }
+    if clusters != 0 {
+        return Err(format!(
+            "sendump: cluster_count {clusters}: only unclustered weights can be converted"
+        ));
+    }
+    let streams = streams.ok_or("sendump: no feature_count in the header")?;
+    let densities = int(&mut at, "the number of densities")?;
+    let senones = int(&mut at, "the number of senones")?;
+    let ok = |v: i32, max: i32| (1..=max).contains(&v);
+    if !ok(streams, 8) || !ok(densities, 1 << 12) || !ok(senones, 1 << 20) {
+        return Err(format!(
+            "sendump: {streams} streams × {densities} densities × {senones} senones is not a model"
+        ));
+    }
+    let (f, d, s) = (streams as usize, densities as usize, senones as usize);
+    let body = sendump
+        .get(at..)
+        .filter(|b| b.len() == f * d * s)
+        .ok_or_else(|| {
+            format!(
+                "sendump: {} bytes of weights, {f} × {d} × {s} = {} expected",
+                sendump.len() - at.min(sendump.len()),
+                f * d * s
+            )
+        })?;
+    let step = 1024.0 * 1.0001f64.ln();
+    let mut out = Vec::with_capacity(64 + 4 * f * d * s);
+    let mut header = b"s3\nversion 1.0\n".to_vec();
+    // the data on a 4-byte boundary, as SphinxTrain writes it
+    let pad = (4 - (header.len() + b"endhdr\n".len()) % 4) % 4;
+    header.extend(std::iter::repeat_n(b' ', pad));
+    header.extend_from_slice(b"endhdr\n");
+    out.extend_from_slice(&header);
+    out.extend_from_slice(&0x1122_3344i32.to_le_bytes());
+    for v in [s, f, d, s * f * d] {
+        out.extend_from_slice(&(v as u32).to_le_bytes());
+    }
+    let mut weights = vec![0f64; d];
+    for sen in 0..s {
+        for stream in 0..f {
+            for (dens, w) in weights.iter_mut().enumerate() {
+                let q = body[(stream * d + dens) * s + sen];
+                *w = (-(q as f64) * step).exp();
+            }
+            let total: f64 = weights.iter().sum();
+            for w in &weights {
+                out.extend_from_slice(&((w / total) as f32).to_le_bytes());
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// The words of `text` the dictionary lacks (they cannot be aligned).
+pub fn unknown_words(text: &str, dict: &Dictionary) -> Vec<String> {
+    text.split_whitespace()
+        .map(str::to_lowercase)
+        .filter(|w| !dict.contains(w))
+        .collect()
+}
+
+/// The `feat.params` options `bw` needs as well (`-feat`, `-svspec`,
+/// `-cmn`, `-agc`) and the model type (`-model`: ptm, semi, cont).
+fn feature_params(text: &str) -> Vec<(String, String)> {
+    text.lines()
+        .filter_map(|l| {
+            let mut kv = l.split_whitespace();
+            Some((kv.next()?.to_string(), kv.next()?.to_string()))
+        })
+        .collect()
+}
+
+/// 16-bit mono 16 kHz PCM as a WAV file.
+fn wav_bytes(samples: &[i16]) -> Vec<u8> {
+    let data = (samples.len() * 2) as u32;
+    let mut b = Vec::with_capacity(44 + data as usize);
+    b.extend_from_slice(b"RIFF");
+    b.extend_from_slice(&(36 + data).to_le_bytes());
+    b.extend_from_slice(b"WAVEfmt ");
+    b.extend_from_slice(&16u32.to_le_bytes());
+    b.extend_from_slice(&1u16.to_le_bytes()); // PCM
+    b.extend_from_slice(&1u16.to_le_bytes()); // mono
+    b.extend_from_slice(&16_000u32.to_le_bytes());
+    b.extend_from_slice(&32_000u32.to_le_bytes());
+    b.extend_from_slice(&2u16.to_le_bytes());
+    b.extend_from_slice(&16u16.to_le_bytes());
+    b.extend_from_slice(b"data");
+    b.extend_from_slice(&data.to_le_bytes());
+    for s in samples {
+        b.extend_from_slice(&s.to_le_bytes());
+    }
+    b
+}
+
+/// Where the tools are (Debian 12: `sphinxtrain`, `sphinxbase-utils`,
+/// `pocketsphinx`).
+#[derive(Debug, Clone)]
+pub struct Tools {
+    pub sphinx_fe: PathBuf,
+    pub bw: PathBuf,
+    pub map_adapt: PathBuf,
+    pub mdef_convert: PathBuf,
+}
+
+impl Tools {
+    /// Debian's paths; a missing tool is named with its package.
+    pub fn debian() -> Result<Tools, String> {
+        let t = Tools {
+            sphinx_fe: PathBuf::from("/usr/bin/sphinx_fe"),
+            bw: PathBuf::from("/usr/lib/sphinxtrain/bw"),
+            map_adapt: PathBuf::from("/usr/lib/sphinxtrain/map_adapt"),
+            mdef_convert: PathBuf::from("/usr/bin/pocketsphinx_mdef_convert"),
+        };
+        for (p, package) in [
+            (&t.sphinx_fe, "sphinxbase-utils"),
+            (&t.bw, "sphinxtrain"),
+            (&t.map_adapt, "sphinxtrain"),
+            (&t.mdef_convert, "pocketsphinx"),
+        ] {
+            if !p.exists() {
+                return Err(format!(
+                    "{} not found (Debian: apt-get install {package})",
+                    p.display()
+                ));
+            }
+        }
+        Ok(t)
+    }
+}
+
+/// The model to adapt: its directory, and the dictionary the recordings'
+/// words are read with.
+#[derive(Debug, Clone, Copy)]
+pub struct Model<'a> {
+    pub hmm: &'a Path,
+    pub dict_path: &'a Path,
+    pub dict: &'a Dictionary,
+}
+
+/// What an enrollment made.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Enrolled {
+    /// Recordings used, and those `bw` could not align to their text
+    /// (said differently, cut short, too noisy), by name.
+    pub used: usize,
+    pub not_aligned: Vec<String>,
+    /// Seconds of speech.
+    pub seconds: f64,
+}
+
+fn run(cmd: &mut Command, what: &str, log: &Path) -> Result<(), String> {
+    let out = cmd
+        .output()
+        .map_err(|e| format!("{what}: cannot start {:?}: {e}", cmd.get_program()))?;
+    let mut text = out.stdout;
+    text.extend_from_slice(&out.stderr);
+    let _ = std::fs::write(log, &text);
+    if !out.status.success() {
+        let tail: String = String::from_utf8_lossy(&text)
+            .lines()
+            .rev()
+            .take(3)
+            .collect::<Vec<_>>()
+            .join(" / ");
+        return Err(format!(
+            "{what} failed ({}; log {}): {tail}",
+            out.status,
+            log.display()
+        ));
+    }
+    Ok(())
+}
+
+/// Makes the model in `hmm` adapted to the speaker of `recordings` as the
+/// directory `out` (replaced whole if it exists), working in `work` (left
+/// there: the tools' logs).
+/// `samples` get the recogniser's noise floor first, so that the
+/// adaptation hears what the recogniser will hear.
+pub fn enroll(
+    tools: &Tools,
+    model: &Model,
+    recordings: &[Recording],
+    work: &Path,
+    out: &Path,
+    noise_floor: impl Fn(&[i16]) -> Vec<i16>,
+) -> Result<Enrolled, String> {
+    let Model {
+        hmm,
+        dict_path,
+        dict,
+    } = *model;
+    if recordings.len() < MIN_RECORDINGS {
+        return Err(format!(
+            "{} recordings: at least {MIN_RECORDINGS} are needed (about {} sentences make a good transform)",
+            recordings.len(),
+            SENTENCES.len()
+        ));
+    }
+    for r in recordings {
+        let unknown = unknown_words(&r.text, dict);
+        if !unknown.is_empty() {
+            return Err(format!(
+                "{}: not in the pronunciation dictionary {}: {}",
+                r.name,
+                dict_path.display(),
+                unknown.join(", ")
+            ));
+        }
+        if r.text.split_whitespace().next().is_none() {
+            return Err(format!("{}: its text is empty", r.name));
+        }
+        if r.samples.len() < 16_000 / 2 {
+            return Err(format!(
+                "{}: {:.2} s of audio, too short for a sentence",
+                r.name,
+                r.samples.len() as f64 / 16_000.0
+            ));
+        }
+    }
+    let io = |e: std::io::Error, p: &Path| format!("{}: {e}", p.display());
+    std::fs::create_dir_all(work).map_err(|e| io(e, work))?;
+    // the model as bw reads it: text mdef, mixture_weights
+    let bw_model = work.join("model");
+    std::fs::create_dir_all(&bw_model).map_err(|e| io(e, &bw_model))?;
+    let feat_path = hmm.join("feat.params");
+    let feat_text = std::fs::read_to_string(&feat_path).map_err(|e| io(e, &feat_path))?;
+    let params = feature_params(&feat_text);
+    let param = |k: &str, default: &str| {
+        params
+            .iter()
+            .find(|(key, _)| key == k)
+            .map(|(_, v)| v.clone())
+            .unwrap_or_else(|| default.to_string())
+    };
+    let ts2cb = match param("-model", "ptm").as_str() {
+        "ptm" => ".ptm.",
+        "semi" => ".semi.",
+        "cont" => ".cont.",
+        other => return Err(format!("{}: model type {other:?}", feat_path.display())),
+    };
+    let mdef = bw_model.join("mdef.txt");
+    run(
+        Command::new(&tools.mdef_convert)
+            .arg("-text")
+            .arg(hmm.join("mdef"))
+            .arg(&mdef),
+        "converting the model definition",
+        &work.join("mdef_convert.log"),
+    )?;
+    let weights = hmm.join("mixture_weights");
+    let weights = if weights.exists() {
+        weights
+    } else {
+        let sendump = hmm.join("sendump");
+        let bytes = std::fs::read(&sendump).map_err(|e| io(e, &sendump))?;
+        let converted = mixture_weights_from_sendump(&bytes)?;
+        let path = bw_model.join("mixture_weights");
+        std::fs::write(&path, converted).map_err(|e| io(e, &path))?;
+        path
+    };
+    for f in ["means", "variances", "transition_matrices", "noisedict"] {
+        let (from, to) = (hmm.join(f), bw_model.join(f));
+        std::fs::copy(&from, &to).map_err(|e| io(e, &from))?;
+    }
+    std::fs::copy(&feat_path, bw_model.join("feat.params")).map_err(|e| io(e, &feat_path))?;
+    // the speech, as 16 kHz WAVs, and the transcription
+    let (mut ids, mut trans, mut seconds) = (String::new(), String::new(), 0.0);
+    for (i, r) in recordings.iter().enumerate() {
+        let id = format!("u{i:04}");
+        let wav = work.join(format!("{id}.wav"));
+        std::fs::write(&wav, wav_bytes(&noise_floor(&r.samples))).map_err(|e| io(e, &wav))?;
+        ids.push_str(&format!("{id}\n"));
+        let words: Vec<String> = r.text.split_whitespace().map(str::to_lowercase).collect();
+        trans.push_str(&format!("<s> {} </s> ({id})\n", words.join(" ")));
+        seconds += r.samples.len() as f64 / 16_000.0;
+    }
+    let (ids_path, trans_path) = (work.join("ids"), work.join("transcription"));
+    std::fs::write(&ids_path, ids).map_err(|e| io(e, &ids_path))?;
+    std::fs::write(&trans_path, trans).map_err(|e| io(e, &trans_path))?;
+    run(
+        Command::new(&tools.sphinx_fe)
+            .arg("-argfile")
+            .arg(bw_model.join("feat.params"))
+            .args(["-samprate", "16000", "-c"])
+            .arg(&ids_path)
+            .arg("-di")
+            .arg(work)
+            .arg("-do")
+            .arg(work)
+            .args(["-ei", "wav", "-eo", "mfc", "-mswav", "yes"]),
+        "sphinx_fe (features)",
+        &work.join("sphinx_fe.log"),
+    )?;
+    let bw_log = work.join("bw.log");
+    run(
+        Command::new(&tools.bw)
+            .arg("-hmmdir")
+            .arg(&bw_model)
+            .arg("-moddeffn")
+            .arg(&mdef)
+            .args(["-ts2cbfn", ts2cb])
+            .args(["-feat", &param("-feat", "1s_c_d_dd")])
+            .args(["-svspec", &param("-svspec", "0-12/13-25/26-38")])
+            .args(["-cmn", &param("-cmn", "batch")])
+            .args(["-agc", &param("-agc", "none")])
+            .arg("-dictfn")
+            .arg(dict_path)
+            .arg("-fdictfn")
+            .arg(bw_model.join("noisedict"))
+            .arg("-ctlfn")
+            .arg(&ids_path)
+            .arg("-lsnfn")
+            .arg(&trans_path)
+            .arg("-cepdir")
+            .arg(work)
+            .arg("-accumdir")
+            .arg(work),
+        "bw (statistics)",
+        &bw_log,
+    )?;
+    // "u0003 ignored": an utterance bw could not align to its text
+    let log = std::fs::read_to_string(&bw_log).unwrap_or_default();
+    let not_aligned: Vec<String> = log
+        .lines()
+        .filter_map(|l| l.trim().strip_suffix(" ignored"))
+        .filter_map(|l| l.rsplit(' ').next())
+        .filter_map(|id| id.strip_prefix('u')?.parse::<usize>().ok())
+        .filter_map(|i| recordings.get(i).map(|r| r.name.clone()))
+        .collect();
+    let used = recordings.len() - not_aligned.len();
+    if used < MIN_RECORDINGS {
+        return Err(format!(
+            "only {used} of {} recordings match their text (not aligned: {}): \
+             were the sentences read as written?",
+            recordings.len(),
+            not_aligned.join(", ")
+        ));
+    }
+    // the adapted model: map_adapt's four files beside the original's
+    // definition, features and fillers (as the recogniser reads a model)
+    let adapted = work.join("adapted");
+    std::fs::create_dir_all(&adapted).map_err(|e| io(e, &adapted))?;
+    run(
+        Command::new(&tools.map_adapt)
+            .arg("-moddeffn")
+            .arg(&mdef)
+            .args(["-ts2cbfn", ts2cb])
+            .arg("-meanfn")
+            .arg(bw_model.join("means"))
+            .arg("-varfn")
+            .arg(bw_model.join("variances"))
+            .arg("-mixwfn")
+            .arg(&weights)
+            .arg("-tmatfn")
+            .arg(bw_model.join("transition_matrices"))
+            .arg("-accumdir")
+            .arg(work)
+            .arg("-mapmeanfn")
+            .arg(adapted.join("means"))
+            .arg("-mapvarfn")
+            .arg(adapted.join("variances"))
+            .arg("-mapmixwfn")
+            .arg(adapted.join("mixture_weights"))
+            .arg("-maptmatfn")
+            .arg(adapted.join("transition_matrices")),
+        "map_adapt (the adapted model)",
+        &work.join("map_adapt.log"),
+    )?;
+    for f in ["mdef", "feat.params", "noisedict"] {
+        let (from, to) = (hmm.join(f), adapted.join(f));
+        std::fs::copy(&from, &to).map_err(|e| io(e, &from))?;
+    }
+    // into place: a sibling first, then one rename (a daemon reading the
+    // old model never sees half of the new one)
+    let parent = out
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    std::fs::create_dir_all(parent).map_err(|e| io(e, parent))?;
+    let staging = parent.join(format!(
+        ".{}.new",
+        out.file_name()
+            .map(|n| n.to_string_lossy())
+            .unwrap_or_default()
+    ));
+    let _ = std::fs::remove_dir_all(&staging);
+    std::fs::create_dir_all(&staging).map_err(|e| io(e, &staging))?;
+    for e in std::fs::read_dir(&adapted).map_err(|e| io(e, &adapted))? {
+        let from = e.map_err(|e| io(e, &adapted))?.path();
+        let to = staging.join(from.file_name().unwrap_or_default());
+        std::fs::copy(&from, &to).map_err(|e| io(e, &from))?;
+    }
+    if out.exists() {
+        let old = parent.join(format!(
+            ".{}.old",
+            out.file_name()
+                .map(|n| n.to_string_lossy())
+                .unwrap_or_default()
+        ));
+        let _ = std::fs::remove_dir_all(&old);
+        std::fs::rename(out, &old).map_err(|e| io(e, out))?;
+        std::fs::rename(&staging, out).map_err(|e| io(e, out))?;
+        let _ = std::fs::remove_dir_all(&old);
+    } else {
+        std::fs::rename(&staging, out).map_err(|e| io(e, out))?;
+    }
+    Ok(Enrolled {
+        used,
+        not_aligned,
+        seconds,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sendump(streams: i32, densities: i32, senones: i32, q: &[u8]) -> Vec<u8> {
+        let mut b = Vec::new();
+        for s in [
+            "BEGIN FILE FORMAT DESCRIPTION",
+            "END FILE FORMAT DESCRIPTION",
+            "cluster_count 0",
+            "codebook_count 1",
+            &format!("feature_count {streams}"),
+        ] {
+            b.extend_from_slice(&(s.len() as i32 + 1).to_le_bytes());
+            b.extend_from_slice(s.as_bytes());
+            b.push(0);
+        }
+        b.extend_from_slice(&0i32.to_le_bytes());
+        b.extend_from_slice(&densities.to_le_bytes());
+        b.extend_from_slice(&senones.to_le_bytes());
+        b.extend_from_slice(q);
+        b
+    }
+
+    fn floats(b: &[u8]) -> Vec<f32> {
+        b.chunks_exact(4)
+            .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+            .collect()
+    }
+
+    #[test]
+    fn sendump_weights_come_back_per_senone_and_stream_summing_to_one() {
+        // 2 streams × 2 densities × 3 senones, laid out [stream][density][senone]
+        let q = [
+            0, 10, 255, /* s0 d1 */ 0, 0, 0, /* s1 d0 */ 5, 5, 0, /* s1 d1 */ 5, 0,
+            0,
+        ];
+        let out = mixture_weights_from_sendump(&sendump(2, 2, 3, &q)).expect("converts");
+        let end = out
+            .windows(7)
+            .position(|w| w == b"endhdr\n")
+            .expect("header end")
+            + 7;
+        assert_eq!(&out[..3], b"s3\n");
+        assert_eq!(end % 4, 0, "data on a 4-byte boundary");
+        let magic = i32::from_le_bytes([out[end], out[end + 1], out[end + 2], out[end + 3]]);
+        assert_eq!(magic, 0x1122_3344);
+        let dims: Vec<u32> = out[end + 4..end + 20]
+            .chunks_exact(4)
+            .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+            .collect();
+        assert_eq!(dims, vec![3, 2, 2, 12]);
+        let w = floats(&out[end + 20..]);
+        assert_eq!(w.len(), 12);
+        // [senone][stream][density]
+        for pair in w.chunks_exact(2) {
+            assert!((pair[0] + pair[1] - 1.0).abs() < 1e-6, "{pair:?}");
+        }
+        // senone 0: stream 0 q 0 and 0, stream 1 q 5 and 5 → equal
+        for w in &w[0..4] {
+            assert!((w - 0.5).abs() < 1e-6, "{w}");
+        }
+        // senone 1, stream 0: q 10 against 0 → e^(-10·0.1024) : 1
+        let ratio = w[4] / w[5];
+        assert!((ratio - (-10.0 * 1024.0 * 1.0001f32.ln()).exp()).abs() < 1e-4);
+        // senone 2, stream 0: q 255 is (nearly) nothing; stream 1 equal
+        assert!(w[8] < 1e-10 && (w[9] - 1.0).abs() < 1e-6);
+        assert!((w[10] - 0.5).abs() < 1e-6);
+    }
+
+    #[test]
+    fn a_damaged_or_clustered_sendump_is_refused_by_name() {
+        let q = [0u8; 12];
+        let mut short = sendump(2, 2, 3, &q);
+        short.pop();
+        let e = mixture_weights_from_sendump(&short).expect_err("short");
+        assert!(e.contains("11 bytes of weights, 2 × 2 × 3 = 12"), "{e}");
+        let e = mixture_weights_from_sendump(&[1, 0, 0]).expect_err("truncated");
+        assert!(e.contains("ends inside a header length"), "{e}");
+        let mut big = sendump(2, 2, 3, &q);
+        big[..4].copy_from_slice(&0x1000_0000i32.to_le_bytes());
+        let e = mixture_weights_from_sendump(&big).expect_err("big-endian");
+        assert!(e.contains("big-endian or damaged"), "{e}");
+        let clustered = sendump(2, 2, 3, &q);
+        let text =
+            String::from_utf8_lossy(&clustered).replace("cluster_count 0", "cluster_count 8");
+        let e = mixture_weights_from_sendump(text.as_bytes()).expect_err("clustered");
+        assert!(e.contains("cluster_count 8"), "{e}");
+        let e = mixture_weights_from_sendump(&sendump(2, 0, 3, &[])).expect_err("no densities");
+        assert!(e.contains("is not a model"), "{e}");
+    }
+
+    #[cfg(feature = "voice")]
+    #[test]
+    fn every_enrollment_sentence_is_in_the_dictionary_and_none_is_a_command() {
+        let dict = Path::new("/usr/share/pocketsphinx/model/en-us/cmudict-en-us.dict");
+        let Ok(d) = super::super::grammar::read_dictionary(dict) else {
+            panic!(
+                "{} is needed (Debian: apt-get install pocketsphinx-en-us)",
+                dict.display()
+            );
+        };
+        for s in SENTENCES {
+            assert_eq!(unknown_words(s, &d), Vec::<String>::new(), "{s}");
+            for command in ["stop", "halt", "cancel", "yes", "no", "go", "take", "find"] {
+                assert!(
+                    !s.split_whitespace().any(|w| w == command),
+                    "{s}: {command}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn the_wav_header_says_16_khz_mono_16_bit() {
+        let b = wav_bytes(&[1, -1, 300]);
+        assert_eq!(b.len(), 44 + 6);
+        let parsed = super::super::wav::parse_wav(Path::new("x.wav"), &b).expect("parses");
+        assert_eq!(parsed, vec![1, -1, 300]);
+    }
+}
