@@ -412,6 +412,31 @@ fn a_persons_enrollment_adapts_the_model_and_a_doubtful_command_is_then_heard() 
     ] {
         assert!(model.join(f).is_file(), "{f} missing in the adapted model");
     }
+    // enrolled again: the model replaced whole, nothing left beside it
+    let again = {
+        let _cores = cores();
+        opennav(&[
+            OsStr::new("voice"),
+            OsStr::new("enroll"),
+            OsStr::new("--dir"),
+            recordings.as_os_str(),
+            OsStr::new("--out"),
+            model.as_os_str(),
+        ])
+    };
+    assert!(
+        again.status.success(),
+        "{}",
+        String::from_utf8_lossy(&again.stderr)
+    );
+    let beside: Vec<String> = std::fs::read_dir(dir.path())
+        .expect("dir")
+        .filter_map(|e| e.ok())
+        .map(|e| e.file_name().to_string_lossy().to_string())
+        .filter(|n| n.starts_with('.'))
+        .collect();
+    assert!(beside.is_empty(), "{beside:?}");
+    assert!(model.join("means").is_file());
     // a command the installed model is unsure of (the same voice; no
     // command is among the sentences): asked back before, acted on after
     let wav = spoken_sequence(

@@ -486,12 +486,12 @@ pub fn enroll(
         .filter(|p| !p.as_os_str().is_empty())
         .unwrap_or(Path::new("."));
     std::fs::create_dir_all(parent).map_err(|e| io(e, parent))?;
-    let staging = parent.join(format!(
-        ".{}.new",
-        out.file_name()
-            .map(|n| n.to_string_lossy())
-            .unwrap_or_default()
-    ));
+    // ".NAME.new", ".NAME.old" beside `out`
+    let sibling = |suffix: &str| {
+        let name = out.file_name().map(|n| n.to_string_lossy());
+        parent.join(format!(".{}.{suffix}", name.unwrap_or_default()))
+    };
+    let staging = sibling("new");
     let _ = std::fs::remove_dir_all(&staging);
     std::fs::create_dir_all(&staging).map_err(|e| io(e, &staging))?;
     for e in std::fs::read_dir(&adapted).map_err(|e| io(e, &adapted))? {
@@ -500,12 +500,7 @@ pub fn enroll(
         std::fs::copy(&from, &to).map_err(|e| io(e, &from))?;
     }
     if out.exists() {
-        let old = parent.join(format!(
-            ".{}.old",
-            out.file_name()
-                .map(|n| n.to_string_lossy())
-                .unwrap_or_default()
-        ));
+        let old = sibling("old");
         let _ = std::fs::remove_dir_all(&old);
         std::fs::rename(out, &old).map_err(|e| io(e, out))?;
         std::fs::rename(&staging, out).map_err(|e| io(e, out))?;
