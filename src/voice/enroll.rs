@@ -263,7 +263,9 @@ fn run(cmd: &mut Command, what: &str, log: &Path) -> Result<(), String> {
         .map_err(|e| format!("{what}: cannot start {:?}: {e}", cmd.get_program()))?;
     let mut text = out.stdout;
     text.extend_from_slice(&out.stderr);
-    let _ = std::fs::write(log, &text);
+    if let Err(e) = std::fs::write(log, &text) {
+        tracing::warn!(log = %log.display(), error = %e, "voice enroll: the tool's log cannot be written");
+    }
     if !out.status.success() {
         let tail: String = String::from_utf8_lossy(&text)
             .lines()
@@ -428,7 +430,8 @@ pub fn enroll(
         &bw_log,
     )?;
     // "u0003 ignored": an utterance bw could not align to its text
-    let log = std::fs::read_to_string(&bw_log).unwrap_or_default();
+    // (without its log, which recordings bw skipped would be unknown)
+    let log = std::fs::read_to_string(&bw_log).map_err(|e| io(e, &bw_log))?;
     let not_aligned: Vec<String> = log
         .lines()
         .filter_map(|l| l.trim().strip_suffix(" ignored"))
@@ -492,6 +495,8 @@ pub fn enroll(
         parent.join(format!(".{}.{suffix}", name.unwrap_or_default()))
     };
     let staging = sibling("new");
+    // leftovers of an interrupted enrollment (usually none); one that
+    // cannot go makes the copy or rename below fail with its name
     let _ = std::fs::remove_dir_all(&staging);
     std::fs::create_dir_all(&staging).map_err(|e| io(e, &staging))?;
     for e in std::fs::read_dir(&adapted).map_err(|e| io(e, &adapted))? {
@@ -504,7 +509,9 @@ pub fn enroll(
         let _ = std::fs::remove_dir_all(&old);
         std::fs::rename(out, &old).map_err(|e| io(e, out))?;
         std::fs::rename(&staging, out).map_err(|e| io(e, out))?;
-        let _ = std::fs::remove_dir_all(&old);
+        if let Err(e) = std::fs::remove_dir_all(&old) {
+            tracing::warn!(old = %old.display(), error = %e, "voice enroll: the replaced model is left beside the new one");
+        }
     } else {
         std::fs::rename(&staging, out).map_err(|e| io(e, out))?;
     }
