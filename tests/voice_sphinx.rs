@@ -338,21 +338,26 @@ fn enrolled_model(dir: &std::path::Path, voice: &str) -> std::path::PathBuf {
     std::fs::create_dir(&recordings).expect("dir");
     enrollment_recordings(&recordings, voice);
     let model = dir.join(format!("model-{voice}"));
-    let _cores = cores();
-    let out = opennav(&[
-        std::ffi::OsStr::new("voice"),
-        std::ffi::OsStr::new("enroll"),
-        std::ffi::OsStr::new("--dir"),
-        recordings.as_os_str(),
-        std::ffi::OsStr::new("--out"),
-        model.as_os_str(),
-    ]);
+    let out = opennav_enroll(&recordings, &model);
     assert!(
         out.status.success(),
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
     model
+}
+
+/// `opennav voice enroll --dir recordings --out model`, the cores its own.
+fn opennav_enroll(recordings: &std::path::Path, model: &std::path::Path) -> std::process::Output {
+    let _cores = cores();
+    opennav(&[
+        std::ffi::OsStr::new("voice"),
+        std::ffi::OsStr::new("enroll"),
+        std::ffi::OsStr::new("--dir"),
+        recordings.as_os_str(),
+        std::ffi::OsStr::new("--out"),
+        model.as_os_str(),
+    ])
 }
 
 fn opennav(args: &[&std::ffi::OsStr]) -> std::process::Output {
@@ -370,17 +375,7 @@ fn a_persons_enrollment_adapts_the_model_and_a_doubtful_command_is_then_heard() 
     std::fs::create_dir(&recordings).expect("dir");
     enrollment_recordings(&recordings, "en-gb-scotland");
     let model = dir.path().join("model");
-    let out = {
-        let _cores = cores();
-        opennav(&[
-            OsStr::new("voice"),
-            OsStr::new("enroll"),
-            OsStr::new("--dir"),
-            recordings.as_os_str(),
-            OsStr::new("--out"),
-            model.as_os_str(),
-        ])
-    };
+    let out = opennav_enroll(&recordings, &model);
     assert!(
         out.status.success(),
         "{}",
@@ -413,17 +408,7 @@ fn a_persons_enrollment_adapts_the_model_and_a_doubtful_command_is_then_heard() 
         assert!(model.join(f).is_file(), "{f} missing in the adapted model");
     }
     // enrolled again: the model replaced whole, nothing left beside it
-    let again = {
-        let _cores = cores();
-        opennav(&[
-            OsStr::new("voice"),
-            OsStr::new("enroll"),
-            OsStr::new("--dir"),
-            recordings.as_os_str(),
-            OsStr::new("--out"),
-            model.as_os_str(),
-        ])
-    };
+    let again = opennav_enroll(&recordings, &model);
     assert!(
         again.status.success(),
         "{}",

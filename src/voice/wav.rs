@@ -92,6 +92,28 @@ pub fn read_audio(path: &Path) -> Result<Vec<i16>, String> {
     parse_wav(path, &b)
 }
 
+/// 16-bit mono 16 kHz PCM as a WAV file (what [`read_audio`] reads back).
+pub fn mono_16k_wav(samples: &[i16]) -> Vec<u8> {
+    let data = (samples.len() * 2) as u32;
+    let mut b = Vec::with_capacity(44 + data as usize);
+    b.extend_from_slice(b"RIFF");
+    b.extend_from_slice(&(36 + data).to_le_bytes());
+    b.extend_from_slice(b"WAVEfmt ");
+    b.extend_from_slice(&16u32.to_le_bytes());
+    b.extend_from_slice(&1u16.to_le_bytes()); // PCM
+    b.extend_from_slice(&1u16.to_le_bytes()); // mono
+    b.extend_from_slice(&16_000u32.to_le_bytes());
+    b.extend_from_slice(&32_000u32.to_le_bytes());
+    b.extend_from_slice(&2u16.to_le_bytes());
+    b.extend_from_slice(&16u16.to_le_bytes());
+    b.extend_from_slice(b"data");
+    b.extend_from_slice(&data.to_le_bytes());
+    for s in samples {
+        b.extend_from_slice(&s.to_le_bytes());
+    }
+    b
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -134,5 +156,13 @@ mod tests {
         for n in 0..full.len() {
             let _ = parse_wav(p, &full[..n]);
         }
+    }
+
+    #[test]
+    fn the_wav_header_says_16_khz_mono_16_bit() {
+        let b = mono_16k_wav(&[1, -1, 300]);
+        assert_eq!(b.len(), 44 + 6);
+        let parsed = parse_wav(Path::new("x.wav"), &b).expect("parses");
+        assert_eq!(parsed, vec![1, -1, 300]);
     }
 }
