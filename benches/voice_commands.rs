@@ -210,10 +210,11 @@ fn enrolled_model(dir: &Path, voice: &str, hmm: &Path, dict_path: &Path) -> Path
     )
     .expect("enrolls");
     println!(
-        "  {voice}: enrolled on {:.0} s of speech, {} of {} sentences aligned",
+        "  {voice}: enrolled on {:.0} s of speech, {} of {} sentences aligned, {} noisy copies",
         made.seconds,
         made.used,
-        recs.len()
+        recs.len(),
+        made.noisy_used
     );
     out
 }

@@ -113,6 +113,7 @@ fn enroll_dir(settings: &Settings, dir: &Path, out: &Path) -> Result<(), Failure
         "out": out,
         "recordings": recs.len(),
         "used": made.used,
+        "noisy_used": made.noisy_used,
         "not_aligned": made.not_aligned,
         "speech_s": (made.seconds * 10.0).round() / 10.0,
         "config": format!(
