@@ -12,7 +12,9 @@
 //!   cargo bench --features voice --bench voice_commands
 //!
 //! `OPENNAV_BENCH_ENROLL=no|yes|both` (both), `OPENNAV_BENCH_VOICES=en,…`
-//! (all three), `OPENNAV_BENCH_SET=tuning` (the set thresholds are chosen
+//! (all three), `OPENNAV_BENCH_PHONE_LIMIT=X` (`[voice]
+//! max_phone_excess_per_frame`; 1000 turns the check off),
+//! `OPENNAV_BENCH_SET=tuning` (the set thresholds are chosen
 //! on, not the measured one). Each utterance's evidence is a line on
 //! stderr starting with EVIDENCE.
 
@@ -152,12 +154,13 @@ fn evidence(
 ) {
     let num = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.3}"));
     eprintln!(
-        "EVIDENCE\t{kind}\t{said}\t{voice}\t{speed}\t{pitch}\t{noise:?}\t{enrolled}\t{:?}\t{:?}\t{:.3}\t{}\t{}",
+        "EVIDENCE\t{kind}\t{said}\t{voice}\t{speed}\t{pitch}\t{noise:?}\t{enrolled}\t{:?}\t{:?}\t{:.3}\t{}\t{}\t{:.3}",
         h.heard.as_deref().unwrap_or(""),
         h.decision,
         h.confidence,
         num(h.margin_per_frame),
-        num(h.phone_excess_per_frame)
+        num(h.phone_excess_per_frame),
+        h.english_agreement
     );
 }
 
@@ -272,6 +275,13 @@ fn measure(settings: &Settings, dir: &Path, enrolled: bool, set: &Set) {
             let hmm = enrolled_model(dir, voice, Path::new(&v.hmm), Path::new(&v.dict));
             vs.hmm = hmm.display().to_string();
             vs.max_phone_excess_per_frame = opennav::voice::intent::MAX_PHONE_EXCESS_ENROLLED;
+        }
+        // a limit of 1000 turns the phone check off: the EVIDENCE lines
+        // then say what any limit would have done (choosing it)
+        if let Ok(limit) = std::env::var("OPENNAV_BENCH_PHONE_LIMIT") {
+            vs.max_phone_excess_per_frame = limit
+                .parse()
+                .unwrap_or_else(|e| panic!("OPENNAV_BENCH_PHONE_LIMIT={limit:?}: {e}"));
         }
         let v = &vs;
         let (mut r, g) = recogniser(v, &vocabulary).expect("recogniser");

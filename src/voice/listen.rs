@@ -137,6 +137,8 @@ pub struct Heard {
     /// per frame free phones explain the audio than the grammar's path.
     pub margin_per_frame: Option<f64>,
     pub phone_excess_per_frame: Option<f64>,
+    /// The share of the meant words a free English decode heard too.
+    pub english_agreement: f64,
 }
 
 impl Heard {
@@ -227,11 +229,19 @@ pub fn hear(
             .count();
         same as f64 / h.top_paths.len() as f64
     });
+    // per frame of the words heard, not of the whole cut: silence scores
+    // alike in both passes, so how much of it the voice activity
+    // detection (or a file) leaves around the speech does not dilute it
     let phone_excess_per_frame = h.as_ref().and_then(|h| {
         h.phone_score
-            .map(|p| (p as f64 - h.score as f64) / h.frames.max(1) as f64)
+            .map(|p| (p as f64 - h.score as f64) / h.word_frames.max(1) as f64)
     });
-    tracing::debug!(heard = ?heard, margin_per_frame, phone_excess_per_frame, nbest_agreement, inner_silence = h.as_ref().map_or(0, |h| h.inner_silence_frames), "voice: evidence");
+    let english_agreement = intent::agreement(
+        &meant,
+        label.as_deref(),
+        h.as_ref().and_then(|h| h.english.as_deref()),
+    );
+    tracing::debug!(heard = ?heard, margin_per_frame, phone_excess_per_frame, english_agreement, nbest_agreement, inner_silence = h.as_ref().map_or(0, |h| h.inner_silence_frames), "voice: evidence");
     let confidence = intent::confidence(
         &meant,
         label.as_deref(),
@@ -260,6 +270,7 @@ pub fn hear(
         decision,
         margin_per_frame,
         phone_excess_per_frame,
+        english_agreement,
     })
 }
 

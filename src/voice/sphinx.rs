@@ -79,13 +79,27 @@ struct Pass {
     score: i32,
     probability: f64,
     inner_silence_frames: i32,
+    word_frames: i32,
+}
+
+/// A segment's word is silence or a filler (`<sil>`, `[NOISE]`, `++UM++`).
+fn filler(word: &str) -> bool {
+    word.starts_with('<') || word.starts_with('[') || word.starts_with('+') || word == "(NULL)"
+}
+
+/// A path's segments (word, frames) → the frames its words take (speech,
+/// not silence or fillers).
+fn word_frames(segments: &[(String, i32)]) -> i32 {
+    segments
+        .iter()
+        .filter(|(w, _)| !filler(w))
+        .map(|(_, f)| *f)
+        .sum()
 }
 
 /// A path's segments (word, frames) → the frames of silence and fillers
 /// between its first and last word.
 fn inner_silence(segments: &[(String, i32)]) -> i32 {
-    let filler =
-        |w: &str| w.starts_with('<') || w.starts_with('[') || w.starts_with('+') || w == "(NULL)";
     let words: Vec<usize> = segments
         .iter()
         .enumerate()
@@ -167,6 +181,9 @@ pub struct Hypothesis {
     pub top_paths: Vec<String>,
     /// The utterance's length in 10 ms frames.
     pub frames: i32,
+    /// The frames the path's words take (without silence and fillers):
+    /// the speech, however much silence the cut left around it.
+    pub word_frames: i32,
 }
 
 /// The best reading of an utterance under one named search.
@@ -417,6 +434,7 @@ impl Recognizer {
                 score,
                 probability,
                 inner_silence_frames: inner_silence(&segments),
+                word_frames: word_frames(&segments),
             }))
         }
     }
@@ -470,6 +488,7 @@ impl Recognizer {
             score,
             probability,
             inner_silence_frames,
+            word_frames,
         }) = self.pass(samples)?
         else {
             return Ok(None);
@@ -496,6 +515,7 @@ impl Recognizer {
             alternatives,
             top_paths,
             frames,
+            word_frames,
         }))
     }
 }
@@ -554,5 +574,25 @@ mod tests {
             0
         );
         assert_eq!(inner_silence(&segs(&[("<sil>", 30)])), 0);
+    }
+
+    #[test]
+    fn word_frames_leave_out_silence_and_fillers() {
+        let segs = |v: &[(&str, i32)]| -> Vec<(String, i32)> {
+            v.iter().map(|(w, f)| (w.to_string(), *f)).collect()
+        };
+        let path = segs(&[
+            ("<s>", 3),
+            ("<sil>", 30),
+            ("go", 10),
+            ("[NOISE]", 5),
+            ("to", 8),
+            ("door(2)", 20),
+            ("(NULL)", 1),
+            ("++UM++", 4),
+            ("</s>", 40),
+        ]);
+        assert_eq!(word_frames(&path), 38);
+        assert_eq!(word_frames(&segs(&[("<sil>", 30)])), 0);
     }
 }
