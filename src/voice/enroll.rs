@@ -70,24 +70,12 @@ pub const NOISY_COPIES_SNR_DB: [f64; 2] = [10.0, 20.0];
 /// `samples` with pink noise added `snr_db` below their RMS level
 /// (deterministic for a `seed`; Paul Kellet's filter of Gaussian noise).
 pub fn with_room_noise(samples: &[i16], snr_db: f64, seed: u64) -> Vec<i16> {
-    let mut state = seed ^ 0xD1B5_4A32_D192_ED03;
-    if state == 0 {
-        state = 1;
-    }
-    let mut uniform = move || {
-        // xorshift64*
-        state ^= state >> 12;
-        state ^= state << 25;
-        state ^= state >> 27;
-        let x = state.wrapping_mul(0x2545_F491_4F6C_DD1D);
-        ((x >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-    };
+    let mut normal = super::standard_normal(seed ^ 0xD1B5_4A32_D192_ED03);
     let mut b = [0.0f64; 7];
     let pink: Vec<f64> = samples
         .iter()
         .map(|_| {
-            let (u1, u2) = (uniform(), uniform());
-            let w = (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos();
+            let w = normal();
             b[0] = 0.99886 * b[0] + w * 0.055_517_9;
             b[1] = 0.99332 * b[1] + w * 0.075_075_9;
             b[2] = 0.96900 * b[2] + w * 0.153_852;

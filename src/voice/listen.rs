@@ -101,21 +101,11 @@ pub const NOISE_FLOOR: f64 = 30.0;
 /// `samples` with the noise floor added: deterministic (the same audio is
 /// always heard the same way), Gaussian from a fixed-seed generator.
 pub fn with_noise_floor(samples: &[i16]) -> Vec<i16> {
-    let mut state: u64 = 0x9E37_79B9_7F4A_7C15;
-    let mut uniform = move || {
-        // xorshift64*
-        state ^= state >> 12;
-        state ^= state << 25;
-        state ^= state >> 27;
-        let x = state.wrapping_mul(0x2545_F491_4F6C_DD1D);
-        ((x >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-    };
+    let mut normal = super::standard_normal(0x9E37_79B9_7F4A_7C15);
     samples
         .iter()
         .map(|&v| {
-            // Box–Muller
-            let (u1, u2) = (uniform(), uniform());
-            let n = (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos();
+            let n = normal();
             (v as f64 + NOISE_FLOOR * n)
                 .round()
                 .clamp(i16::MIN as f64, i16::MAX as f64) as i16

@@ -13,6 +13,23 @@ pub mod sphinx;
 pub mod vad;
 pub mod wav;
 
+/// Standard normal draws from a fixed-seed generator (xorshift64*, then
+/// Box–Muller): the noise added to audio is the same every run.
+pub(crate) fn standard_normal(seed: u64) -> impl FnMut() -> f64 {
+    let mut state = if seed == 0 { 1 } else { seed };
+    let mut uniform = move || {
+        state ^= state >> 12;
+        state ^= state << 25;
+        state ^= state >> 27;
+        let x = state.wrapping_mul(0x2545_F491_4F6C_DD1D);
+        ((x >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+    };
+    move || {
+        let (u1, u2) = (uniform(), uniform());
+        (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+    }
+}
+
 /// Config `[voice]`.
 #[derive(Debug, Clone, PartialEq, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
