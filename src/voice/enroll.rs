@@ -100,11 +100,7 @@ pub fn with_room_noise(samples: &[i16], snr_db: f64, seed: u64) -> Vec<i16> {
     samples
         .iter()
         .zip(&pink)
-        .map(|(&v, &p)| {
-            (v as f64 + gain * p)
-                .round()
-                .clamp(i16::MIN as f64, i16::MAX as f64) as i16
-        })
+        .map(|(&v, &p)| super::to_i16_sample(v as f64 + gain * p))
         .collect()
 }
 

@@ -104,12 +104,7 @@ pub fn with_noise_floor(samples: &[i16]) -> Vec<i16> {
     let mut normal = super::standard_normal(0x9E37_79B9_7F4A_7C15);
     samples
         .iter()
-        .map(|&v| {
-            let n = normal();
-            (v as f64 + NOISE_FLOOR * n)
-                .round()
-                .clamp(i16::MIN as f64, i16::MAX as f64) as i16
-        })
+        .map(|&v| super::to_i16_sample(v as f64 + NOISE_FLOOR * normal()))
         .collect()
 }
 

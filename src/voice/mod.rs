@@ -13,6 +13,12 @@ pub mod sphinx;
 pub mod vad;
 pub mod wav;
 
+/// A sample value rounded and held to 16 bits (loud noise clips, as a
+/// microphone's converter does).
+pub(crate) fn to_i16_sample(v: f64) -> i16 {
+    v.round().clamp(i16::MIN as f64, i16::MAX as f64) as i16
+}
+
 /// Standard normal draws from a fixed-seed generator (xorshift64*, then
 /// Box–Muller): the noise added to audio is the same every run.
 pub(crate) fn standard_normal(seed: u64) -> impl FnMut() -> f64 {
