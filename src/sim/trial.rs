@@ -70,8 +70,8 @@ pub struct TrialResult {
     pub files: Vec<String>,
 }
 
-/// How long a trip may take, s.
-pub const TRIAL_LIMIT: Duration = Duration::from_secs(120);
+/// How long a trip may take, s: the search's 150 s and the way there.
+pub const TRIAL_LIMIT: Duration = Duration::from_secs(180);
 
 /// A person's time to answer a question, s.
 const ANSWER_AFTER: Duration = Duration::from_millis(1500);
