@@ -70,8 +70,10 @@ pub struct TrialResult {
     pub files: Vec<String>,
 }
 
-/// How long a trip may take, s: the search's 150 s and the way there.
-pub const TRIAL_LIMIT: Duration = Duration::from_secs(180);
+/// How long a trip may take: the search's limit and half a minute for the
+/// way to what it found (180 s).
+pub const TRIAL_LIMIT: Duration =
+    Duration::from_secs(crate::estimation::goal::SEARCH_AT_MOST.as_secs() + 30);
 
 /// A person's time to answer a question, s.
 const ANSWER_AFTER: Duration = Duration::from_millis(1500);
