@@ -115,6 +115,8 @@ pub struct GoalKeeper {
     last_center: Option<[f64; 3]>,
     /// The goal's object's box when last seen (odom: centre, size), m.
     last_box: Option<([f64; 3], [f64; 3])>,
+    /// The goal's track's confidence at the last update.
+    last_confidence: f64,
     /// The search turn: the heading last seen and how far the chair has
     /// turned since the search began, rad.
     search_heading: Option<f64>,
@@ -150,6 +152,11 @@ const REFUSED_WITHIN_M: f64 = 0.6;
 /// (where the camera can see it) for the trip to end there: a false
 /// detection's track, not seen again, is held, then looked for again.
 pub const SEEN_ON_ARRIVAL: Duration = Duration::from_millis(1500);
+/// Arrived where the camera cannot see the object, its track must hold
+/// this confidence (a true object's stays near 1 with a miss now and
+/// then; each view that should have shown it and did not takes
+/// [`crate::estimation::tracker::TrackerParams::miss_decay`] off).
+pub const TRUSTED_OUT_OF_SIGHT: f64 = 0.5;
 /// Held facing the object this near the place's distance from its box:
 /// arrived, as near as it goes, m.
 pub const AT_STANDOFF_WITHIN_M: f64 = 0.2;
@@ -197,6 +204,7 @@ impl GoalKeeper {
             state: GoalState::None,
             last_center: None,
             last_box: None,
+            last_confidence: 0.0,
             search_heading: None,
             search_turned_rad: 0.0,
             nothing_left_at_rad: None,
@@ -299,7 +307,8 @@ impl GoalKeeper {
     /// its box, give or take [`AT_STANDOFF_WITHIN_M`] (the box as seen: a
     /// box seen large ends a trip short), on another side of it —, the trip
     /// ends there, as near as it safely goes. None otherwise (not
-    /// tracking, or too far: the caller backs off and tries again).
+    /// tracking, too far, or the track's confidence below
+    /// [`TRUSTED_OUT_OF_SIGHT`]: the caller backs off and tries again).
     pub fn arrive_near(&mut self, chair: Pose2, within_m: f64) -> Option<GoalEvent> {
         let GoalState::Tracking {
             label,
@@ -319,7 +328,9 @@ impl GoalKeeper {
             (to_box - standoff).abs() <= within_m.min(AT_STANDOFF_WITHIN_M)
                 && wrap_angle(bearing - chair.theta_rad).abs() <= std::f64::consts::FRAC_PI_2
         });
-        if off_m > within_m && !at_standoff {
+        // (a false detection's track, missed in most views that could
+        // have shown it, is not arrived at)
+        if (off_m > within_m && !at_standoff) || self.last_confidence < TRUSTED_OUT_OF_SIGHT {
             return None;
         }
         let label = label.clone();
@@ -550,6 +561,7 @@ impl GoalKeeper {
                 let id = t.id;
                 self.last_center = Some(t.center_m);
                 self.last_box = Some((t.center_m, t.size_m));
+                self.last_confidence = t.confidence;
                 match place_beside(
                     t,
                     from,
@@ -602,6 +614,7 @@ impl GoalKeeper {
                 approach,
             } => match in_view(track, &label) {
                 Some(t) => {
+                    self.last_confidence = t.confidence;
                     if let Some((nearer, a)) = (!self.refusing)
                         .then(|| tracker.goal(&label, from))
                         .flatten()
@@ -625,6 +638,7 @@ impl GoalKeeper {
                     {
                         self.last_center = Some(nearer.center_m);
                         self.last_box = Some((nearer.center_m, nearer.size_m));
+                        self.last_confidence = nearer.confidence;
                         self.state = GoalState::Tracking {
                             label: label.clone(),
                             track: nearer.id,
@@ -657,7 +671,12 @@ impl GoalKeeper {
                     let other_side = refusing && beside.is_some();
                     // arrived where the object is seen now (not a false
                     // detection's track, seen a while ago and no more)
-                    let seen_now = t.last_seen.age_at(now) <= SEEN_ON_ARRIVAL || !visible(t);
+                    // (or out of the camera's sight there, a track that
+                    // was not missed much where it could be seen: a false
+                    // detection's track, missed in most views, is not
+                    // arrived at out of sight)
+                    let seen_now = t.last_seen.age_at(now) <= SEEN_ON_ARRIVAL
+                        || (!visible(t) && t.confidence >= TRUSTED_OUT_OF_SIGHT);
                     if (a.x_m - chair.x_m).hypot(a.y_m - chair.y_m) <= s.reached_within_m
                         && seen_now
                     {

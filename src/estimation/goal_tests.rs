@@ -312,6 +312,22 @@ fn held_near_the_approach_pose_ends_as_near_as_it_goes() {
     assert!(matches!(g.state(), GoalState::Reached { .. }));
     // once reached, no second arrival
     assert_eq!(g.arrive_near(short(0.0), 0.3), None);
+    // a track missed in most views that could have shown it (a false
+    // detection's): not arrived at
+    let mut g = GoalKeeper::new(crate::config::Settings::defaults().goal_settings());
+    g.set_prompt("chair");
+    let mut tracker = see_a_chair_ahead(&mut g, &|_| true, &|_| true);
+    for k in 0..3 {
+        let now = t(0.3 + 0.1 * k as f64);
+        tracker.update(now, &[], |_| true);
+        g.update(now, &tracker, Pose2::default(), &[], &|_| true, &|_| true);
+    }
+    assert!(
+        matches!(g.state(), GoalState::Tracking { .. }),
+        "{:?}",
+        g.state()
+    );
+    assert_eq!(g.arrive_near(short(0.25), 0.3), None);
 }
 
 #[test]
@@ -554,6 +570,21 @@ fn arrived_only_where_the_object_is_seen_now() {
         g.update(t(later), &tracker, at, &[], &|_| false, &|_| true),
         Some(GoalEvent::Reached { .. })
     ));
+    // a track missed in most views where it could be seen (a false
+    // detection's): not arrived at where the camera cannot see it
+    let mut g = GoalKeeper::new(crate::config::Settings::defaults().goal_settings());
+    g.set_prompt("chair");
+    let mut tracker = see_a_chair_ahead(&mut g, &|_| true, &|_| true);
+    for k in 0..3 {
+        tracker.update(t(0.3 + 0.1 * k as f64), &[], |_| true);
+    }
+    let c = tracker.tracks()[0].confidence;
+    assert!((0.1..TRUSTED_OUT_OF_SIGHT).contains(&c), "{c}");
+    assert_eq!(
+        g.update(t(later), &tracker, at, &[], &|_| false, &|_| true),
+        None
+    );
+    assert!(matches!(g.state(), GoalState::Tracking { .. }));
     // seen again at the place: arrived
     let mut g = GoalKeeper::new(crate::config::Settings::defaults().goal_settings());
     g.set_prompt("chair");
