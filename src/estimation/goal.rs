@@ -115,7 +115,8 @@ pub struct GoalKeeper {
     last_center: Option<[f64; 3]>,
     /// The goal's object's box when last seen (odom: centre, size), m.
     last_box: Option<([f64; 3], [f64; 3])>,
-    /// The goal's track's confidence at the last update.
+    /// The goal's track's confidence at the last update (for
+    /// [`GoalKeeper::arrive_near`]).
     last_confidence: f64,
     /// The search turn: the heading last seen and how far the chair has
     /// turned since the search began, rad.
@@ -152,10 +153,12 @@ const REFUSED_WITHIN_M: f64 = 0.6;
 /// (where the camera can see it) for the trip to end there: a false
 /// detection's track, not seen again, is held, then looked for again.
 pub const SEEN_ON_ARRIVAL: Duration = Duration::from_millis(1500);
-/// Arrived where the camera cannot see the object, its track must hold
-/// this confidence (a true object's stays near 1 with a miss now and
-/// then; each view that should have shown it and did not takes
-/// [`crate::estimation::tracker::TrackerParams::miss_decay`] off).
+/// The goal's track must hold this confidence for an arrival where the
+/// camera cannot see the object, and for any arrival as near as the
+/// chair safely goes ([`GoalKeeper::arrive_near`], which has no view to
+/// ask). A true object's stays near 1 with a miss now and then; each
+/// view that should have shown it and did not takes
+/// [`crate::estimation::tracker::TrackerParams::miss_decay`] off.
 pub const TRUSTED_OUT_OF_SIGHT: f64 = 0.5;
 /// Held facing the object this near the place's distance from its box:
 /// arrived, as near as it goes, m.
