@@ -69,6 +69,17 @@ fn the_command_prints_a_line_per_scene_and_a_summary_whatever_the_job_count() {
             l["navigation"]["doorways_given_up"].as_u64() <= l["navigation"]["doorways"].as_u64()
         );
         assert_eq!(l["collision"] == true, l["contact"].is_string(), "{l}");
+        // the drive to the chair's own stopping place is never shorter
+        // than to the edge of the `reached` test's wider band
+        if let (Some(own), Some(band)) = (
+            l["shortest_path_to_standoff_m"].as_f64(),
+            l["shortest_path_m"].as_f64(),
+        ) {
+            assert!(own >= band, "{l}");
+        }
+    }
+    for k in ["path_ratio_median", "path_ratio_median_reached_band"] {
+        assert!(summary.get(k).is_some(), "no {k} in the summary: {summary}");
     }
     // a scene re-runs alone
     let alone = sim_lines(&["--scene", "2", "--seed", "5", "--json"]);

@@ -160,6 +160,26 @@ mod tests {
     }
 
     #[test]
+    fn the_yardstick_ends_at_the_edge_of_its_tolerance() {
+        // the benchmark's `reached` tolerance (0.35 m) against the chair's
+        // own arrival (0.1 m): the wider band's shortest drive ends 0.25 m
+        // sooner, which a chair driving to the standoff itself cannot
+        // match (the path ratio is taken against the narrower one)
+        let room = Room {
+            size_m: [8.0, 4.0, 2.8],
+            objects: vec![thing("chair", [6.0, 1.8], [6.5, 2.3])],
+            pits: Vec::new(),
+        };
+        let own = shortest_path_m(&room, [1.0, 2.05], "chair", 0.6, 0.1, 0.4).expect("path");
+        let band = shortest_path_m(&room, [1.0, 2.05], "chair", 0.6, 0.35, 0.4).expect("path");
+        assert!((own - 4.3).abs() < 0.06, "{own}");
+        assert!((own - band - 0.25).abs() < 0.06, "{own} vs {band}");
+        // started inside the band: nothing to drive
+        let inside = shortest_path_m(&room, [5.4, 2.05], "chair", 0.6, 0.1, 0.4).expect("path");
+        assert_eq!(inside, 0.0);
+    }
+
+    #[test]
     fn a_place_behind_a_wall_is_not_beside_the_object() {
         // a wall at x = 3.5 with a doorway at y 0..0.9; the chair just
         // beyond it, the start 0.8 m from the chair's face through the wall

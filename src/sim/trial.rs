@@ -49,8 +49,16 @@ pub struct TrialResult {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub contact: Option<String>,
     pub path_m: f64,
-    /// None: no place beside the object can be reached.
+    /// The shortest drive to a place the `reached` test accepts (the
+    /// standoff ± the arrival's tolerance and 0.25 m); None: no place
+    /// beside the object can be reached.
     pub shortest_path_m: Option<f64>,
+    /// The shortest drive to a place the chair's own arrival accepts (the
+    /// standoff ± `goal.reached_within_m`): the path ratio's yardstick,
+    /// since the chair drives to the standoff, not to the edge of the
+    /// benchmark's tolerance. None where `shortest_path_m` is None (or no
+    /// such place can be reached).
+    pub shortest_path_to_standoff_m: Option<f64>,
     pub time_s: f64,
     pub outcome: Outcome,
     /// Times the chair stopped for safety on the way (the supervisor's
@@ -290,6 +298,16 @@ pub async fn run(
         g.reached_within_m + 0.25,
         0.4,
     );
+    let shortest_to_standoff = shortest.and_then(|_| {
+        shortest_path_m(
+            &scene.room,
+            [scene.start.x_m, scene.start.y_m],
+            &scene.prompt,
+            g.standoff_m + g.front_offset_m,
+            g.reached_within_m,
+            0.4,
+        )
+    });
     let collision = w.collision_steps > 0;
     let contact = w.first_contact.map(|c| {
         let what = match c.object.and_then(|i| scene.room.objects.get(i)) {
@@ -352,6 +370,7 @@ pub async fn run(
         contact,
         path_m: w.distance_travelled_m,
         shortest_path_m: shortest,
+        shortest_path_to_standoff_m: shortest_to_standoff,
         time_s: r.duration_s,
         outcome: r.outcome,
         stops: r.planner.stops + r.stops,
