@@ -374,47 +374,42 @@ impl GridMap {
         );
         let (d1, d2) = (r, r * std::f32::consts::SQRT_2);
         for y in y0..=y1 {
-            for i in y * n + x0..=y * n + x1 {
-                self.dist[i] = if self.is_blocked(i) { 0.0 } else { cap };
+            let row = y * n + x0..=y * n + x1;
+            let (camera, known, evidence) = (
+                &self.camera[row.clone()],
+                &self.known[row.clone()],
+                &self.evidence[row.clone()],
+            );
+            for (k, d) in self.dist[row].iter_mut().enumerate() {
+                let blocked = camera[k] || (known[k] && evidence[k] > 0);
+                *d = if blocked { 0.0 } else { cap };
             }
         }
+        // each pass a row at a time: first what the row beside it (done)
+        // offers every cell, then along the row, each cell from the one
+        // before it (done); the minimum of the same sums as cell by cell
+        let width = x1 - x0 + 1;
         let dist = &mut self.dist;
         for y in y0..=y1 {
-            for x in x0..=x1 {
-                let i = y * n + x;
-                let mut v = dist[i];
-                if x > x0 {
-                    v = v.min(dist[i - 1] + d1);
-                }
-                if y > y0 {
-                    v = v.min(dist[i - n] + d1);
-                    if x > x0 {
-                        v = v.min(dist[i - n - 1] + d2);
-                    }
-                    if x < x1 {
-                        v = v.min(dist[i - n + 1] + d2);
-                    }
-                }
-                dist[i] = v;
+            let (done, rest) = dist.split_at_mut(y * n);
+            let cur = &mut rest[x0..x0 + width];
+            if y > y0 {
+                let above = &done[(y - 1) * n + x0..(y - 1) * n + x0 + width];
+                from_row_beside(cur, above, d1, d2);
+            }
+            for x in 1..width {
+                cur[x] = cur[x].min(cur[x - 1] + d1);
             }
         }
         for y in (y0..=y1).rev() {
-            for x in (x0..=x1).rev() {
-                let i = y * n + x;
-                let mut v = dist[i];
-                if x < x1 {
-                    v = v.min(dist[i + 1] + d1);
-                }
-                if y < y1 {
-                    v = v.min(dist[i + n] + d1);
-                    if x < x1 {
-                        v = v.min(dist[i + n + 1] + d2);
-                    }
-                    if x > x0 {
-                        v = v.min(dist[i + n - 1] + d2);
-                    }
-                }
-                dist[i] = v;
+            let (rest, done) = dist.split_at_mut((y + 1) * n);
+            let cur = &mut rest[y * n + x0..y * n + x0 + width];
+            if y < y1 {
+                let below = &done[x0..x0 + width];
+                from_row_beside(cur, below, d1, d2);
+            }
+            for x in (0..width - 1).rev() {
+                cur[x] = cur[x].min(cur[x + 1] + d1);
             }
         }
     }
@@ -589,6 +584,24 @@ impl GridMap {
 /// at, frontiers and places with room to turn.
 #[path = "map_search.rs"]
 mod search;
+
+/// The chamfer step from the row beside (above or below, already done):
+/// each cell of `cur` takes the least of itself, the cell beside it plus
+/// `d1` and the two diagonal ones plus `d2`.
+fn from_row_beside(cur: &mut [f32], beside: &[f32], d1: f32, d2: f32) {
+    let w = cur.len();
+    cur[0] = cur[0].min(beside[0] + d1);
+    if w > 1 {
+        cur[0] = cur[0].min(beside[1] + d2);
+        cur[w - 1] = cur[w - 1].min(beside[w - 1] + d1).min(beside[w - 2] + d2);
+    }
+    for x in 1..w.saturating_sub(1) {
+        cur[x] = cur[x]
+            .min(beside[x] + d1)
+            .min(beside[x - 1] + d2)
+            .min(beside[x + 1] + d2);
+    }
+}
 
 #[cfg(test)]
 #[path = "map_tests.rs"]

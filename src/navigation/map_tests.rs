@@ -371,3 +371,77 @@ fn the_chair_fits_where_a_way_would_pass_and_not_against_a_wall() {
     // as a way through the map has it: none ends against the wall
     assert!(map.path([0.0, -2.0], [1.8, -2.0], 0.1).is_none());
 }
+
+#[test]
+fn the_distance_field_is_the_cell_by_cell_chamfer_to_the_bit() {
+    // the field's passes go a row at a time; the same two passes cell by
+    // cell (1 and √2, capped) give every value bit for bit
+    let mut map = GridMap::new(MapSettings::default(), [0.0, 0.0]);
+    let mut points = wall_with_door(0.85);
+    points.extend((0..40).map(|k| [-1.0 + 0.037 * k as f64, 0.8 + 0.011 * k as f64]));
+    points.push([-2.5, -2.9]);
+    map.set_camera(&points, &[]);
+    map.update_distances();
+    let (n, cap) = (map.n, map.dist_cap_m);
+    let r = map.settings.resolution_m as f32;
+    let (d1, d2) = (r, r * std::f32::consts::SQRT_2);
+    let reach = (cap / r).ceil() as usize + 1;
+    let (x0, y0) = (
+        map.seen_lo[0].saturating_sub(reach),
+        map.seen_lo[1].saturating_sub(reach),
+    );
+    let (x1, y1) = (
+        (map.seen_hi[0] + reach).min(n - 1),
+        (map.seen_hi[1] + reach).min(n - 1),
+    );
+    let mut want = vec![cap; n * n];
+    for y in y0..=y1 {
+        for x in x0..=x1 {
+            let i = y * n + x;
+            want[i] = if map.is_blocked(i) { 0.0 } else { cap };
+        }
+    }
+    for y in y0..=y1 {
+        for x in x0..=x1 {
+            let i = y * n + x;
+            let mut v = want[i];
+            if x > x0 {
+                v = v.min(want[i - 1] + d1);
+            }
+            if y > y0 {
+                v = v.min(want[i - n] + d1);
+                if x > x0 {
+                    v = v.min(want[i - n - 1] + d2);
+                }
+                if x < x1 {
+                    v = v.min(want[i - n + 1] + d2);
+                }
+            }
+            want[i] = v;
+        }
+    }
+    for y in (y0..=y1).rev() {
+        for x in (x0..=x1).rev() {
+            let i = y * n + x;
+            let mut v = want[i];
+            if x < x1 {
+                v = v.min(want[i + 1] + d1);
+            }
+            if y < y1 {
+                v = v.min(want[i + n] + d1);
+                if x < x1 {
+                    v = v.min(want[i + n + 1] + d2);
+                }
+                if x > x0 {
+                    v = v.min(want[i + n - 1] + d2);
+                }
+            }
+            want[i] = v;
+        }
+    }
+    assert!(want.iter().any(|&d| d > 0.0 && d < cap));
+    let differ = (0..n * n)
+        .filter(|&i| want[i].to_bits() != map.dist[i].to_bits())
+        .count();
+    assert_eq!(differ, 0, "cells differing from the cell-by-cell passes");
+}

@@ -205,11 +205,26 @@ impl Room {
                 rect.widened(1.0)
             })
             .collect();
+        // per row, the objects whose rectangle spans it, nearest first
+        let mut row: Vec<Candidate> = Vec::with_capacity(order.len());
         for v in 0..h {
+            row.clear();
+            row.extend(
+                order
+                    .iter()
+                    .zip(&rects)
+                    .filter(|(_, rect)| (v as f64) >= rect.lo[1] && (v as f64) <= rect.hi[1])
+                    .map(|(&(dist_m, idx), rect)| Candidate {
+                        dist_m,
+                        idx,
+                        u_lo: rect.lo[0],
+                        u_hi: rect.hi[0],
+                    }),
+            );
             for u in 0..w {
                 let d_cam = Vector3::new((u as f64 - k.cx) / k.fx, (v as f64 - k.cy) / k.fy, 1.0);
                 let d = r * d_cam;
-                let (t, face, id) = self.cast(&o, &d, &order, &rects, [u as f64, v as f64]);
+                let (t, face, id) = self.cast(&o, &d, &row, u as f64);
                 let i = v * w + u;
                 if !t.is_finite() {
                     continue;
@@ -239,15 +254,14 @@ impl Room {
     }
 
     /// Nearest hit along `o + t·d`: (t, axis of the face hit, object index
-    /// or −1), among the objects of `order` ((distance from `o`, index),
-    /// nearest first).
+    /// or −1), among the `candidates` (nearest first) whose pixel columns
+    /// hold `u`, the ray's pixel column.
     fn cast(
         &self,
         o: &Vector3<f64>,
         d: &Vector3<f64>,
-        order: &[(f64, usize)],
-        rects: &[PixelRect],
-        pixel: [f64; 2],
+        candidates: &[Candidate],
+        u: f64,
     ) -> (f64, usize, i32) {
         let d_norm = d.norm();
         // leaving the room from inside
@@ -285,13 +299,14 @@ impl Room {
                 }
             }
         }
-        for (&(dist_m, idx), rect) in order.iter().zip(rects) {
-            if dist_m >= best.0 * d_norm {
+        for c in candidates {
+            if c.dist_m >= best.0 * d_norm {
                 break;
             }
-            if !rect.contains(pixel) {
+            if !(u >= c.u_lo && u <= c.u_hi) {
                 continue;
             }
+            let idx = c.idx;
             let ob = &self.objects[idx];
             let (mut t0, mut t1, mut axis) = (0.0f64, f64::INFINITY, 0usize);
             let mut hit = true;
@@ -393,6 +408,17 @@ fn box_surface(min: [f64; 3], max: [f64; 3], s: f64, hidden: [[bool; 2]; 3]) -> 
     out
 }
 
+/// An object a ray may hit: its distance from the camera (no ray with
+/// |d| ≤ 1 hits it before `dist_m`), its index, and the pixel columns its
+/// rectangle spans (bounds included).
+#[derive(Debug, Clone, Copy)]
+struct Candidate {
+    dist_m: f64,
+    idx: usize,
+    u_lo: f64,
+    u_hi: f64,
+}
+
 /// A rectangle of pixel coordinates (u, v), bounds included.
 #[derive(Debug, Clone, Copy)]
 struct PixelRect {
@@ -420,10 +446,6 @@ impl PixelRect {
             lo: [self.lo[0] - by, self.lo[1] - by],
             hi: [self.hi[0] + by, self.hi[1] + by],
         }
-    }
-
-    fn contains(&self, p: [f64; 2]) -> bool {
-        p[0] >= self.lo[0] && p[0] <= self.hi[0] && p[1] >= self.lo[1] && p[1] <= self.hi[1]
     }
 }
 
@@ -572,13 +594,19 @@ mod tests {
             let rendered = room.render(&k, &pose).unwrap();
             let r = pose.rotation.to_rotation_matrix();
             let o = pose.translation.vector;
-            let all: Vec<(f64, usize)> = (0..room.objects.len()).map(|i| (0.0, i)).collect();
-            let everywhere = vec![PixelRect::ALL; all.len()];
+            let all: Vec<Candidate> = (0..room.objects.len())
+                .map(|idx| Candidate {
+                    dist_m: 0.0,
+                    idx,
+                    u_lo: f64::NEG_INFINITY,
+                    u_hi: f64::INFINITY,
+                })
+                .collect();
             for v in 0..k.height {
                 for u in 0..k.width {
                     let d =
                         r * Vector3::new((u as f64 - k.cx) / k.fx, (v as f64 - k.cy) / k.fy, 1.0);
-                    let (t, _, id) = room.cast(&o, &d, &all, &everywhere, [u as f64, v as f64]);
+                    let (t, _, id) = room.cast(&o, &d, &all, u as f64);
                     let i = v * k.width + u;
                     assert_eq!(rendered.instance[i], id, "pixel ({u}, {v})");
                     assert_eq!(rendered.depth.data()[i], t as f32, "pixel ({u}, {v})");
