@@ -293,6 +293,11 @@ impl Supervisor {
         let (c, s) = (th.cos(), th.sin());
         points.into_iter().any(|p| {
             let (px, py) = (p[0] as f64, p[1] as f64);
+            // beyond the band along either axis: beyond it (the gap is at
+            // least each axis's), without the gap's square root
+            if (-rear - px).max(px - front) > band || py.abs() - half > band {
+                return false;
+            }
             let now = gap(px, py);
             if now > band {
                 return false;

@@ -185,12 +185,14 @@ impl Room {
         // a pixel inside its corners' projection (all corners in front of
         // the camera; otherwise the whole image), with a pixel's margin
         let camera_from_world = r.transpose();
-        let rects: Vec<PixelRect> = order
+        // (and the corners' pixels: None where one is not in front)
+        let projected: Vec<(PixelRect, Option<[[f64; 2]; 8]>)> = order
             .iter()
             .map(|&(_, idx)| {
                 let b = &self.objects[idx];
                 let mut rect = PixelRect::EMPTY;
-                for c in 0..8 {
+                let mut corners = [[0.0; 2]; 8];
+                for (c, px) in corners.iter_mut().enumerate() {
                     let corner = Vector3::new(
                         if c & 1 == 0 { b.min_m[0] } else { b.max_m[0] },
                         if c & 2 == 0 { b.min_m[1] } else { b.max_m[1] },
@@ -198,27 +200,35 @@ impl Room {
                     );
                     let p = camera_from_world * (corner - o);
                     if p.z.is_nan() || p.z <= 1e-6 {
-                        return PixelRect::ALL;
+                        return (PixelRect::ALL, None);
                     }
-                    rect.grow(k.fx * p.x / p.z + k.cx, k.fy * p.y / p.z + k.cy);
+                    *px = [k.fx * p.x / p.z + k.cx, k.fy * p.y / p.z + k.cy];
+                    rect.grow(px[0], px[1]);
                 }
-                rect.widened(1.0)
+                (rect.widened(1.0), Some(corners))
             })
             .collect();
-        // per row, the objects whose rectangle spans it, nearest first
+        // per row, the objects whose rectangle spans it, nearest first,
+        // each with the columns its corners' convex hull spans there
         let mut row: Vec<Candidate> = Vec::with_capacity(order.len());
         for v in 0..h {
             row.clear();
             row.extend(
                 order
                     .iter()
-                    .zip(&rects)
-                    .filter(|(_, rect)| (v as f64) >= rect.lo[1] && (v as f64) <= rect.hi[1])
-                    .map(|(&(dist_m, idx), rect)| Candidate {
-                        dist_m,
-                        idx,
-                        u_lo: rect.lo[0],
-                        u_hi: rect.hi[0],
+                    .zip(&projected)
+                    .filter(|(_, (rect, _))| (v as f64) >= rect.lo[1] && (v as f64) <= rect.hi[1])
+                    .filter_map(|(&(dist_m, idx), (rect, corners))| {
+                        let (u_lo, u_hi) = match corners {
+                            Some(c) => hull_columns(c, v as f64)?,
+                            None => (rect.lo[0], rect.hi[0]),
+                        };
+                        Some(Candidate {
+                            dist_m,
+                            idx,
+                            u_lo,
+                            u_hi,
+                        })
                     }),
             );
             for u in 0..w {
@@ -408,6 +418,35 @@ fn box_surface(min: [f64; 3], max: [f64; 3], s: f64, hidden: [[bool; 2]; 3]) -> 
     out
 }
 
+/// The pixel columns, a pixel's margin about them, that the convex hull
+/// of `corners` (pixels) spans in the band of rows `v` ± 1; None where it
+/// does not reach the band. A ray through pixel (u, v) can hit a box only
+/// where its corners' hull holds (u, v): the margin covers the rounding
+/// of the projection.
+fn hull_columns(corners: &[[f64; 2]; 8], v: f64) -> Option<(f64, f64)> {
+    let (top, bottom) = (v - 1.0, v + 1.0);
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    // the hull's extent in a band is reached at a corner inside it or
+    // where an edge crosses one of its bounds (every segment between two
+    // corners lies in the hull, and the hull's edges are among them)
+    for (i, a) in corners.iter().enumerate() {
+        if a[1] >= top && a[1] <= bottom {
+            lo = lo.min(a[0]);
+            hi = hi.max(a[0]);
+        }
+        for b in &corners[i + 1..] {
+            for bound in [top, bottom] {
+                if (a[1] - bound) * (b[1] - bound) < 0.0 {
+                    let u = a[0] + (bound - a[1]) * (b[0] - a[0]) / (b[1] - a[1]);
+                    lo = lo.min(u);
+                    hi = hi.max(u);
+                }
+            }
+        }
+    }
+    (lo <= hi).then_some((lo - 1.0, hi + 1.0))
+}
+
 /// An object a ray may hit: its distance from the camera (no ray with
 /// |d| ≤ 1 hits it before `dist_m`), its index, and the pixel columns its
 /// rectangle spans (bounds included).
@@ -462,6 +501,29 @@ mod tests {
             cx: 31.5,
             cy: 17.5,
         }
+    }
+
+    #[test]
+    fn a_hulls_columns_in_a_row_are_its_width_there() {
+        // a diamond (four corners twice): 20 px wide at row 10, narrower
+        // above and below, nothing beyond its rows
+        let c = [
+            [10.0, 0.0],
+            [20.0, 10.0],
+            [10.0, 20.0],
+            [0.0, 10.0],
+            [10.0, 0.0],
+            [20.0, 10.0],
+            [10.0, 20.0],
+            [0.0, 10.0],
+        ];
+        assert_eq!(hull_columns(&c, 10.0), Some((-1.0, 21.0)));
+        // rows 2..4 (the band about row 3): 6 to 14 at row 4, a pixel
+        // more a side
+        assert_eq!(hull_columns(&c, 3.0), Some((5.0, 15.0)));
+        assert_eq!(hull_columns(&c, 20.5), Some((8.5, 11.5)));
+        assert_eq!(hull_columns(&c, 21.5), None);
+        assert_eq!(hull_columns(&c, -1.5), None);
     }
 
     #[test]
