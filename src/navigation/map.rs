@@ -374,15 +374,8 @@ impl GridMap {
         );
         let (d1, d2) = (r, r * std::f32::consts::SQRT_2);
         for y in y0..=y1 {
-            let row = y * n + x0..=y * n + x1;
-            let (camera, known, evidence) = (
-                &self.camera[row.clone()],
-                &self.known[row.clone()],
-                &self.evidence[row.clone()],
-            );
-            for (k, d) in self.dist[row].iter_mut().enumerate() {
-                let blocked = camera[k] || (known[k] && evidence[k] > 0);
-                *d = if blocked { 0.0 } else { cap };
+            for i in y * n + x0..=y * n + x1 {
+                self.dist[i] = if self.is_blocked(i) { 0.0 } else { cap };
             }
         }
         // each pass a row at a time: first what the row beside it (done)
