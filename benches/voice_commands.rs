@@ -15,8 +15,11 @@
 //! (all three), `OPENNAV_BENCH_PHONE_LIMIT=X` (`[voice]
 //! max_phone_excess_per_frame`; 1000 turns the check off),
 //! `OPENNAV_BENCH_SET=tuning` (the set thresholds are chosen
-//! on, not the measured one). Each utterance's evidence is a line on
-//! stderr starting with EVIDENCE.
+//! on, not the measured one), `OPENNAV_BENCH_ONLY=stops` (only the stops),
+//! `OPENNAV_BENCH_NOISE_DRAW=K` (another draw of the noise than the
+//! measured set's), `OPENNAV_BENCH_DIR=D` (work in D, keeping each
+//! enrolled model there for the next run). Each utterance's evidence is a line on stderr starting
+//! with EVIDENCE.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -123,6 +126,34 @@ fn make(
     let speech = rms(&clean);
     let noise_amp = speech / 10f64.powf(snr as f64 / 20.0) / 32768.0 * 3f64.sqrt();
     let noisy = dir.join(format!("{n}.noisy.wav"));
+    if let Some(draw) = noise_draw() {
+        // another draw of the same white noise (uniform, as sox's), mixed
+        // as `sox -m` mixes (each input halved)
+        let samples = read_audio(&clean).expect("audio");
+        let amp = noise_amp * 32768.0;
+        let mut state = draw
+            .wrapping_mul(0x9E37_79B9_7F4A_7C15)
+            .wrapping_add(n as u64);
+        let mut uniform = move || {
+            // splitmix64
+            state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+            let mut z = state;
+            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+            z ^= z >> 31;
+            (z >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        let mixed: Vec<i16> = samples
+            .iter()
+            .map(|&v| {
+                ((v as f64 + amp * uniform()) / 2.0)
+                    .round()
+                    .clamp(-32768.0, 32767.0) as i16
+            })
+            .collect();
+        std::fs::write(&noisy, opennav::voice::wav::mono_16k_wav(&mixed)).expect("writes");
+        return noisy;
+    }
     let noise = dir.join(format!("{n}.noise.wav"));
     let secs = read_audio(&clean).expect("audio").len() as f64 / 16000.0;
     // -R: the same noise every run (a repeatable measure)
@@ -144,6 +175,26 @@ fn make(
     noisy
 }
 
+/// `OPENNAV_BENCH_NOISE_DRAW=K` (K ≥ 1): the noise is another repeatable
+/// draw, not sox's fixed one (thresholds chosen on draws the measured set
+/// does not use).
+fn noise_draw() -> Option<u64> {
+    let v = std::env::var("OPENNAV_BENCH_NOISE_DRAW").ok()?;
+    let k: u64 = v
+        .parse()
+        .unwrap_or_else(|e| panic!("OPENNAV_BENCH_NOISE_DRAW={v:?}: {e}"));
+    (k > 0).then_some(k)
+}
+
+/// `OPENNAV_BENCH_ONLY=stops`: only the stops are spoken.
+fn only_stops() -> bool {
+    match std::env::var("OPENNAV_BENCH_ONLY").as_deref() {
+        Ok("stops") => true,
+        Err(_) => false,
+        Ok(other) => panic!("OPENNAV_BENCH_ONLY={other:?}: stops or unset"),
+    }
+}
+
 /// One utterance's evidence on stderr (tab-separated, after "EVIDENCE"),
 /// to choose thresholds on the tuning set.
 fn evidence(
@@ -154,13 +205,16 @@ fn evidence(
 ) {
     let num = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.3}"));
     eprintln!(
-        "EVIDENCE\t{kind}\t{said}\t{voice}\t{speed}\t{pitch}\t{noise:?}\t{enrolled}\t{:?}\t{:?}\t{:.3}\t{}\t{}\t{:.3}",
+        "EVIDENCE\t{kind}\t{said}\t{voice}\t{speed}\t{pitch}\t{noise:?}\t{enrolled}\t{:?}\t{:?}\t{:.3}\t{}\t{}\t{:.3}\t{:?}\t{}\t{}",
         h.heard.as_deref().unwrap_or(""),
         h.decision,
         h.confidence,
         num(h.margin_per_frame),
         num(h.phone_excess_per_frame),
-        h.english_agreement
+        h.english_agreement,
+        h.stop_rule,
+        num(h.stop_margin_per_frame),
+        h.no_rival
     );
 }
 
@@ -185,6 +239,11 @@ struct Score {
 /// `opennav voice sentences` read once (the voice's middle speed and pitch,
 /// no noise), the model adapted to them (`opennav voice enroll`).
 fn enrolled_model(dir: &Path, voice: &str, hmm: &Path, dict_path: &Path) -> PathBuf {
+    let out = dir.join(format!("model-{voice}"));
+    if std::env::var_os("OPENNAV_BENCH_DIR").is_some() && out.join("mdef").exists() {
+        println!("  {voice}: the enrolled model of an earlier run in OPENNAV_BENCH_DIR");
+        return out;
+    }
     let dict = read_dictionary(dict_path).expect("dictionary");
     let recs: Vec<enroll::Recording> = enroll::SENTENCES
         .iter()
@@ -198,7 +257,6 @@ fn enrolled_model(dir: &Path, voice: &str, hmm: &Path, dict_path: &Path) -> Path
             }
         })
         .collect();
-    let out = dir.join(format!("model-{voice}"));
     let made = enroll::enroll(
         &enroll::Tools::debian().expect("sphinxtrain, sphinxbase-utils, pocketsphinx"),
         &enroll::Model {
@@ -224,7 +282,11 @@ fn enrolled_model(dir: &Path, voice: &str, hmm: &Path, dict_path: &Path) -> Path
 
 fn main() {
     let settings = Settings::load(None).expect("defaults");
-    let dir = tempfile::tempdir().expect("tmp");
+    let tmp = tempfile::tempdir().expect("tmp");
+    // OPENNAV_BENCH_DIR: work there and keep each voice's enrolled model
+    // for the next run
+    let dir = std::env::var_os("OPENNAV_BENCH_DIR").map(PathBuf::from);
+    let dir = dir.as_deref().unwrap_or(tmp.path());
     let modes = std::env::var("OPENNAV_BENCH_ENROLL").unwrap_or_else(|_| "both".into());
     for enrolled in [false, true] {
         let wanted = match modes.as_str() {
@@ -239,7 +301,7 @@ fn main() {
                 Ok("test") | Err(_) => &TEST,
                 Ok(other) => panic!("OPENNAV_BENCH_SET={other:?}: test or tuning"),
             };
-            measure(&settings, dir.path(), enrolled, set);
+            measure(&settings, dir, enrolled, set);
         }
     }
     real_recording(&settings);
@@ -263,6 +325,7 @@ fn measure(settings: &Settings, dir: &Path, enrolled: bool, set: &Set) {
     let mut n = 0usize;
     let t0 = std::time::Instant::now();
     let only = std::env::var("OPENNAV_BENCH_VOICES").ok();
+    let stops_only = only_stops();
     for voice in VOICES {
         if only
             .as_ref()
@@ -288,7 +351,9 @@ fn measure(settings: &Settings, dir: &Path, enrolled: bool, set: &Set) {
         for speed in set.speeds {
             for pitch in set.pitches {
                 for noise in NOISE {
-                    for target in set.targets {
+                    let targets: &[&str] = if stops_only { &[] } else { &set.targets };
+                    let outside: &[&str] = if stops_only { &[] } else { &set.outside };
+                    for &target in targets {
                         for phrase in set.phrases {
                             n += 1;
                             let text = phrase.replace("{}", target);
@@ -317,7 +382,7 @@ fn measure(settings: &Settings, dir: &Path, enrolled: bool, set: &Set) {
                             }
                         }
                     }
-                    for text in set.stops {
+                    for &text in &set.stops {
                         n += 1;
                         let f = make(dir, n, text, voice, speed, pitch, noise);
                         let h =
@@ -336,7 +401,7 @@ fn measure(settings: &Settings, dir: &Path, enrolled: bool, set: &Set) {
                             d => eprintln!("stop missed: {text:?} ({voice} {speed} {pitch} {noise:?}) heard {:?}, {d:?}", h.heard),
                         }
                     }
-                    for text in set.outside {
+                    for &text in outside {
                         n += 1;
                         let f = make(dir, n, text, voice, speed, pitch, noise);
                         let h =

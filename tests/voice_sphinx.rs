@@ -145,6 +145,37 @@ fn check_voice_reports_what_was_heard_and_meant_and_never_sends_nonsense_anywher
 }
 
 #[test]
+fn a_bare_target_whose_rival_grammar_reaches_no_end_is_measured_against_it_without_the_leads() {
+    // "sofa" alone: the grammar without "sofa" ends the utterance on a
+    // lead ("find a…"), where the grammar cannot end, and PocketSphinx
+    // reports nothing; the target used to have no margin and was always
+    // asked back. Its rival without the leads reads something, and the
+    // margin over it makes the bare word sure.
+    let _cores = cores();
+    let dir = tempfile::tempdir().expect("tmp");
+    let sofa = spoken_in(dir.path(), "sofa", "sofa", "en-us");
+    let settings = opennav::config::Settings::load(None).expect("defaults");
+    let v = &settings.voice;
+    let (mut r, g) = opennav::voice::listen::recogniser(v, &v.vocabulary).expect("recogniser");
+    let samples = opennav::voice::wav::read_audio(&sofa).expect("audio");
+    let h = opennav::voice::listen::hear(&mut r, &g, v, &samples).expect("decodes");
+    assert_eq!(h.heard.as_deref(), Some("sofa"), "{h:?}");
+    assert!(h.no_rival, "the full rival read something: {h:?}");
+    let margin = h.margin_per_frame.expect("a margin over the bare rival");
+    assert!(
+        margin >= opennav::voice::intent::SURE_MARGIN_BARE_PER_FRAME,
+        "{h:?}"
+    );
+    assert_eq!(
+        h.decision,
+        opennav::voice::intent::Decision::Act(opennav::msg::UserInput::Goto("sofa".into())),
+        "{h:?}"
+    );
+    // and the stops alone read it far worse than "sofa"
+    assert!(h.stop_margin_per_frame.is_some_and(|m| m > 0.0), "{h:?}");
+}
+
+#[test]
 fn check_voice_names_a_file_it_cannot_use() {
     let dir = tempfile::tempdir().expect("tmp");
     let bad = dir.path().join("cd.wav");

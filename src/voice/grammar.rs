@@ -115,7 +115,37 @@ impl Grammar {
             .collect();
         (index < self.targets.len()).then(|| jsgf(&others))
     }
+
+    /// The same rival without the leads ("chair", "sofa please", the
+    /// commands): every path through it ends where the grammar may end.
+    /// PocketSphinx's grammar search reports nothing when none of the word
+    /// ends in the utterance's last frame reaches the grammar's end, and
+    /// the full rival of a bare target can end on a lead ("find a" for
+    /// "sofa"); this one always reads something.
+    pub fn bare_jsgf_without(&self, index: usize) -> Option<String> {
+        let jsgf = self.jsgf_without(index)?;
+        Some(
+            jsgf.lines()
+                .filter(|l| !l.starts_with("<lead>"))
+                .map(|l| {
+                    if l.starts_with("<go>") {
+                        "<go> = <target> [please];"
+                    } else {
+                        l
+                    }
+                })
+                .collect::<Vec<_>>()
+                .join("\n")
+                + "\n",
+        )
+    }
 }
+
+/// The stops alone: the best stop reading of an utterance, which a bare
+/// target heard must beat by a margin (a "stop" in noise can lose its S).
+pub const STOPS_JSGF: &str = "#JSGF V1.0;\n\
+                              grammar opennav;\n\
+                              public <stop> = stop [please] | halt;\n";
 
 /// The grammar for `targets` (without any: the commands alone).
 fn jsgf(targets: &[&str]) -> String {
@@ -277,6 +307,14 @@ mod tests {
         let rival = g.jsgf_without(0).expect("rival");
         assert!(rival.contains("<target> = chair | table;"), "{rival}");
         assert!(g.jsgf_without(3).is_none());
+        // the bare rival: no leads, the other targets and the commands
+        let bare = g.bare_jsgf_without(0).expect("bare rival");
+        assert!(bare.contains("<target> = chair | table;"), "{bare}");
+        assert!(bare.contains("<go> = <target> [please];"), "{bare}");
+        assert!(
+            !bare.contains("<lead>") && bare.contains("<stop>"),
+            "{bare}"
+        );
         // a single target's rival is the commands alone
         let one = build(&["door".to_string()], &d).expect("grammar");
         let rival = one.jsgf_without(0).expect("rival");

@@ -83,12 +83,25 @@ pub fn recogniser(
             r.add_grammar(&rival_search(i), &jsgf)
                 .map_err(|e| e.to_string())?;
         }
+        if let Some(jsgf) = g.bare_jsgf_without(i) {
+            r.add_grammar(&bare_rival_search(i), &jsgf)
+                .map_err(|e| e.to_string())?;
+        }
     }
+    r.add_grammar(STOPS_SEARCH, grammar::STOPS_JSGF)
+        .map_err(|e| e.to_string())?;
     Ok((r, g))
 }
 
+/// The search that reads an utterance as a stop.
+const STOPS_SEARCH: &str = "stops";
+
 fn rival_search(index: usize) -> String {
     format!("rival{index}")
+}
+
+fn bare_rival_search(index: usize) -> String {
+    format!("barerival{index}")
 }
 
 /// The standard deviation of the noise floor added before decoding, in
@@ -124,6 +137,27 @@ pub struct Heard {
     pub phone_excess_per_frame: Option<f64>,
     /// The share of the meant words a free English decode heard too.
     pub english_agreement: f64,
+    /// Why a heard target was taken for a stop, if it was.
+    pub stop_rule: Option<StopRule>,
+    /// A bare target heard: its acoustic margin per frame over the best
+    /// stop reading of the same audio.
+    pub stop_margin_per_frame: Option<f64>,
+    /// A target heard and the grammar without it reached no end (its rival
+    /// was then read without the leads).
+    pub no_rival: bool,
+}
+
+/// Why an utterance the grammar heard as something else is a stop.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum StopRule {
+    /// A stop was among the grammar's close readings.
+    Nearby,
+    /// A bare target whose best rival reading is a stop; the target's
+    /// acoustic margin per frame over that stop.
+    BareRival { margin_per_frame: f64 },
+    /// A bare target that the stops alone read better than it (its
+    /// margin per frame over them, negative).
+    StopReadsBetter { margin_per_frame: f64 },
 }
 
 impl Heard {
@@ -158,6 +192,19 @@ pub fn hear(
     let h = r.decode(&samples).map_err(|e| e.to_string())?;
     let heard = h.as_ref().map(|h| h.text.clone());
     let (mut meant, mut label) = intent::meaning(heard.as_deref().unwrap_or(""), &g.targets);
+    let bare = |l: &str| {
+        heard
+            .as_deref()
+            .is_some_and(|t| t == l || t.strip_suffix(" please") == Some(l))
+    };
+    // a bare target against the best stop reading of the same audio
+    let stop_margin_per_frame = match (&label, &h) {
+        (Some(l), Some(h)) if bare(l) => r
+            .read(STOPS_SEARCH, &samples)
+            .map_err(|e| e.to_string())?
+            .map(|s| (h.score as f64 - s.score as f64) / h.frames.max(1) as f64),
+        _ => None,
+    };
     // a missed stop is dangerous, a false one is not: a stop among the
     // grammar's close readings is a stop
     let stop_nearby = h.as_ref().is_some_and(|h| {
@@ -165,17 +212,42 @@ pub fn hear(
             .iter()
             .any(|a| intent::meaning(a, &g.targets).0 == intent::Intent::Stop)
     });
+    let mut stop_rule = None;
     if stop_nearby && meant != intent::Intent::Stop {
         tracing::info!(heard = ?heard, "voice: a stop among the close readings: stopping");
         meant = intent::Intent::Stop;
         label = None;
+        stop_rule = Some(StopRule::Nearby);
+    }
+    // a bare target that a stop explains better, acoustically, is a stop
+    // (the grammar's weights can still prefer the target)
+    if let Some(m) = stop_margin_per_frame.filter(|m| *m < 0.0) {
+        if meant != intent::Intent::Stop {
+            tracing::info!(heard = ?heard, margin_per_frame = m, "voice: a stop reads the bare target better: stopping");
+            meant = intent::Intent::Stop;
+            label = None;
+            stop_rule = Some(StopRule::StopReadsBetter {
+                margin_per_frame: m,
+            });
+        }
     }
     // a heard target against its rival: the best reading without it
+    // (the grammar without leads when the full one reaches no end)
+    let mut no_rival = false;
     let rival = match (&meant, &label, &h) {
         (intent::Intent::Go, Some(l), Some(_)) => match g.targets.iter().position(|t| t == l) {
-            Some(i) => r
+            Some(i) => match r
                 .read(&rival_search(i), &samples)
-                .map_err(|e| e.to_string())?,
+                .map_err(|e| e.to_string())?
+            {
+                Some(rv) => Some(rv),
+                None => {
+                    tracing::debug!(heard = ?heard, "voice: the grammar without the target reaches no end; its rival read without the leads");
+                    no_rival = true;
+                    r.read(&bare_rival_search(i), &samples)
+                        .map_err(|e| e.to_string())?
+                }
+            },
             None => None,
         },
         _ => None,
@@ -185,16 +257,13 @@ pub fn hear(
     // whose best rival is a stop is a stop (no spoken target in the test
     // set has a stop for its rival; a command with its lead, "go to the
     // X", is not a misheard stop)
-    let bare = |l: &str| {
-        heard
-            .as_deref()
-            .is_some_and(|t| t == l || t.strip_suffix(" please") == Some(l))
-    };
-    if let (Some(rv), Some(l)) = (&rival, &label) {
+    if let (Some(rv), Some(l), Some(h)) = (&rival, &label, &h) {
         if bare(l) && intent::meaning(&rv.text, &g.targets).0 == intent::Intent::Stop {
-            tracing::info!(heard = ?heard, rival = %rv.text, "voice: a stop is the best reading without the target: stopping");
+            let margin_per_frame = (h.score as f64 - rv.score as f64) / h.frames.max(1) as f64;
+            tracing::info!(heard = ?heard, rival = %rv.text, margin_per_frame, "voice: a stop is the best reading without the target: stopping");
             meant = intent::Intent::Stop;
             label = None;
+            stop_rule = Some(StopRule::BareRival { margin_per_frame });
         }
     }
     let margin_per_frame = match (&meant, &rival, &h) {
@@ -256,6 +325,9 @@ pub fn hear(
         margin_per_frame,
         phone_excess_per_frame,
         english_agreement,
+        stop_rule,
+        stop_margin_per_frame,
+        no_rival,
     })
 }
 
