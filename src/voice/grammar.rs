@@ -106,14 +106,7 @@ impl Grammar {
     /// utterance when that word is ruled out (the rival a heard target is
     /// measured against).
     pub fn jsgf_without(&self, index: usize) -> Option<String> {
-        let others: Vec<&str> = self
-            .targets
-            .iter()
-            .enumerate()
-            .filter(|(i, _)| *i != index)
-            .map(|(_, t)| t.as_str())
-            .collect();
-        (index < self.targets.len()).then(|| jsgf(&others))
+        self.others(index).map(|o| jsgf(&o, Leads::Yes))
     }
 
     /// The same rival without the leads ("chair", "sofa please", the
@@ -123,32 +116,39 @@ impl Grammar {
     /// the full rival of a bare target can end on a lead ("find a" for
     /// "sofa"); this one always reads something.
     pub fn bare_jsgf_without(&self, index: usize) -> Option<String> {
-        let jsgf = self.jsgf_without(index)?;
-        Some(
-            jsgf.lines()
-                .filter(|l| !l.starts_with("<lead>"))
-                .map(|l| {
-                    if l.starts_with("<go>") {
-                        "<go> = <target> [please];"
-                    } else {
-                        l
-                    }
-                })
-                .collect::<Vec<_>>()
-                .join("\n")
-                + "\n",
-        )
+        self.others(index).map(|o| jsgf(&o, Leads::No))
+    }
+
+    /// The targets but `index` (None: no such target).
+    fn others(&self, index: usize) -> Option<Vec<&str>> {
+        (index < self.targets.len()).then(|| {
+            self.targets
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| *i != index)
+                .map(|(_, t)| t.as_str())
+                .collect()
+        })
     }
 }
 
-/// The stops alone: the best stop reading of an utterance, which a bare
-/// target heard must beat by a margin (a "stop" in noise can lose its S).
+/// Whether a target may be said after a lead ("go to the", "find").
+#[derive(Clone, Copy, PartialEq)]
+enum Leads {
+    Yes,
+    No,
+}
+
+/// The stops alone: the best stop reading of an utterance, which must
+/// read a bare target heard worse than the target does for it to stand
+/// (a "stop" in noise can lose its S).
 pub const STOPS_JSGF: &str = "#JSGF V1.0;\n\
                               grammar opennav;\n\
                               public <stop> = stop [please] | halt;\n";
 
-/// The grammar for `targets` (without any: the commands alone).
-fn jsgf(targets: &[&str]) -> String {
+/// The grammar for `targets` (without any: the commands alone), with or
+/// without the leads before a target.
+fn jsgf(targets: &[&str], leads: Leads) -> String {
     if targets.is_empty() {
         return "#JSGF V1.0;\n\
                 grammar opennav;\n\
@@ -160,6 +160,13 @@ fn jsgf(targets: &[&str]) -> String {
             .to_string();
     }
     let alternatives = targets.join(" | ");
+    let go = match leads {
+        Leads::Yes => {
+            "<go> = [<lead> [the | a]] <target> [please];\n\
+             <lead> = go to | take me to | drive to | find;\n"
+        }
+        Leads::No => "<go> = <target> [please];\n",
+    };
     format!(
         "#JSGF V1.0;\n\
          grammar opennav;\n\
@@ -168,8 +175,7 @@ fn jsgf(targets: &[&str]) -> String {
          <cancel> = cancel;\n\
          <yes> = yes [please];\n\
          <no> = no;\n\
-         <go> = [<lead> [the | a]] <target> [please];\n\
-         <lead> = go to | take me to | drive to | find;\n\
+         {go}\
          <target> = {alternatives};\n"
     )
 }
@@ -233,7 +239,7 @@ pub fn build(vocabulary: &[String], dict: &Dictionary) -> Result<Grammar, String
         }
     }
     let refs: Vec<&str> = targets.iter().map(String::as_str).collect();
-    let jsgf = jsgf(&refs);
+    let jsgf = jsgf(&refs, Leads::Yes);
     Ok(Grammar {
         jsgf,
         targets,

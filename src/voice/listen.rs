@@ -13,7 +13,7 @@ use tokio::sync::mpsc;
 
 use super::grammar::{self, Grammar};
 use super::intent::{self, Decision};
-use super::sphinx::{ModelPaths, Recognizer};
+use super::sphinx::{Hypothesis, ModelPaths, Recognizer};
 use super::vad::{Vad, VadSettings};
 use super::VoiceSettings;
 use crate::input::InputHub;
@@ -102,6 +102,12 @@ fn rival_search(index: usize) -> String {
 
 fn bare_rival_search(index: usize) -> String {
     format!("barerival{index}")
+}
+
+/// How much better per 10 ms frame the heard path explains the audio
+/// acoustically than another reading's score.
+fn margin_over(h: &Hypothesis, other_score: i32) -> f64 {
+    (h.score as f64 - other_score as f64) / h.frames.max(1) as f64
 }
 
 /// The standard deviation of the noise floor added before decoding, in
@@ -202,7 +208,7 @@ pub fn hear(
         (Some(l), Some(h)) if bare(l) => r
             .read(STOPS_SEARCH, &samples)
             .map_err(|e| e.to_string())?
-            .map(|s| (h.score as f64 - s.score as f64) / h.frames.max(1) as f64),
+            .map(|s| margin_over(h, s.score)),
         _ => None,
     };
     // a missed stop is dangerous, a false one is not: a stop among the
@@ -259,7 +265,7 @@ pub fn hear(
     // X", is not a misheard stop)
     if let (Some(rv), Some(l), Some(h)) = (&rival, &label, &h) {
         if bare(l) && intent::meaning(&rv.text, &g.targets).0 == intent::Intent::Stop {
-            let margin_per_frame = (h.score as f64 - rv.score as f64) / h.frames.max(1) as f64;
+            let margin_per_frame = margin_over(h, rv.score);
             tracing::info!(heard = ?heard, rival = %rv.text, margin_per_frame, "voice: a stop is the best reading without the target: stopping");
             meant = intent::Intent::Stop;
             label = None;
@@ -267,9 +273,7 @@ pub fn hear(
         }
     }
     let margin_per_frame = match (&meant, &rival, &h) {
-        (intent::Intent::Go, Some(rival), Some(h)) => {
-            Some((h.score as f64 - rival.score as f64) / h.frames.max(1) as f64)
-        }
+        (intent::Intent::Go, Some(rival), Some(h)) => Some(margin_over(h, rival.score)),
         _ => None,
     };
     let nbest_agreement = h.as_ref().map_or(0.0, |h| {
