@@ -131,22 +131,14 @@ fn make(
         // as `sox -m` mixes (each input halved)
         let samples = read_audio(&clean).expect("audio");
         let amp = noise_amp * 32768.0;
-        let mut state = draw
-            .wrapping_mul(0x9E37_79B9_7F4A_7C15)
-            .wrapping_add(n as u64);
-        let mut uniform = move || {
-            // splitmix64
-            state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-            let mut z = state;
-            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            z ^= z >> 31;
-            (z >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-        };
+        let mut rng = opennav::sim::scene::SplitMix64::new(
+            draw.wrapping_mul(0x9E37_79B9_7F4A_7C15)
+                .wrapping_add(n as u64),
+        );
         let mixed: Vec<i16> = samples
             .iter()
             .map(|&v| {
-                ((v as f64 + amp * uniform()) / 2.0)
+                ((v as f64 + amp * rng.range(-1.0, 1.0)) / 2.0)
                     .round()
                     .clamp(-32768.0, 32767.0) as i16
             })
