@@ -266,6 +266,117 @@ impl Grid {
     }
 }
 
+/// Only cells whose middle lies within this of a reference point keep
+/// their candidates ([`NearestCache`]); queries farther out search the
+/// rings, m.
+const CACHE_REACH_M: f64 = 0.3;
+
+/// The nearest-point searches of one reference, cell by cell: the first
+/// query that falls in a cell gathers every reference point that can be
+/// the nearest to some place in that cell, and every later query there
+/// (the same walls are matched scan after scan, iteration after
+/// iteration) compares only those. The answer is the grid's own
+/// ([`Grid::nearest`]): the nearest point, ties to the lower index, None
+/// beyond `max_d`.
+#[derive(Clone, Default)]
+struct NearestCache {
+    /// Its cells: the grid's halved each way (fewer candidates each), m,
+    /// and how many across and down.
+    cell: f64,
+    nx: usize,
+    ny: usize,
+    /// Per cell: 0 not gathered yet, 1 too far from every point (search
+    /// the grid's rings), `k + 2` the candidates `ranges[k]`.
+    slot: Vec<u32>,
+    ranges: Vec<(u32, u32)>,
+    candidates: Vec<(u32, [f64; 2])>,
+}
+
+impl NearestCache {
+    fn new(grid: &Grid) -> Self {
+        let (nx, ny) = (grid.nx * 2, grid.ny * 2);
+        NearestCache {
+            cell: grid.cell / 2.0,
+            nx,
+            ny,
+            slot: vec![0; nx * ny],
+            ranges: Vec::new(),
+            candidates: Vec::new(),
+        }
+    }
+
+    /// As `grid.nearest(q, max_d)`; `points` are the grid's, in their
+    /// order.
+    fn nearest(
+        &mut self,
+        grid: &Grid,
+        points: &[[f64; 2]],
+        q: &[f64; 2],
+        max_d: f64,
+    ) -> Option<(usize, f64)> {
+        let fx = (q[0] - grid.origin[0]) / self.cell;
+        let fy = (q[1] - grid.origin[1]) / self.cell;
+        // (NaN fails these too)
+        if !(fx >= 0.0 && fy >= 0.0 && fx < self.nx as f64 && fy < self.ny as f64) {
+            return grid.nearest(q, max_d);
+        }
+        let (ix, iy) = (fx as usize, fy as usize);
+        let c = iy * self.nx + ix;
+        if self.slot[c] == 0 {
+            self.slot[c] = self.gather(grid, points, ix, iy);
+        }
+        let (a, b) = match self.slot[c] {
+            1 => return grid.nearest(q, max_d),
+            k => self.ranges[k as usize - 2],
+        };
+        let max_d2 = max_d * max_d;
+        let mut best: Option<(u32, f64)> = None;
+        for (i, p) in &self.candidates[a as usize..b as usize] {
+            let d2 = (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2);
+            if d2 <= max_d2 && best.is_none_or(|(bi, bd)| d2 < bd || (d2 == bd && *i < bi)) {
+                best = Some((*i, d2));
+            }
+        }
+        best.map(|(i, d2)| (i as usize, d2))
+    }
+
+    /// Cell (ix, iy)'s slot: its candidates are the points no farther
+    /// from the cell than the farthest of its corners from the point
+    /// nearest its middle (any place in the cell has that point at most
+    /// that far, so its nearest point is at most that far too).
+    fn gather(&mut self, grid: &Grid, points: &[[f64; 2]], ix: usize, iy: usize) -> u32 {
+        // a hair wider than the cell: a query's cell comes from a
+        // division, whose rounding may put it just outside
+        const SLACK_M: f64 = 1e-7;
+        let x0 = grid.origin[0] + ix as f64 * self.cell - SLACK_M;
+        let x1 = grid.origin[0] + (ix + 1) as f64 * self.cell + SLACK_M;
+        let y0 = grid.origin[1] + iy as f64 * self.cell - SLACK_M;
+        let y1 = grid.origin[1] + (iy + 1) as f64 * self.cell + SLACK_M;
+        let mid = [(x0 + x1) / 2.0, (y0 + y1) / 2.0];
+        let Some((near, _)) = grid.nearest(&mid, CACHE_REACH_M) else {
+            return 1;
+        };
+        let p = points[near];
+        let reach2 = [[x0, y0], [x0, y1], [x1, y0], [x1, y1]]
+            .iter()
+            .map(|k| (k[0] - p[0]).powi(2) + (k[1] - p[1]).powi(2))
+            .fold(0.0, f64::max)
+            * (1.0 + 1e-9);
+        let half_diag = (x1 - x0).hypot(y1 - y0) / 2.0;
+        let start = self.candidates.len() as u32;
+        let candidates = &mut self.candidates;
+        grid.for_each_near(&mid, reach2.sqrt() + half_diag, |i, q, _| {
+            let dx = (x0 - q[0]).max(q[0] - x1).max(0.0);
+            let dy = (y0 - q[1]).max(q[1] - y1).max(0.0);
+            if dx * dx + dy * dy <= reach2 {
+                candidates.push((i, *q));
+            }
+        });
+        self.ranges.push((start, self.candidates.len() as u32));
+        self.ranges.len() as u32 + 1
+    }
+}
+
 /// Per cell of an `nx` × `ny` grid whose cell `c` holds
 /// `starts[c + 1] - starts[c]` points: the Chebyshev distance in cells to
 /// the nearest cell with a point, saturating at `u16::MAX` (two raster
@@ -412,7 +523,7 @@ pub fn icp(
     initial: Pose2,
     p: &IcpParams,
 ) -> Result<IcpResult, ScanMatchError> {
-    icp_against(&IcpReference::new(reference, p)?, current, initial, p)
+    icp_against(&mut IcpReference::new(reference, p)?, current, initial, p)
 }
 
 /// A reference scan prepared for matching (its grid and surface normals),
@@ -422,6 +533,8 @@ pub struct IcpReference {
     points: Vec<[f64; 2]>,
     grid: Grid,
     normals: Vec<Option<[f64; 2]>>,
+    /// The searches' candidates, gathered as queries come.
+    cache: NearestCache,
 }
 
 impl IcpReference {
@@ -431,6 +544,7 @@ impl IcpReference {
         let normals = normals(points, &grid, 0.3);
         Ok(IcpReference {
             points: points.to_vec(),
+            cache: NearestCache::new(&grid),
             grid,
             normals,
         })
@@ -465,16 +579,21 @@ fn check_points(
 /// kept in this one.
 const GATE_OVER_KEPT: f64 = 3.0;
 
-/// Aligns `current` to a prepared reference from `initial`.
+/// Aligns `current` to a prepared reference from `initial` (the reference
+/// keeps what its searches gathered, for the next scan matched to it).
 pub fn icp_against(
-    reference: &IcpReference,
+    reference: &mut IcpReference,
     current: &[[f64; 2]],
     initial: Pose2,
     p: &IcpParams,
 ) -> Result<IcpResult, ScanMatchError> {
     check_points("current", current, p)?;
-    let (grid, ref_normals) = (&reference.grid, &reference.normals);
-    let reference = &reference.points[..];
+    let IcpReference {
+        points: reference,
+        grid,
+        normals: ref_normals,
+        cache,
+    } = reference;
     let mut gate = p.max_pair_distance_m;
     let mut t = initial;
     let mut rms = f64::INFINITY;
@@ -489,7 +608,7 @@ pub fn icp_against(
         pairs.clear();
         for q in current {
             let qt = apply(&t, q);
-            if let Some((i, d2)) = grid.nearest(&qt, gate_now) {
+            if let Some((i, d2)) = cache.nearest(grid, reference, &qt, gate_now) {
                 pairs.push((qt, reference[i], d2, ref_normals[i]));
             }
         }
@@ -642,7 +761,7 @@ impl KeyframeMatcher {
         ekf: &mut PoseEkf,
         scan_base: &[[f64; 2]],
     ) -> Option<Result<IcpResult, ScanMatchError>> {
-        let Some((key_pose, key_ref)) = &self.keyframe else {
+        let Some((key_pose, key_ref)) = &mut self.keyframe else {
             return self.set_keyframe(ekf.pose, scan_base).err().map(Err);
         };
         let key_pose = *key_pose;
