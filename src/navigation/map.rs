@@ -224,33 +224,40 @@ impl GridMap {
         if !(g[0].is_finite() && g[1].is_finite() && len.is_finite()) {
             return;
         }
-        let mut c = [g[0].floor() as i64, g[1].floor() as i64];
-        // per axis: the step, the ray length to the next boundary, and
-        // between boundaries
-        let mut step = [0i64; 2];
+        let c = [g[0].floor() as i64, g[1].floor() as i64];
+        if c[0] < 0 || c[1] < 0 || c[0] >= n || c[1] >= n {
+            return;
+        }
+        // per axis: the index's step, the cells left on the map that way,
+        // the ray length to the next boundary, and between boundaries
+        let mut step = [0isize; 2];
+        let mut left = [0i64; 2];
         let mut t_next = [f64::INFINITY; 2];
         let mut t_delta = [f64::INFINITY; 2];
+        let row = [1isize, self.n as isize];
         for a in 0..2 {
             if d[a] > 0.0 {
-                step[a] = 1;
+                step[a] = row[a];
+                left[a] = n - 1 - c[a];
                 t_next[a] = ((c[a] as f64 + 1.0) - g[a]) * r / d[a];
                 t_delta[a] = r / d[a];
             } else if d[a] < 0.0 {
-                step[a] = -1;
+                step[a] = -row[a];
+                left[a] = c[a];
                 t_next[a] = (g[a] - c[a] as f64) * r / -d[a];
                 t_delta[a] = r / -d[a];
             }
         }
+        let mut i = c[1] as usize * self.n + c[0] as usize;
         loop {
-            if c[0] < 0 || c[1] < 0 || c[0] >= n || c[1] >= n {
-                return;
-            }
-            out.push(c[1] as usize * self.n + c[0] as usize);
+            out.push(i);
             let a = if t_next[0] < t_next[1] { 0 } else { 1 };
-            if t_next[a] > len {
+            // past its length, or the next cell off the map
+            if t_next[a] > len || left[a] == 0 {
                 return;
             }
-            c[a] += step[a];
+            left[a] -= 1;
+            i = i.wrapping_add_signed(step[a]);
             t_next[a] += t_delta[a];
         }
     }

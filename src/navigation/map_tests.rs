@@ -445,3 +445,74 @@ fn the_distance_field_is_the_cell_by_cell_chamfer_to_the_bit() {
         .count();
     assert_eq!(differ, 0, "cells differing from the cell-by-cell passes");
 }
+
+/// The grid walk as first written: a bounds check and an index product
+/// per cell.
+fn ray_cells_reference(map: &GridMap, o: [f64; 2], d: [f64; 2], len: f64) -> Vec<usize> {
+    let mut out = Vec::new();
+    let r = map.settings.resolution_m;
+    let g = [(o[0] - map.origin_m[0]) / r, (o[1] - map.origin_m[1]) / r];
+    let n = map.n as i64;
+    if !(g[0].is_finite() && g[1].is_finite() && len.is_finite()) {
+        return out;
+    }
+    let mut c = [g[0].floor() as i64, g[1].floor() as i64];
+    let mut step = [0i64; 2];
+    let mut t_next = [f64::INFINITY; 2];
+    let mut t_delta = [f64::INFINITY; 2];
+    for a in 0..2 {
+        if d[a] > 0.0 {
+            step[a] = 1;
+            t_next[a] = ((c[a] as f64 + 1.0) - g[a]) * r / d[a];
+            t_delta[a] = r / d[a];
+        } else if d[a] < 0.0 {
+            step[a] = -1;
+            t_next[a] = (g[a] - c[a] as f64) * r / -d[a];
+            t_delta[a] = r / -d[a];
+        }
+    }
+    loop {
+        if c[0] < 0 || c[1] < 0 || c[0] >= n || c[1] >= n {
+            return out;
+        }
+        out.push(c[1] as usize * map.n + c[0] as usize);
+        let a = if t_next[0] < t_next[1] { 0 } else { 1 };
+        if t_next[a] > len {
+            return out;
+        }
+        c[a] += step[a];
+        t_next[a] += t_delta[a];
+    }
+}
+
+#[test]
+fn a_rays_cells_are_the_grid_walks_to_the_cell_and_stop_at_the_maps_edge() {
+    let map = GridMap::new(MapSettings::default(), [0.3, -0.2]);
+    let half = map.n as f64 * map.settings.resolution_m / 2.0;
+    let mut rng = crate::sim::scene::SplitMix64::new(5);
+    let mut cells = Vec::new();
+    let mut left_the_map = 0;
+    for k in 0..20_000 {
+        // from inside the map, near its edges, and off it; along the
+        // axes and diagonals too
+        let o = [
+            0.3 + rng.range(-half - 1.0, half + 1.0),
+            -0.2 + rng.range(-half - 1.0, half + 1.0),
+        ];
+        let a = if k % 10 == 0 {
+            (k / 10 % 8) as f64 * std::f64::consts::FRAC_PI_4
+        } else {
+            rng.range(-3.2, 3.2)
+        };
+        let d = [a.cos(), a.sin()];
+        let len = rng.range(0.0, 6.0);
+        map.ray_cells(o, d, len, &mut cells);
+        let want = ray_cells_reference(&map, o, d, len);
+        assert_eq!(cells, want, "from {o:?} at {a} rad for {len} m");
+        let end = [o[0] + d[0] * len, o[1] + d[1] * len];
+        left_the_map += usize::from(!cells.is_empty() && map.cell(end).is_none());
+    }
+    assert!(left_the_map > 100, "{left_the_map}");
+    map.ray_cells([f64::NAN, 0.0], [1.0, 0.0], 1.0, &mut cells);
+    assert!(cells.is_empty());
+}
