@@ -434,21 +434,24 @@ impl Control {
             })
             .collect();
         let view = self.view;
-        // the place beside the object where the chair fits on the map of
-        // everything it has seen (not only what it sees now)
-        let map = self.route.as_mut().and_then(|r| r.map.as_mut());
-        if let Some(m) = map {
-            m.update_distances();
-        }
         self.tell_goal_what_is_left(pose, view.as_ref());
-        let map = self.route.as_ref().and_then(|r| r.map.as_ref());
+        // the place beside the object where the chair fits on the map of
+        // everything it has seen (not only what it sees now); the map's
+        // distance field brought up to date when the goal keeper first
+        // asks (with no track to go to, it does not)
+        let map = std::cell::RefCell::new(self.route.as_mut().and_then(|r| r.map.as_mut()));
         let event = self.goal.update(
             now,
             tracker,
             pose,
             &obstacles_odom,
             &|t| t.expected_seen && view.is_some_and(|v| v.sees(&pose, &t.center_m)),
-            &|p| map.is_none_or(|m| m.fits(p)),
+            &|p| {
+                map.borrow_mut().as_mut().is_none_or(|m| {
+                    m.update_distances();
+                    m.fits(p)
+                })
+            },
         );
         let event = self.search_further(now, pose, event);
         // held on the way, close to the place beside the object: as near
