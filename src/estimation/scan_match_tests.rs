@@ -1,6 +1,7 @@
 //! The scan matcher's tests.
 
 use super::*;
+use crate::sim::scene::SplitMix64;
 
 #[test]
 fn compose_and_inverse_are_consistent() {
@@ -28,26 +29,43 @@ fn too_few_points_is_an_error_naming_the_scan() {
     );
 }
 
+/// Straight walls of points and scattered clutter: `walls` walls of
+/// `per_wall` points starting within ±`span` m, each point `spacing` on
+/// from the wall's start times its number, m; then `clutter` points
+/// within ±`clutter_span` m.
+fn walls_and_clutter(
+    rng: &mut SplitMix64,
+    (walls, per_wall, span): (usize, usize, f64),
+    spacing: &mut dyn FnMut(&mut SplitMix64) -> f64,
+    (clutter, clutter_span): (usize, f64),
+) -> Vec<[f64; 2]> {
+    let mut pts = Vec::new();
+    for _ in 0..walls {
+        let (x0, y0, a) = (
+            rng.range(-span, span),
+            rng.range(-span, span),
+            rng.range(0.0, 3.2),
+        );
+        for j in 0..per_wall {
+            let s = j as f64 * spacing(rng);
+            pts.push([x0 + s * a.cos(), y0 + s * a.sin()]);
+        }
+    }
+    for _ in 0..clutter {
+        pts.push([
+            rng.range(-clutter_span, clutter_span),
+            rng.range(-clutter_span, clutter_span),
+        ]);
+    }
+    pts
+}
+
 #[test]
 fn the_grid_finds_the_nearest_point_as_a_search_of_all_points_does() {
     // walls and clutter with empty stretches between them, queries
     // inside and outside the points' box, near and far
-    let mut rng = crate::sim::scene::SplitMix64::new(3);
-    let mut pts: Vec<[f64; 2]> = Vec::new();
-    for _ in 0..6 {
-        let (x0, y0, a) = (
-            rng.range(-4.0, 4.0),
-            rng.range(-4.0, 4.0),
-            rng.range(0.0, 3.2),
-        );
-        for j in 0..80 {
-            let s = j as f64 * 0.02;
-            pts.push([x0 + s * a.cos(), y0 + s * a.sin()]);
-        }
-    }
-    for _ in 0..40 {
-        pts.push([rng.range(-5.0, 5.0), rng.range(-5.0, 5.0)]);
-    }
+    let mut rng = SplitMix64::new(3);
+    let mut pts = walls_and_clutter(&mut rng, (6, 80, 4.0), &mut |_| 0.02, (40, 5.0));
     // a point twice: ties go to the lower index
     pts.push(pts[17]);
     let grid = Grid::new(&pts, 0.03);
@@ -78,22 +96,13 @@ fn the_cells_candidates_give_the_grids_nearest_point() {
     // walls of points 1–2 cm apart and scattered points; queries close to
     // the walls (many to a cell, as scan after scan is matched), across
     // the whole box, outside it, and on cell corners
-    let mut rng = crate::sim::scene::SplitMix64::new(11);
-    let mut pts: Vec<[f64; 2]> = Vec::new();
-    for _ in 0..8 {
-        let (x0, y0, a) = (
-            rng.range(-3.0, 3.0),
-            rng.range(-3.0, 3.0),
-            rng.range(0.0, 3.2),
-        );
-        for j in 0..120 {
-            let s = j as f64 * rng.range(0.01, 0.02);
-            pts.push([x0 + s * a.cos(), y0 + s * a.sin()]);
-        }
-    }
-    for _ in 0..30 {
-        pts.push([rng.range(-4.0, 4.0), rng.range(-4.0, 4.0)]);
-    }
+    let mut rng = SplitMix64::new(11);
+    let mut pts = walls_and_clutter(
+        &mut rng,
+        (8, 120, 3.0),
+        &mut |rng| rng.range(0.01, 0.02),
+        (30, 4.0),
+    );
     pts.push(pts[40]);
     let grid = Grid::new(&pts, 0.03);
     let mut cache = NearestCache::new(&grid);
