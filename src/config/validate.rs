@@ -284,6 +284,7 @@ impl Settings {
             finite_range(k, w, 0.0, 1000.0)?;
         }
         finite_range("mpc.clearance_m", m.clearance_m, 0.2, 2.0)?;
+        finite_range("mpc.front_disc_m", m.front_disc_m, 0.0, 1.0)?;
         range("mpc.max_obstacles", m.max_obstacles, 0, 64)?;
         finite_range("mpc.obstacle_range_m", m.obstacle_range_m, 0.5, 10.0)?;
         let f = &self.field;

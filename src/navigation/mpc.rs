@@ -34,6 +34,11 @@ pub struct MpcParams {
     pub w_alpha: f64,
     /// Keep this far from obstacle points (chair radius + margin), m.
     pub clearance_m: f64,
+    /// A second disc of the same radius this far ahead of base_link on
+    /// the chair's axis keeps the clearance too: the front corners and
+    /// the stop corridor ahead of them, which the disc about base_link
+    /// leaves out (0: none), m.
+    pub front_disc_m: f64,
     /// Obstacle points considered (the nearest ones within `obstacle_range_m`).
     pub max_obstacles: usize,
     pub obstacle_range_m: f64,
@@ -96,6 +101,9 @@ pub struct MpcPlan {
     /// Obstacle half-planes used: per step k (1-based), (n, b) with n·p ≥ b.
     pub half_planes: Vec<Vec<([f64; 2], f64)>>,
     pub iterations: u32,
+    /// Whether the front disc kept its clearance in this plan (false:
+    /// none set, or no plan with it, [`solve`]).
+    pub front_disc: bool,
 }
 
 #[derive(Debug, Error, PartialEq)]
@@ -198,8 +206,31 @@ pub fn position_reach_m(state: &UnicycleState, p: &MpcParams, n: usize) -> Vec<f
     reach
 }
 
-/// Solves one cycle.
+/// Solves one cycle. Where the front disc ([`MpcParams::front_disc_m`])
+/// leaves no plan (a point it nears head-on that it cannot turn from
+/// within the rate limits: the linearised problem is infeasible), the
+/// plan is made with the disc about base_link alone, as without it.
 pub fn solve(problem: &MpcProblem, p: &MpcParams) -> Result<MpcPlan, MpcError> {
+    match solve_discs(problem, p) {
+        Err(MpcError::NotSolved(_)) if p.front_disc_m > 0.0 => {
+            let plan = solve_discs(
+                problem,
+                &MpcParams {
+                    front_disc_m: 0.0,
+                    ..*p
+                },
+            )?;
+            Ok(MpcPlan {
+                front_disc: false,
+                ..plan
+            })
+        }
+        r => r,
+    }
+}
+
+/// One solve with the discs `p` sets.
+fn solve_discs(problem: &MpcProblem, p: &MpcParams) -> Result<MpcPlan, MpcError> {
     let n = p.horizon.max(1);
     let dt = p.dt_s;
     let nz = n * (NX + NU);
@@ -358,47 +389,78 @@ pub fn solve(problem: &MpcProblem, p: &MpcParams) -> Result<MpcPlan, MpcError> {
     }
     // obstacles: the nearest points; per step a half-plane through the point
     // pushed out by the clearance, facing the reference position
-    let mut obs: Vec<[f64; 2]> = problem
+    let obs: Vec<[f64; 2]> = problem
         .obstacles
         .iter()
         .copied()
         .filter(|o| o[0].is_finite() && o[1].is_finite())
         .filter(|o| dist_sq(o, &s0) <= p.obstacle_range_m.max(0.0).powi(2))
         .collect();
-    obs.sort_by(|a, c| dist_sq(a, &s0).total_cmp(&dist_sq(c, &s0)));
-    obs.truncate(p.max_obstacles);
+    // the discs: about base_link, and (where set) one ahead of it; each
+    // keeps the clearance from its own nearest points
+    let disc_at = |s: &[f64; 5], d: f64| [s[0] + d * s[2].cos(), s[1] + d * s[2].sin()];
+    let mut discs = vec![0.0];
+    if p.front_disc_m > 0.0 {
+        discs.push(p.front_disc_m);
+    }
+    // how far a disc's centre, linearised in the heading, can swing by
+    // step k beyond where base_link can go, per metre ahead of it: the
+    // rollout's turn and the plan's, each at most the fastest turn
+    let swing_per_m: Vec<f64> = (0..=n)
+        .map(|k| (p.omega_max_radps + 2.0 * s0[4].abs()) * dt * k as f64)
+        .collect();
     let mut half_planes = vec![Vec::new(); n];
-    for k in 1..=n {
-        let (px, py) = (sbar[k][0], sbar[k][1]);
-        for o in &obs {
-            let (dx, dy) = (px - o[0], py - o[1]);
-            let d = dx.hypot(dy);
-            let (nx, ny) = if d > 1e-6 {
-                (dx / d, dy / d)
-            } else {
-                (1.0, 0.0)
-            };
-            // a point already closer than the clearance (a doorway's
-            // jamb, a turn beside furniture): not closer than now, so that
-            // the problem stays feasible and the plan moves away
-            let now_m = (s0[0] - o[0]) * nx + (s0[1] - o[1]) * ny;
-            let clearance = p.clearance_m.min((now_m - 0.05).max(0.0));
-            let bb = nx * o[0] + ny * o[1] + clearance;
-            half_planes[k - 1].push(([nx, ny], bb));
-            // every position state k can reach keeps the clearance: the
-            // row cannot bind and is left out
-            if now_m - reach[k] > clearance + 1e-9 {
-                continue;
+    for &d_m in &discs {
+        let c0 = disc_at(&s0, d_m);
+        let mut near = obs.clone();
+        near.sort_by(|a, c| dist_sq(a, &c0).total_cmp(&dist_sq(c, &c0)));
+        near.truncate(p.max_obstacles);
+        for k in 1..=n {
+            let th = sbar[k][2];
+            let (px, py) = (sbar[k][0], sbar[k][1]);
+            let c = disc_at(&sbar[k], d_m);
+            for o in &near {
+                let (dx, dy) = (c[0] - o[0], c[1] - o[1]);
+                let d = dx.hypot(dy);
+                let (nx, ny) = if d > 1e-6 {
+                    (dx / d, dy / d)
+                } else {
+                    (1.0, 0.0)
+                };
+                // a point already closer than the clearance (a doorway's
+                // jamb, a turn beside furniture): not closer than now, so
+                // that the problem stays feasible and the plan moves away
+                let now_m = (c0[0] - o[0]) * nx + (c0[1] - o[1]) * ny;
+                let clearance = p.clearance_m.min((now_m - 0.05).max(0.0));
+                // n·(p + d_m (cos θ, sin θ)) ≥ n·o + clearance, the disc's
+                // centre linearised about the rollout's heading θ̄:
+                // n·p + g θ ≥ bb with g = d_m n·(−sin θ̄, cos θ̄)
+                let g = d_m * (-nx * th.sin() + ny * th.cos());
+                let bb = nx * o[0] + ny * o[1] + clearance - (nx * (c[0] - px) + ny * (c[1] - py))
+                    + g * th;
+                if d_m == 0.0 {
+                    half_planes[k - 1].push(([nx, ny], bb));
+                }
+                // every position state k can reach keeps the clearance:
+                // the row cannot bind and is left out
+                if now_m - reach[k] - d_m * swing_per_m[k] > clearance + 1e-9 {
+                    continue;
+                }
+                // −n·p − g θ ≤ −b
+                ai.push(row);
+                aj.push(sx(k, 0));
+                av.push(-nx);
+                ai.push(row);
+                aj.push(sx(k, 1));
+                av.push(-ny);
+                if g != 0.0 {
+                    ai.push(row);
+                    aj.push(sx(k, 2));
+                    av.push(-g);
+                }
+                b.push(-bb);
+                row += 1;
             }
-            // −n·p ≤ −b
-            ai.push(row);
-            aj.push(sx(k, 0));
-            av.push(-nx);
-            ai.push(row);
-            aj.push(sx(k, 1));
-            av.push(-ny);
-            b.push(-bb);
-            row += 1;
         }
     }
     let n_ineq = row - n_eq;
@@ -450,6 +512,7 @@ pub fn solve(problem: &MpcProblem, p: &MpcParams) -> Result<MpcPlan, MpcError> {
         inputs,
         half_planes,
         iterations: sol.iterations,
+        front_disc: p.front_disc_m > 0.0,
     })
 }
 
@@ -531,6 +594,96 @@ mod tests {
             closest = closest.min((s.x_m - obstacle[0]).hypot(s.y_m - obstacle[1]));
         }
         assert!(closest > p.clearance_m - 0.1, "came within {closest} m");
+    }
+
+    /// A point just inside the line of the chair's side, ahead of it, and
+    /// a wall on the other side 1 m from it: the disc about base_link
+    /// keeps its eight nearest points, all on the wall, until the point is
+    /// abreast of base_link, by when the front corner has passed within a
+    /// centimetre of it (and the supervisor's corridor, 0.38 m a side at a
+    /// crawl, would have held the chair). The front disc has its own
+    /// nearest points: the corner passes 4 cm off, more than the crawl's
+    /// 3 cm margin.
+    #[test]
+    fn the_front_disc_keeps_the_front_corners_clear_of_a_point_beside_the_way() {
+        // from the footprint (0.45 m behind base_link to 0.55 m ahead,
+        // 0.35 m a side), m
+        let footprint_gap = |s: &UnicycleState, o: [f64; 2]| {
+            let (c, sn) = (s.theta_rad.cos(), s.theta_rad.sin());
+            let (dx, dy) = (o[0] - s.x_m, o[1] - s.y_m);
+            let (xb, yb) = (c * dx + sn * dy, -sn * dx + c * dy);
+            let ex = (-0.45 - xb).max(xb - 0.55).max(0.0);
+            let ey = (yb.abs() - 0.35).max(0.0);
+            ex.hypot(ey)
+        };
+        let point = [1.2, -0.36];
+        let wall = (0..200).map(|i| [-1.0 + 0.02 * i as f64, 0.65]);
+        let obstacles: Vec<[f64; 2]> = std::iter::once(point).chain(wall).collect();
+        let closest_with = |front_disc_m: f64| {
+            let p = MpcParams {
+                front_disc_m,
+                ..crate::config::Settings::defaults().mpc
+            };
+            let mut s = UnicycleState::default();
+            let mut closest = f64::INFINITY;
+            for _ in 0..200 {
+                let plan = solve(
+                    &MpcProblem {
+                        state: s,
+                        goal: [4.0, 0.0],
+                        heading_ref_rad: Some(0.0),
+                        v_ref_mps: 0.3,
+                        obstacles: obstacles.clone(),
+                    },
+                    &p,
+                )
+                .expect("solves");
+                s = step(s, plan.cmd, p.dt_s);
+                closest = closest.min(footprint_gap(&s, point));
+            }
+            assert!(s.x_m > 3.5, "did not get past: {s:?}");
+            closest
+        };
+        let without = closest_with(0.0);
+        let with = closest_with(0.45);
+        assert!(without < 0.015, "{without}");
+        assert!(with > 0.04, "{with} (without the disc {without})");
+    }
+
+    /// Where the front disc leaves no plan, the plan is the one without it
+    /// (said in the plan), not none: at full speed towards a point 0.5 m
+    /// ahead of the front disc, its rollout passes the point within the
+    /// horizon and the disc's rows before and after it cannot both hold.
+    #[test]
+    fn without_a_plan_for_the_front_disc_the_plan_is_the_one_without_it() {
+        let p = MpcParams {
+            front_disc_m: 0.45,
+            ..crate::config::Settings::defaults().mpc
+        };
+        let problem = MpcProblem {
+            state: UnicycleState {
+                v_mps: 0.3,
+                ..Default::default()
+            },
+            goal: [4.0, 0.0],
+            heading_ref_rad: Some(0.0),
+            v_ref_mps: 0.3,
+            obstacles: vec![[p.front_disc_m + 0.5, 0.0]],
+        };
+        assert!(solve_discs(&problem, &p).is_err());
+        let plan = solve(&problem, &p).expect("a plan");
+        let alone = solve_discs(
+            &problem,
+            &MpcParams {
+                front_disc_m: 0.0,
+                ..p
+            },
+        )
+        .expect("a plan without the disc");
+        assert!(!plan.front_disc && alone.front_disc == plan.front_disc);
+        assert_eq!(plan.cmd, alone.cmd);
+        // braking for the point
+        assert!(plan.cmd.v_mps < 0.3, "{:?}", plan.cmd);
     }
 
     /// The rows left out rest on `position_reach_m`: every rollout of the
