@@ -542,7 +542,27 @@ impl Supervisor {
         ]) {
             if log && tracing::enabled!(tracing::Level::DEBUG) {
                 let by = |p: &[[f32; 2]]| blocked_by(&[p]);
+                // which of the checks holds it, over all the points
+                let pts: [&[[f32; 2]]; 4] = [
+                    &obs.value.points_base,
+                    &obs.value.drop_offs_base,
+                    camera.map_or(no_points, |c| &c.points_base),
+                    inputs.rear.map_or(no_points, |r| &r.points_base),
+                ];
+                let all = || pts.iter().flat_map(|p| p.iter());
+                let corridor = [v, rolling(v_now), rolling(v_last)]
+                    .into_iter()
+                    .any(|d| self.corridor_hits(all(), d));
+                let turn = self.turn_hits(all(), v, w)
+                    || (w_now.abs() > TURNING_RADPS && self.turn_hits(all(), v_now, w_now));
+                let arc = self.arc_hits(all(), v, w) || self.arc_hits(all(), v_now, w_now);
+                let closing = self.closing_hits(all(), v, w)
+                    || self.closing_hits(all(), first.v_mps, first.omega_radps);
                 tracing::debug!(
+                    corridor,
+                    turn,
+                    arc,
+                    closing,
                     lasers = by(&obs.value.points_base),
                     laser_drops = by(&obs.value.drop_offs_base),
                     camera = by(camera.map_or(no_points, |c| &c.points_base)),
