@@ -511,18 +511,26 @@ impl Supervisor {
         let rolling = |x: f64| if x.abs() >= MOVING_MPS { x } else { 0.0 };
         // the first output toward (v, w) at the acceleration limits
         let first = self.ramp(v, w, CONTROL_PERIOD_S);
-        let blocked_by = |pts: &[&[[f32; 2]]]| {
+        // the checks, each over the points of `pts`: the corridors, the
+        // turn's circle, the arcs, a side closing on a point
+        let check = |which: usize, pts: &[&[[f32; 2]]]| {
             let all = || pts.iter().flat_map(|p| p.iter());
-            [v, rolling(v_now), rolling(v_last)]
-                .into_iter()
-                .any(|d| self.corridor_hits(all(), d))
-                || self.turn_hits(all(), v, w)
-                || (w_now.abs() > TURNING_RADPS && self.turn_hits(all(), v_now, w_now))
-                || self.arc_hits(all(), v, w)
-                || self.arc_hits(all(), v_now, w_now)
-                || self.closing_hits(all(), v, w)
-                || self.closing_hits(all(), first.v_mps, first.omega_radps)
+            match which {
+                0 => [v, rolling(v_now), rolling(v_last)]
+                    .into_iter()
+                    .any(|d| self.corridor_hits(all(), d)),
+                1 => {
+                    self.turn_hits(all(), v, w)
+                        || (w_now.abs() > TURNING_RADPS && self.turn_hits(all(), v_now, w_now))
+                }
+                2 => self.arc_hits(all(), v, w) || self.arc_hits(all(), v_now, w_now),
+                _ => {
+                    self.closing_hits(all(), v, w)
+                        || self.closing_hits(all(), first.v_mps, first.omega_radps)
+                }
+            }
         };
+        let blocked_by = |pts: &[&[[f32; 2]]]| (0..4).any(|which| check(which, pts));
         let camera = inputs.camera.map(|c| &c.value);
         let no_points: &[[f32; 2]] = &[];
         let turns = [(v, w), (v_now, w_now)];
@@ -534,39 +542,27 @@ impl Supervisor {
         let turning_on_the_spot = turns.iter().any(|(v, w)| v.abs() < 0.05 && w.abs() > 0.05);
         let rear_seen = inputs.rear.is_some_and(|r| r.seen);
         let rear_seen_for_reverse = inputs.rear.is_some_and(|r| r.reverse_seen);
-        if blocked_by(&[
-            &obs.value.points_base,
+        // the lasers' points and steps down, the camera's obstacles, the
+        // remembered rear
+        let pts = [
+            &obs.value.points_base[..],
             &obs.value.drop_offs_base,
             camera.map_or(no_points, |c| &c.points_base),
             inputs.rear.map_or(no_points, |r| &r.points_base),
-        ]) {
+        ];
+        if blocked_by(&pts) {
             if log && tracing::enabled!(tracing::Level::DEBUG) {
-                let by = |p: &[[f32; 2]]| blocked_by(&[p]);
-                // which of the checks holds it, over all the points
-                let pts: [&[[f32; 2]]; 4] = [
-                    &obs.value.points_base,
-                    &obs.value.drop_offs_base,
-                    camera.map_or(no_points, |c| &c.points_base),
-                    inputs.rear.map_or(no_points, |r| &r.points_base),
-                ];
-                let all = || pts.iter().flat_map(|p| p.iter());
-                let corridor = [v, rolling(v_now), rolling(v_last)]
-                    .into_iter()
-                    .any(|d| self.corridor_hits(all(), d));
-                let turn = self.turn_hits(all(), v, w)
-                    || (w_now.abs() > TURNING_RADPS && self.turn_hits(all(), v_now, w_now));
-                let arc = self.arc_hits(all(), v, w) || self.arc_hits(all(), v_now, w_now);
-                let closing = self.closing_hits(all(), v, w)
-                    || self.closing_hits(all(), first.v_mps, first.omega_radps);
+                let by = |source: usize| blocked_by(&pts[source..=source]);
+                let [corridor, turn, arc, closing] = [0, 1, 2, 3].map(|which| check(which, &pts));
                 tracing::debug!(
                     corridor,
                     turn,
                     arc,
                     closing,
-                    lasers = by(&obs.value.points_base),
-                    laser_drops = by(&obs.value.drop_offs_base),
-                    camera = by(camera.map_or(no_points, |c| &c.points_base)),
-                    rear = by(inputs.rear.map_or(no_points, |r| &r.points_base)),
+                    lasers = by(0),
+                    laser_drops = by(1),
+                    camera = by(2),
+                    rear = by(3),
                     v,
                     w,
                     "blocked by"
