@@ -38,6 +38,19 @@ const WORLD_STEP: Duration = Duration::from_millis(10);
 /// The lasers scan every this many world steps (10 Hz).
 const LASER_EVERY: u64 = 10;
 
+/// The first instant on the grid `start + offset + k·period` (k ≥ 0) at
+/// or after `now`.
+fn grid_after(start: Stamp, offset: Duration, period: Duration, now: Stamp) -> Stamp {
+    let first = start.0 + offset;
+    if first >= now.0 {
+        return Stamp(first);
+    }
+    let behind = (now.0 - first).as_nanos();
+    let period_ns = period.as_nanos().max(1);
+    let k = behind.div_ceil(period_ns);
+    Stamp(first + Duration::from_nanos((k * period_ns) as u64))
+}
+
 /// What the simulator's camera rendered last, for its detector.
 type LastView = Arc<Mutex<Option<Vec<i32>>>>;
 
@@ -167,9 +180,10 @@ pub fn devices_with(
 
     // the chair's R-Net bus: its JSM and power module
     let bus = MemoryBus::new();
+    let start = clock.now();
     let chair = Arc::new(Mutex::new(SimChair::new(
         SimChairSettings::default(),
-        clock.now(),
+        start,
     )));
     let chair_task = {
         let (endpoint, chair, clock, stop) =
@@ -202,9 +216,18 @@ pub fn devices_with(
         async move {
             // half a step after the joystick module's frames: the motors
             // act on the latest frame, which under FollowJSM is ours right
-            // after the JSM's, not on the JSM's in the instant it is sent
-            let mut tick =
-                tokio::time::interval_at(tokio::time::Instant::now() + WORLD_STEP / 2, WORLD_STEP);
+            // after the JSM's, not on the JSM's in the instant it is sent.
+            // The steps keep to the JSM's grid (from `start`), whenever
+            // this task first runs: on the wall clock of a busy machine a
+            // grid of its own could land each step between the JSM's
+            // centred frame and ours, and the chair would crawl at a
+            // fraction of its command for the whole trip
+            let (origin_instant, origin_stamp) = (tokio::time::Instant::now(), clock.now());
+            let first = grid_after(start, WORLD_STEP / 2, WORLD_STEP, origin_stamp);
+            let mut tick = tokio::time::interval_at(
+                origin_instant + first.0.saturating_sub(origin_stamp.0),
+                WORLD_STEP,
+            );
             let mut k: u64 = 0;
             loop {
                 tokio::select! {
@@ -516,6 +539,19 @@ impl Detector for SimDetector {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The world's steps stay half a step after the JSM's frames however
+    /// late its task first runs.
+    #[test]
+    fn the_worlds_steps_keep_to_the_jsms_grid_whenever_they_start() {
+        let ms = |v: u64| Stamp(Duration::from_millis(v));
+        let (half, step) = (Duration::from_millis(5), Duration::from_millis(10));
+        assert_eq!(grid_after(ms(100), half, step, ms(100)), ms(105));
+        assert_eq!(grid_after(ms(100), half, step, ms(105)), ms(105));
+        assert_eq!(grid_after(ms(100), half, step, ms(106)), ms(115));
+        assert_eq!(grid_after(ms(100), half, step, ms(137)), ms(145));
+        assert_eq!(grid_after(ms(100), half, step, ms(0)), ms(105));
+    }
 
     /// The camera's wait for a fresh frame ends at the world's next step,
     /// not before it (a step taken before the wait does not count), and
