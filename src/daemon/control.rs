@@ -343,6 +343,15 @@ impl Control {
                 ..supervisor_inputs
             },
         );
+        // each step's command as the supervisor let it out, beside the
+        // velocity the odometry measured (a chair that does not follow
+        // its commands shows here)
+        tracing::trace!(
+            sent = ?cmd.cmd,
+            state = ?cmd.state,
+            measured = ?inputs.odometry.map(|o| (o.value.v_mps, o.value.omega_radps)),
+            "supervisor: step"
+        );
         // floor never seen in the circle a turn on the spot sweeps (only
         // asked about a turn held for the rear: held for that floor, the
         // question is about it anyway)
@@ -586,6 +595,16 @@ impl Control {
                 &o,
             );
             self.planned_path = std::mem::take(&mut out.path_odom);
+            tracing::trace!(
+                ?pose,
+                ?aim,
+                planned = ?out.cmd,
+                source = ?out.source,
+                goal_m = out.goal_distance_m,
+                turn_first,
+                tight,
+                "planner: step"
+            );
             if turn_first {
                 // the way goes off to the side: face it first, on the spot
                 out.cmd = VelocityCmd {
