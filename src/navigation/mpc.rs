@@ -100,6 +100,10 @@ pub struct MpcPlan {
     pub inputs: Vec<[f64; 2]>,
     /// Obstacle half-planes used: per step k (1-based), (n, b) with n·p ≥ b.
     pub half_planes: Vec<Vec<([f64; 2], f64)>>,
+    /// The front disc's rows, those left out included: per step k
+    /// (1-based), (n, g, b) with n·p + g θ ≥ b (its centre linearised in
+    /// the heading); empty without the disc.
+    pub front_rows: Vec<Vec<([f64; 2], f64, f64)>>,
     pub iterations: u32,
     /// Whether the front disc kept its clearance in this plan (false:
     /// none set, or no plan with it, [`solve`]).
@@ -389,7 +393,7 @@ fn solve_discs(problem: &MpcProblem, p: &MpcParams) -> Result<MpcPlan, MpcError>
     }
     // obstacles: the nearest points; per step a half-plane through the point
     // pushed out by the clearance, facing the reference position
-    let obs: Vec<[f64; 2]> = problem
+    let mut obs: Vec<[f64; 2]> = problem
         .obstacles
         .iter()
         .copied()
@@ -410,9 +414,15 @@ fn solve_discs(problem: &MpcProblem, p: &MpcParams) -> Result<MpcPlan, MpcError>
         .map(|k| (p.omega_max_radps + 2.0 * s0[4].abs()) * dt * k as f64)
         .collect();
     let mut half_planes = vec![Vec::new(); n];
-    for &d_m in &discs {
+    let mut front_rows = vec![Vec::new(); if discs.len() > 1 { n } else { 0 }];
+    for (i, &d_m) in discs.iter().enumerate() {
         let c0 = disc_at(&s0, d_m);
-        let mut near = obs.clone();
+        // the last disc sorts the list itself (no copy with one disc)
+        let mut near = if i + 1 == discs.len() {
+            std::mem::take(&mut obs)
+        } else {
+            obs.clone()
+        };
         near.sort_by(|a, c| dist_sq(a, &c0).total_cmp(&dist_sq(c, &c0)));
         near.truncate(p.max_obstacles);
         for k in 1..=n {
@@ -440,6 +450,8 @@ fn solve_discs(problem: &MpcProblem, p: &MpcParams) -> Result<MpcPlan, MpcError>
                     + g * th;
                 if d_m == 0.0 {
                     half_planes[k - 1].push(([nx, ny], bb));
+                } else {
+                    front_rows[k - 1].push(([nx, ny], g, bb));
                 }
                 // every position state k can reach keeps the clearance:
                 // the row cannot bind and is left out
@@ -511,6 +523,7 @@ fn solve_discs(problem: &MpcProblem, p: &MpcParams) -> Result<MpcPlan, MpcError>
         states,
         inputs,
         half_planes,
+        front_rows,
         iterations: sol.iterations,
         front_disc: p.front_disc_m > 0.0,
     })

@@ -296,3 +296,63 @@ fn plans_keep_the_constraints_whose_rows_were_left_out() {
     // obstacles shaped some plans
     assert!(binding > 0);
 }
+
+/// The front disc's rows left out rest on the same reach and on how far
+/// its centre can swing (`swing_per_m`): the plans that kept the disc
+/// keep every one of its rows, those left out included, over seeded
+/// cases with points beside and ahead of the way.
+#[test]
+fn plans_with_the_front_disc_keep_its_rows_that_were_left_out() {
+    let p = MpcParams {
+        horizon: 30,
+        front_disc_m: 0.45,
+        ..crate::config::Settings::defaults().mpc
+    };
+    let mut r = SplitMix64::new(0x4EAC_0003);
+    let (mut with_disc, mut binding, mut rows) = (0, 0, 0);
+    for _ in 0..200 {
+        let theta = r.range(-3.1, 3.1);
+        let state = UnicycleState {
+            x_m: 0.0,
+            y_m: 0.0,
+            theta_rad: theta,
+            v_mps: r.range(0.0, 0.3),
+            omega_radps: r.range(-0.5, 0.5),
+        };
+        let problem = MpcProblem {
+            state,
+            goal: [r.range(-4.0, 4.0), r.range(-4.0, 4.0)],
+            heading_ref_rad: Some(theta + r.range(-0.8, 0.8)),
+            v_ref_mps: r.range(0.05, 0.3),
+            obstacles: (0..(r.unit() * 12.0) as usize)
+                .map(|_| {
+                    let a = theta + r.range(-1.2, 1.2);
+                    let d = r.range(0.7, 3.0);
+                    [d * a.cos(), d * a.sin()]
+                })
+                .collect(),
+        };
+        let Ok(plan) = solve(&problem, &p) else {
+            continue;
+        };
+        if !plan.front_disc {
+            assert!(plan.front_rows.is_empty());
+            continue;
+        }
+        with_disc += 1;
+        assert_eq!(plan.front_rows.len(), plan.states.len());
+        for (k, s) in plan.states.iter().enumerate() {
+            for (nrm, g, bb) in &plan.front_rows[k] {
+                rows += 1;
+                let side = nrm[0] * s.x_m + nrm[1] * s.y_m + g * s.theta_rad - bb;
+                assert!(side >= -1e-4, "step {}: {side}", k + 1);
+                if side < 1e-3 {
+                    binding += 1;
+                }
+            }
+        }
+    }
+    // most cases kept the disc, and its rows shaped some plans
+    assert!(with_disc > 100, "{with_disc}");
+    assert!(rows > 0 && binding > 0, "{rows} {binding}");
+}

@@ -38,6 +38,9 @@ pub struct PlannerStats {
     pub mpc_failed: u64,
     pub fallbacks: u64,
     pub stops: u64,
+    /// Solves whose front disc ([`MpcParams::front_disc_m`]) left no plan:
+    /// the plan was the one without it.
+    pub front_disc_dropped: u64,
 }
 
 #[derive(Debug, Clone)]
@@ -112,6 +115,13 @@ impl Planner {
         let (cmd, source) = match solve(&problem, &self.mpc) {
             Ok(plan) => {
                 self.stats.mpc_solved += 1;
+                if self.mpc.front_disc_m > 0.0 && !plan.front_disc {
+                    self.stats.front_disc_dropped += 1;
+                    tracing::debug!(
+                        dropped = self.stats.front_disc_dropped,
+                        "MPC: no plan with the front disc; the plan without it"
+                    );
+                }
                 self.failures_in_row = 0;
                 path_odom = plan.states.iter().map(|s| [s.x_m, s.y_m]).collect();
                 (plan.cmd, CommandSource::Mpc)
@@ -212,5 +222,36 @@ mod tests {
             (p.stats.mpc_failed, p.stats.fallbacks, p.stats.stops),
             (6, 4, 2)
         );
+    }
+
+    #[test]
+    fn a_plan_made_without_the_front_disc_is_counted() {
+        let defaults = crate::config::Settings::defaults();
+        let mpc = MpcParams {
+            front_disc_m: 0.45,
+            ..defaults.mpc
+        };
+        let mut p = Planner::new(mpc, defaults.field);
+        let s = UnicycleState {
+            v_mps: 0.3,
+            ..Default::default()
+        };
+        // open space: the disc's plan
+        p.step(s, [4.0, 0.0], &Obstacles::default());
+        assert_eq!((p.stats.mpc_solved, p.stats.front_disc_dropped), (1, 0));
+        // a point half a metre ahead of the disc at full speed: no plan
+        // keeps the disc's clearance, the one without it is used and
+        // counted
+        let obstacles = Obstacles {
+            points_base: vec![[(mpc.front_disc_m + 0.5) as f32, 0.0]],
+            ..Default::default()
+        };
+        let out = p.step(s, [4.0, 0.0], &obstacles);
+        assert_eq!(out.source, CommandSource::Mpc);
+        assert_eq!((p.stats.mpc_solved, p.stats.front_disc_dropped), (2, 1));
+        // off: never counted
+        let mut off = Planner::new(defaults.mpc, defaults.field);
+        off.step(s, [4.0, 0.0], &obstacles);
+        assert_eq!(off.stats.front_disc_dropped, 0);
     }
 }
