@@ -242,6 +242,33 @@ fn the_position_reach_bounds_every_rollout_of_the_linearised_dynamics() {
     assert!(largest_share > 0.5, "{largest_share}");
 }
 
+/// A seeded problem from the origin: a heading, speed and turn, a goal
+/// within 4 m, a heading to track near the heading, and up to twelve
+/// points within `spread_rad` of the heading, `near_m` to 3 m away.
+fn seeded_problem(r: &mut SplitMix64, spread_rad: f64, near_m: f64) -> MpcProblem {
+    let theta = r.range(-3.1, 3.1);
+    let state = UnicycleState {
+        x_m: 0.0,
+        y_m: 0.0,
+        theta_rad: theta,
+        v_mps: r.range(0.0, 0.3),
+        omega_radps: r.range(-0.5, 0.5),
+    };
+    MpcProblem {
+        state,
+        goal: [r.range(-4.0, 4.0), r.range(-4.0, 4.0)],
+        heading_ref_rad: Some(theta + r.range(-0.8, 0.8)),
+        v_ref_mps: r.range(0.05, 0.3),
+        obstacles: (0..(r.unit() * 12.0) as usize)
+            .map(|_| {
+                let a = theta + r.range(-spread_rad, spread_rad);
+                let d = r.range(near_m, 3.0);
+                [d * a.cos(), d * a.sin()]
+            })
+            .collect(),
+    }
+}
+
 /// The plans keep every constraint of the full problem, the rows left
 /// out included: all the half-planes and both speed bounds at every
 /// step, over seeded cases with obstacles near and far.
@@ -254,27 +281,8 @@ fn plans_keep_the_constraints_whose_rows_were_left_out() {
     let mut r = SplitMix64::new(0x4EAC_0002);
     let mut binding = 0;
     for _ in 0..200 {
-        let theta = r.range(-3.1, 3.1);
-        let state = UnicycleState {
-            x_m: 0.0,
-            y_m: 0.0,
-            theta_rad: theta,
-            v_mps: r.range(0.0, 0.3),
-            omega_radps: r.range(-0.5, 0.5),
-        };
-        let problem = MpcProblem {
-            state,
-            goal: [r.range(-4.0, 4.0), r.range(-4.0, 4.0)],
-            heading_ref_rad: Some(theta + r.range(-0.8, 0.8)),
-            v_ref_mps: r.range(0.05, 0.3),
-            obstacles: (0..(r.unit() * 12.0) as usize)
-                .map(|_| {
-                    let a = theta + r.range(-1.5, 1.5);
-                    let d = r.range(0.6, 3.0);
-                    [d * a.cos(), d * a.sin()]
-                })
-                .collect(),
-        };
+        let problem = seeded_problem(&mut r, 1.5, 0.6);
+        let state = problem.state;
         let Ok(plan) = solve(&problem, &p) else {
             continue;
         };
@@ -311,27 +319,7 @@ fn plans_with_the_front_disc_keep_its_rows_that_were_left_out() {
     let mut r = SplitMix64::new(0x4EAC_0003);
     let (mut with_disc, mut binding, mut rows) = (0, 0, 0);
     for _ in 0..200 {
-        let theta = r.range(-3.1, 3.1);
-        let state = UnicycleState {
-            x_m: 0.0,
-            y_m: 0.0,
-            theta_rad: theta,
-            v_mps: r.range(0.0, 0.3),
-            omega_radps: r.range(-0.5, 0.5),
-        };
-        let problem = MpcProblem {
-            state,
-            goal: [r.range(-4.0, 4.0), r.range(-4.0, 4.0)],
-            heading_ref_rad: Some(theta + r.range(-0.8, 0.8)),
-            v_ref_mps: r.range(0.05, 0.3),
-            obstacles: (0..(r.unit() * 12.0) as usize)
-                .map(|_| {
-                    let a = theta + r.range(-1.2, 1.2);
-                    let d = r.range(0.7, 3.0);
-                    [d * a.cos(), d * a.sin()]
-                })
-                .collect(),
-        };
+        let problem = seeded_problem(&mut r, 1.2, 0.7);
         let Ok(plan) = solve(&problem, &p) else {
             continue;
         };
