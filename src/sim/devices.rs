@@ -17,7 +17,7 @@ use tokio::sync::watch;
 use tokio_util::sync::CancellationToken;
 
 use super::replica::SimGtDetector;
-use super::rnet::{run_sim_chair, SimChair, SimChairSettings};
+use super::rnet::{advance, run_sim_chair, SimChair, SimChairSettings};
 use super::world::{SimReport, SimWorld};
 use crate::actuation::can::MemoryBus;
 use crate::actuation::writer::RnetActuator;
@@ -37,19 +37,6 @@ use crate::sensors::camera::{CameraError, CameraSource};
 const WORLD_STEP: Duration = Duration::from_millis(10);
 /// The lasers scan every this many world steps (10 Hz).
 const LASER_EVERY: u64 = 10;
-
-/// The first instant on the grid `start + offset + k·period` (k ≥ 0) at
-/// or after `now`.
-fn grid_after(start: Stamp, offset: Duration, period: Duration, now: Stamp) -> Stamp {
-    let first = start.0 + offset;
-    if first >= now.0 {
-        return Stamp(first);
-    }
-    let behind = (now.0 - first).as_nanos();
-    let period_ns = period.as_nanos().max(1);
-    let k = behind.div_ceil(period_ns);
-    Stamp(first + Duration::from_nanos((k * period_ns) as u64))
-}
 
 /// What the simulator's camera rendered last, for its detector.
 type LastView = Arc<Mutex<Option<Vec<i32>>>>;
@@ -223,7 +210,12 @@ pub fn devices_with(
             // centred frame and ours, and the chair would crawl at a
             // fraction of its command for the whole trip
             let (origin_instant, origin_stamp) = (tokio::time::Instant::now(), clock.now());
-            let first = grid_after(start, WORLD_STEP / 2, WORLD_STEP, origin_stamp);
+            let first = Stamp(start.0 + WORLD_STEP / 2);
+            let first = if first >= origin_stamp {
+                first
+            } else {
+                advance(first, WORLD_STEP, origin_stamp)
+            };
             let mut tick = tokio::time::interval_at(
                 origin_instant + first.0.saturating_sub(origin_stamp.0),
                 WORLD_STEP,
@@ -539,19 +531,6 @@ impl Detector for SimDetector {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// The world's steps stay half a step after the JSM's frames however
-    /// late its task first runs.
-    #[test]
-    fn the_worlds_steps_keep_to_the_jsms_grid_whenever_they_start() {
-        let ms = |v: u64| Stamp(Duration::from_millis(v));
-        let (half, step) = (Duration::from_millis(5), Duration::from_millis(10));
-        assert_eq!(grid_after(ms(100), half, step, ms(100)), ms(105));
-        assert_eq!(grid_after(ms(100), half, step, ms(105)), ms(105));
-        assert_eq!(grid_after(ms(100), half, step, ms(106)), ms(115));
-        assert_eq!(grid_after(ms(100), half, step, ms(137)), ms(145));
-        assert_eq!(grid_after(ms(100), half, step, ms(0)), ms(105));
-    }
 
     /// The camera's wait for a fresh frame ends at the world's next step,
     /// not before it (a step taken before the wait does not count), and

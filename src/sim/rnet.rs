@@ -186,7 +186,7 @@ impl SimChair {
 }
 
 /// The next slot after `now` on a fixed grid from `t` (missed slots skipped).
-fn advance(t: Stamp, period: Duration, now: Stamp) -> Stamp {
+pub(super) fn advance(t: Stamp, period: Duration, now: Stamp) -> Stamp {
     let mut n = t.0 + period;
     if n <= now.0 {
         let behind = now.0 - t.0;
