@@ -127,12 +127,18 @@ fn check_stopped_before(across: Across, r: &RunReport, s: &SimSummary, reason: S
     );
     assert!(w.v_mps.abs() < 0.02, "{across:?}: still moving {s:?}");
     // held there for the obstacle; or, where a turn on the spot to look
-    // for a way round clears it, for the unseen rear that such a turn
-    // needs, the person asked about it
-    let asked_rear = r.said.iter().any(|s| s.contains("cannot see behind me"));
+    // for a way round clears it, for the unseen rear (or the floor beside
+    // the chair the camera never saw) that such a turn needs, the person
+    // asked about it
+    let asked = r.said.iter().any(|s| {
+        s.contains("cannot see behind me") || s.contains("cannot see the floor all around me")
+    });
+    let held_for_the_turn = matches!(
+        r.supervisor,
+        SupervisorState::Stopped(StopReason::RearUnseen | StopReason::FloorUnseen)
+    );
     assert!(
-        r.supervisor == SupervisorState::Stopped(reason)
-            || (r.supervisor == SupervisorState::Stopped(StopReason::RearUnseen) && asked_rear),
+        r.supervisor == SupervisorState::Stopped(reason) || (held_for_the_turn && asked),
         "{across:?}: {r:?}"
     );
     assert!(r.estimation.depth_frames_placed > 10, "{r:?}");

@@ -52,8 +52,9 @@ fn go(word: &str) -> Vec<(Duration, UserInput)> {
     vec![(Duration::ZERO, UserInput::Goto(word.into()))]
 }
 
-/// The word, then "yes" when the chair asks whether it is clear behind
-/// (it has not seen its rear at start-up: a turn on the spot needs it).
+/// The word, then "yes" when the chair asks whether it is clear around it
+/// (it has not seen its rear, nor the floor beside it, at start-up: a
+/// turn on the spot needs them).
 fn go_clear_behind(word: &str) -> Vec<(Duration, UserInput)> {
     vec![
         (Duration::ZERO, UserInput::Goto(word.into())),
@@ -61,7 +62,9 @@ fn go_clear_behind(word: &str) -> Vec<(Duration, UserInput)> {
     ]
 }
 
-const REAR_QUESTION: &str = "I cannot see behind me";
+/// The question before a turn on the spot (about behind the chair, or
+/// all around it where the camera has not seen the floor beside it).
+const TURN_QUESTION: &str = "Say yes to let me turn";
 
 fn to_arrival() -> RunOptions {
     RunOptions {
@@ -106,7 +109,7 @@ async fn finds_the_cabinet_after_turning_to_look_for_it() {
     let (r, s) = trip(go_clear_behind("cabinet"), to_arrival(), |_, _| {}).await;
     check_arrival(&r, &s, "cabinet");
     assert!(
-        r.said.iter().any(|l| l.contains(REAR_QUESTION)),
+        r.said.iter().any(|l| l.contains(TURN_QUESTION)),
         "{:?}",
         r.said
     );
@@ -144,7 +147,7 @@ async fn a_turn_on_the_spot_waits_until_someone_says_it_is_clear_behind() {
     };
     let (r, s) = trip(go("cabinet"), opts.clone(), |_, _| {}).await;
     assert_eq!(r.outcome, Outcome::Timeout, "{r:?}");
-    let asked = r.said.iter().filter(|l| l.contains(REAR_QUESTION)).count();
+    let asked = r.said.iter().filter(|l| l.contains(TURN_QUESTION)).count();
     assert_eq!(asked, 1, "{:?}", r.said);
     assert_eq!(
         serde_json::to_value(r.supervisor).expect("json"),
@@ -172,7 +175,7 @@ async fn a_turn_on_the_spot_waits_until_someone_says_it_is_clear_behind() {
         "{:?}",
         r.said
     );
-    let asked = r.said.iter().filter(|l| l.contains(REAR_QUESTION)).count();
+    let asked = r.said.iter().filter(|l| l.contains(TURN_QUESTION)).count();
     assert_eq!(asked, 1, "{:?}", r.said);
     assert_eq!(s.world.collision_steps, 0, "{s:?}");
     // (base_link stays put on the spot: any turn came with driving on)

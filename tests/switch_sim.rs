@@ -177,7 +177,7 @@ async fn one_switch_scanning_chooses_the_second_object_seen_after_two_dwell_time
     let t = trip(
         Some(-2.8),
         vec![(secs(open - 0.1), Act::NoteSeen)],
-        // open the menu; choose; "yes" to "Is it clear behind?"
+        // open the menu; choose; "yes" to "Is it clear around me?"
         &[open, choose, choose + 2.5],
         secs(choose + 6.0),
     )
@@ -198,7 +198,7 @@ async fn one_switch_scanning_chooses_the_second_object_seen_after_two_dwell_time
     );
     assert_eq!(r.goal.label(), Some(second.as_str()), "{r:?}");
     assert!(
-        r.said.iter().any(|l| l.contains("Is it clear behind?")),
+        r.said.iter().any(|l| l.contains("Say yes to let me turn")),
         "{:?}",
         r.said
     );
@@ -221,7 +221,7 @@ async fn look_around_from_the_menu_turns_the_chair_once_and_says_what_is_around(
     let t = trip(
         None,
         vec![(secs(open - 0.1), Act::NoteSeen)],
-        // open the menu; choose; "yes" to "Is it clear behind?"
+        // open the menu; choose; "yes" to "Is it clear around me?"
         &[open, choose, choose + 2.5],
         secs(choose + 40.0),
     )

@@ -288,13 +288,15 @@ fn run_listening_with(
         .args(["--max-duration", max, "--voice-wav"])
         .arg(wav)
         .env("OPENNAV_VOICE__CONFIRM", confirm)
-        // a turn on the spot with the rear unseen asks "Is it clear
-        // behind?" and waits for a "yes" that a recording made beforehand
-        // cannot time (whether the start's turn asks depends on the scans
+        // a turn on the spot with the rear (or the floor beside the
+        // chair) unseen asks "Is it clear behind?" ("… around me?") and
+        // waits for a "yes" that a recording made beforehand cannot time
+        // (whether the start's turn asks depends on the scans and frames
         // the wall clock has given by then); that question has its own
         // tests (daemon::control tests, daemon_sim, switch_sim); these are
         // about the voice
         .env("OPENNAV_SAFETY__TURN_NEEDS_SEEN_REAR", "false")
+        .env("OPENNAV_SAFETY__TURN_NEEDS_SEEN_FLOOR", "false")
         .output()
         .expect("runs");
     assert!(

@@ -213,6 +213,7 @@ fn trips(config: Option<&std::path::Path>, args: &SimArgs) -> Result<(), Failure
         "success": ok.iter().filter(|t| t.success).count(),
         "unreachable": ok.iter().filter(|t| t.shortest_path_m.is_none()).count(),
         "stops": ok.iter().map(|t| t.stops).sum::<u64>(),
+        "questions": ok.iter().map(|t| t.questions).sum::<u64>(),
         "collisions": ok.iter().filter(|t| t.collision).count(),
         "fell": ok.iter().filter(|t| t.fell).count(),
         "min_clearance_m": ok.iter().map(|t| t.min_clearance_m).fold(f64::INFINITY, f64::min),

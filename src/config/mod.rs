@@ -202,6 +202,7 @@ pub struct SafetySection {
     pub camera_max_age_s: f64,
     pub max_blind_fraction: f64,
     pub turn_needs_seen_rear: bool,
+    pub turn_needs_seen_floor: bool,
     pub rear_blind_deg: f64,
     pub rear_memory_s: f64,
     pub rear_confirm_s: f64,
@@ -411,6 +412,7 @@ impl Settings {
             camera_max_age: self.depth_obstacles.enabled.then(|| d(s.camera_max_age_s)),
             max_blind_fraction: s.max_blind_fraction,
             turn_needs_seen_rear: s.turn_needs_seen_rear,
+            turn_needs_seen_floor: s.turn_needs_seen_floor,
         }
     }
 

@@ -309,10 +309,19 @@ impl Control {
         self.watch_motors(now);
         // the camera's cells where the chair is now (its stamp stays the
         // frame's: the deadline is about what the camera last saw)
-        let camera = inputs
-            .camera
-            .zip(inputs.odometry)
-            .map(|(c, odo)| Stamped::new(c.stamp, c.value.to_base(&odo.value.pose)));
+        let camera = inputs.camera.zip(inputs.odometry).map(|(c, odo)| {
+            let pose = odo.value.pose;
+            let mut o = c.value.to_base(&pose);
+            // the floor never seen where the person said it is clear
+            // around the chair holds no turn
+            let (cs, sn) = (pose.theta_rad.cos(), pose.theta_rad.sin());
+            o.floor_unseen_base.retain(|q| {
+                let (x, y) = (q[0] as f64, q[1] as f64);
+                let p = [pose.x_m + cs * x - sn * y, pose.y_m + sn * x + cs * y];
+                !self.rear.floor_vouched(now, p)
+            });
+            Stamped::new(c.stamp, o)
+        });
         if let (Some(r), Some(odo)) = (self.route.as_mut(), inputs.odometry) {
             r.update(
                 odo.value.pose,
@@ -361,6 +370,7 @@ impl Control {
             && camera.as_ref().is_some_and(|c| {
                 let unseen = Obstacles {
                     drop_offs_base: c.value.drop_offs_unseen_base.clone(),
+                    points_base: c.value.floor_unseen_base.clone(),
                     ..Default::default()
                 };
                 let crawl = self.supervisor.crawl_turn_radps();

@@ -92,6 +92,65 @@ fn a_word_starts_the_search_turn_and_a_stop_zeroes_it() {
     assert_eq!(out.done, None, "the daemon goes on after a stop");
 }
 
+/// Floor no camera frame saw all round the chair (a ring of cells from
+/// 0.6 to 0.75 m out): the search turn waits and the chair asks about all
+/// around, once; "yes" lets it turn, and the floor stays vouched for there.
+#[test]
+fn floor_never_seen_around_the_chair_is_asked_about_and_yes_lets_the_search_turn() {
+    let mut c = control(false);
+    let ring: Vec<[f64; 2]> = (0..72)
+        .flat_map(|i| {
+            let a = i as f64 * 5f64.to_radians();
+            [0.6, 0.675, 0.75].map(|r| [r * a.cos(), r * a.sin()])
+        })
+        .collect();
+    let tracker = Tracker::new(crate::config::Settings::defaults().tracker);
+    let step = |c: &mut Control, k: u64| {
+        let now = at(50 * k);
+        let (o, odo) = fresh(now);
+        let camera = Stamped::new(
+            now,
+            MapObstacles {
+                floor_unseen_odom: ring.clone(),
+                ..Default::default()
+            },
+        );
+        c.step(
+            now,
+            ControlInputs {
+                obstacles: Some(&o),
+                odometry: Some(&odo),
+                tracker: &tracker,
+                camera: Some(&camera),
+            },
+        )
+    };
+    c.on_input(UserInput::Goto("chair".into()));
+    let mut said = Vec::new();
+    for k in 0..40 {
+        let out = step(&mut c, k);
+        assert_eq!(out.cmd.cmd, VelocityCmd::default(), "step {k}");
+        said.extend(out.said);
+    }
+    let asked = said
+        .iter()
+        .filter(|l| l.contains("Is it clear around me?"))
+        .count();
+    assert_eq!(asked, 1, "{said:?}");
+    assert_eq!(
+        c.state(),
+        SupervisorState::Stopped(crate::msg::StopReason::FloorUnseen)
+    );
+    c.on_input(UserInput::Yes);
+    let mut turning = false;
+    for k in 40..80 {
+        let out = step(&mut c, k);
+        turning |= out.cmd.cmd.omega_radps > 0.0;
+        assert!(out.said.iter().all(|l| !l.contains("Is it clear")));
+    }
+    assert!(turning, "{:?}", c.state());
+}
+
 #[test]
 fn an_unseen_rear_is_asked_about_once_and_yes_lets_the_search_turn() {
     let mut c = control(false);

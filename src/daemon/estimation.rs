@@ -19,6 +19,11 @@ use crate::estimation::view::CameraView;
 use crate::msg::{MapObstacles, Object3D, Obstacles, Odometry, Stamp, Stamped, WheelTicks};
 use crate::perception::depth_obstacles::{DepthScan, NearestDepth};
 
+/// The floor never seen is reported this far beyond the circle a turn on
+/// the spot sweeps (the supervisor's margin, the chair's motion between
+/// frames, half a cell's diagonal), m.
+const UNSEEN_FLOOR_BEYOND_M: f64 = 0.15;
+
 /// Counters for the report.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
 pub struct EstimationStats {
@@ -155,13 +160,22 @@ impl Estimation {
         if !changed {
             return None;
         }
-        let (map, _) = self.map.as_ref()?;
+        let (map, footprint) = self.map.as_ref()?;
+        let stamp = self.map_stamp?;
+        // the floor never seen where a turn on the spot from about here
+        // would sweep (the chair moves on between frames)
+        let floor_unseen_odom = self
+            .history
+            .pose_at(stamp)
+            .map(|pose| map.unseen_near(&pose, footprint.corner_reach_m() + UNSEEN_FLOOR_BEYOND_M))
+            .unwrap_or_default();
         Some(Stamped::new(
-            self.map_stamp?,
+            stamp,
             MapObstacles {
                 obstacles_odom: map.points(CellKind::Obstacle),
                 drop_offs_odom: map.points(CellKind::DropOff),
                 drop_offs_unseen_odom: map.points(CellKind::UnseenDropOff),
+                floor_unseen_odom,
             },
         ))
     }

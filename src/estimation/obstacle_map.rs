@@ -128,6 +128,14 @@ pub struct FootprintM {
     pub half_width_m: f64,
 }
 
+impl FootprintM {
+    /// How far its farthest corner lies from base_link: the circle a turn
+    /// on the spot sweeps.
+    pub fn corner_reach_m(&self) -> f64 {
+        self.front_m.max(self.rear_m).hypot(self.half_width_m)
+    }
+}
+
 impl ObstacleMap {
     pub fn new(cell_m: f64, radius_m: f64) -> Self {
         ObstacleMap {
@@ -233,7 +241,9 @@ impl ObstacleMap {
         self.forget(pose, footprint);
     }
 
-    /// Drops the cells under the footprint at `pose` and beyond the radius.
+    /// Drops the cells under the footprint at `pose` and beyond the
+    /// radius; the footprint's cells count as floor seen (the chair stands
+    /// on them).
     pub fn forget(&mut self, pose: Pose2, f: FootprintM) {
         let (c, s) = (pose.theta_rad.cos(), pose.theta_rad.sin());
         let r = self.radius_m;
@@ -255,6 +265,55 @@ impl ObstacleMap {
             let (x, y) = ((i as f64 + 0.5) * cell_m, (j as f64 + 0.5) * cell_m);
             (x - pose.x_m).hypot(y - pose.y_m) <= r
         });
+        // the cells whose centres lie under the footprint
+        for k in self.cells_within(&pose, f.corner_reach_m()) {
+            let (x, y) = self.centre_base(&pose, k);
+            if x >= -f.rear_m && x <= f.front_m && y.abs() <= f.half_width_m {
+                self.floor_seen.insert(k);
+            }
+        }
+    }
+
+    /// The cells whose centres lie within `radius_m` of `pose`.
+    fn cells_within(&self, pose: &Pose2, radius_m: f64) -> Vec<(i32, i32)> {
+        let (Some(lo), Some(hi)) = (
+            self.cell([pose.x_m - radius_m, pose.y_m - radius_m]),
+            self.cell([pose.x_m + radius_m, pose.y_m + radius_m]),
+        ) else {
+            return Vec::new();
+        };
+        let cell_m = self.cell_m;
+        (lo.0..=hi.0)
+            .flat_map(|i| (lo.1..=hi.1).map(move |j| (i, j)))
+            .filter(|&(i, j)| {
+                let (x, y) = ((i as f64 + 0.5) * cell_m, (j as f64 + 0.5) * cell_m);
+                (x - pose.x_m).hypot(y - pose.y_m) <= radius_m
+            })
+            .collect()
+    }
+
+    /// Cell `k`'s centre in `base_link` at `pose`.
+    fn centre_base(&self, pose: &Pose2, k: (i32, i32)) -> (f64, f64) {
+        let (c, s) = (pose.theta_rad.cos(), pose.theta_rad.sin());
+        let (dx, dy) = (
+            (k.0 as f64 + 0.5) * self.cell_m - pose.x_m,
+            (k.1 as f64 + 0.5) * self.cell_m - pose.y_m,
+        );
+        (c * dx + s * dy, -s * dx + c * dy)
+    }
+
+    /// The centres (odom) of the cells within `radius_m` of `pose` where
+    /// no frame saw the floor and nothing is remembered, and the chair has
+    /// not stood: what a turn on the spot there would sweep unseen (a box
+    /// under the lasers' plane beside the front corner, out of the
+    /// camera's view since before the chair came near).
+    pub fn unseen_near(&self, pose: &Pose2, radius_m: f64) -> Vec<[f64; 2]> {
+        let cell_m = self.cell_m;
+        self.cells_within(pose, radius_m)
+            .into_iter()
+            .filter(|k| !self.floor_seen.contains(k) && !self.cells.contains_key(k))
+            .map(|(i, j)| [(i as f64 + 0.5) * cell_m, (j as f64 + 0.5) * cell_m])
+            .collect()
     }
 
     /// The remembered cells' points in `odom`, of one kind.
@@ -342,6 +401,35 @@ mod tests {
         m.insert(at(0.0, 0.0, 0.0), &maybe(&[[0.6, 0.0], [0.6, 0.2]]), F);
         assert_eq!(m.points(CellKind::DropOff).len(), 2);
         assert!(m.points(CellKind::UnseenDropOff).is_empty());
+    }
+
+    /// Near the chair: the floor no frame saw is reported, not where a
+    /// frame saw the floor, something is remembered, or the chair stood.
+    #[test]
+    fn floor_never_seen_near_the_chair_is_reported_until_seen_or_stood_on() {
+        let mut m = ObstacleMap::new(0.05, 4.0);
+        let here = at(0.0, 0.0, 0.0);
+        let near = |m: &ObstacleMap, p: Pose2| m.unseen_near(&p, 0.8);
+        let has = |cells: &[[f64; 2]], q: [f64; 2]| {
+            cells
+                .iter()
+                .any(|c| (c[0] - q[0]).abs() <= 0.025 && (c[1] - q[1]).abs() <= 0.025)
+        };
+        // nothing seen yet: all round, but not under the chair
+        m.forget(here, F);
+        let cells = near(&m, here);
+        assert!(has(&cells, [0.625, -0.325]) && has(&cells, [-0.525, 0.375]));
+        assert!(!has(&cells, [0.025, 0.025]) && !has(&cells, [0.525, -0.325]));
+        assert!(cells.iter().all(|c| c[0].hypot(c[1]) <= 0.8));
+        // the floor seen ahead of the front corner, a box beside it
+        m.insert(here, &scan(&[[0.62, 0.42]], &[[0.625, -0.325]]), F);
+        let cells = near(&m, here);
+        assert!(!has(&cells, [0.625, -0.325]) && !has(&cells, [0.625, 0.425]));
+        assert!(has(&cells, [0.625, -0.225]));
+        // where the chair stood 0.5 m on, never reported again
+        m.forget(at(0.5, 0.0, 0.0), F);
+        assert!(!has(&near(&m, here), [0.925, 0.025]));
+        assert!(has(&near(&m, here), [-0.525, 0.375]));
     }
 
     #[test]

@@ -55,6 +55,12 @@ pub struct Obstacles {
     /// the spot over them may be vouched for by the person in the chair
     /// (`safety::rear`). Same frame; the lasers never report any.
     pub drop_offs_unseen_base: Vec<[f32; 2]>,
+    /// Cells near the chair whose floor the camera never saw and where
+    /// nothing is remembered (cell centres, same frame): not obstacles,
+    /// but a turn on the spot that would sweep one waits for the person
+    /// to say it is clear all around (`safety::rear`). The lasers never
+    /// report any.
+    pub floor_unseen_base: Vec<[f32; 2]>,
     /// Every laser step as a ray, to know what the lasers could not see.
     pub rays_base: Vec<LaserRay>,
 }
@@ -115,6 +121,9 @@ pub struct MapObstacles {
     /// Drop-offs that may lie out of its view, where it never saw the
     /// floor ([`Obstacles::drop_offs_unseen_base`]).
     pub drop_offs_unseen_odom: Vec<[f64; 2]>,
+    /// Cells near the chair (at the newest frame) whose floor it never
+    /// saw ([`Obstacles::floor_unseen_base`]).
+    pub floor_unseen_odom: Vec<[f64; 2]>,
 }
 
 impl MapObstacles {
@@ -132,6 +141,7 @@ impl MapObstacles {
             points_base: self.obstacles_odom.iter().map(to_base).collect(),
             drop_offs_base: self.drop_offs_odom.iter().map(to_base).collect(),
             drop_offs_unseen_base: self.drop_offs_unseen_odom.iter().map(to_base).collect(),
+            floor_unseen_base: self.floor_unseen_odom.iter().map(to_base).collect(),
             rays_base: Vec::new(),
         }
     }

@@ -13,6 +13,7 @@
 //! overspeed window. Otherwise it caps speeds and accelerations.
 
 pub mod rear;
+pub mod sweep;
 
 use std::time::Duration;
 
@@ -60,6 +61,11 @@ pub struct SafetyLimits {
     /// A turn on the spot needs the rear seen (remembered or vouched for
     /// by the person, [`rear`]).
     pub turn_needs_seen_rear: bool,
+    /// A turn on the spot needs the floor its circle sweeps seen by the
+    /// camera (or the chair stood there), or vouched for by the person
+    /// ([`Obstacles::floor_unseen_base`]): a box under the lasers' plane
+    /// beside the front corner is seen by neither sensor.
+    pub turn_needs_seen_floor: bool,
 }
 
 /// The latest inputs, each with its acquisition stamp.
@@ -87,6 +93,12 @@ const CLOSING_MIN_M: f64 = 1e-4;
 /// The control step's period (20 Hz): how far the first output toward a
 /// command gets from the last one.
 const CONTROL_PERIOD_S: f64 = 0.05;
+/// A turn on the spot is checked against the floor never seen over the
+/// angle it turns in this long (s), its braking angle and
+/// [`SWEEP_EXTRA_RAD`]: the check repeats every step as it turns.
+const SWEEP_AHEAD_S: f64 = 0.25;
+/// The angle added to a turn's next moment (rad; 6.5 cm at the corners).
+const SWEEP_EXTRA_RAD: f64 = 0.1;
 
 #[derive(Debug, Clone)]
 pub struct Supervisor {
@@ -216,6 +228,39 @@ impl Supervisor {
             .hypot(l.chair_width_m / 2.0)
     }
 
+    /// The footprint about base_link.
+    fn footprint(&self) -> sweep::Rect {
+        let l = &self.limits;
+        sweep::Rect {
+            front: l.front_offset_m,
+            rear: l.rear_offset_m,
+            half: l.chair_width_m / 2.0,
+        }
+    }
+
+    /// Turning on the spot at `omega_radps`: true when one of `points`
+    /// lies where the corners swing within the crawl's margin in the next
+    /// moment (the angle turned in [`SWEEP_AHEAD_S`], the braking angle
+    /// and [`SWEEP_EXTRA_RAD`]); checked again every step as the chair
+    /// turns.
+    fn turn_sweep_hits(&self, points: &[[f32; 2]], v_mps: f64, omega_radps: f64) -> bool {
+        if v_mps.abs() >= 0.05 || omega_radps.abs() <= TURNING_RADPS {
+            return false;
+        }
+        let l = &self.limits;
+        let w = omega_radps.abs();
+        let angle = (w * SWEEP_AHEAD_S
+            + w * w / (2.0 * l.a_angular_max_radps2.max(1e-3))
+            + SWEEP_EXTRA_RAD)
+            .min(std::f64::consts::TAU)
+            * omega_radps.signum();
+        let margin = l.corridor_margin_slow_m.min(l.corridor_margin_m);
+        let footprint = self.footprint();
+        points
+            .iter()
+            .any(|p| footprint.turn_sweeps([p[0] as f64, p[1] as f64], angle, margin))
+    }
+
     /// The fastest turn on the spot whose corners move at a crawl (a third
     /// of the forward cap), rad/s: it keeps the crawl's narrow margin.
     pub fn crawl_turn_radps(&self) -> f64 {
@@ -271,15 +316,7 @@ impl Supervisor {
         let band = l.corridor_margin_slow_m.min(l.corridor_margin_m);
         let (front, rear, half) = (l.front_offset_m, l.rear_offset_m, l.chair_width_m / 2.0);
         // signed distance from the footprint (negative inside), in its frame
-        let gap = |qx: f64, qy: f64| {
-            let dx = (-rear - qx).max(qx - front);
-            let dy = qy.abs() - half;
-            if dx > 0.0 || dy > 0.0 {
-                dx.max(0.0).hypot(dy.max(0.0))
-            } else {
-                dx.max(dy)
-            }
-        };
+        let gap = |qx: f64, qy: f64| self.footprint().gap(qx, qy);
         // the footprint's pose after CLOSING_S (the unicycle's exact arc)
         let th = omega_radps * CLOSING_S;
         let (x, y) = if omega_radps.abs() > 1e-9 {
@@ -589,6 +626,16 @@ impl Supervisor {
             } else {
                 StopReason::DropOff
             })
+        } else if l.turn_needs_seen_floor
+            && turning_on_the_spot
+            && !vouched_turn(inputs, v, v_now, v_last)
+            && turns.iter().any(|&(v, w)| {
+                self.turn_sweep_hits(camera.map_or(no_points, |c| &c.floor_unseen_base), v, w)
+            })
+        {
+            // floor the camera never saw in the turn's circle: a box
+            // under the lasers' plane may lie there; the person may vouch
+            Some(StopReason::FloorUnseen)
         } else if self.way_unseen(
             &obs.value.rays_base,
             &[v, rolling(v_now), rolling(v_last)],

@@ -82,11 +82,22 @@ pub struct RearWatch {
     confirmed: Option<(Stamp, Pose2)>,
     /// Whether that word was for all around the chair, not only behind.
     confirmed_around: bool,
+    /// Where the person said it is clear all around, and when (the
+    /// newest [`MAX_FLOOR_VOUCHED`]).
+    floor_vouched: VecDeque<(Stamp, Pose2)>,
     /// The person's word for backing up from a pose: when, from where,
     /// and how far straight back it holds (m). Not for a turn: they
     /// looked at the strip behind, not at the circle the corners sweep.
     confirmed_back: Option<(Stamp, Pose2, f64)>,
 }
+
+/// The person's "clear around me" holds for the floor within this of
+/// base_link where it was said: the circle the corners sweep turning on
+/// the spot (0.65 m) and a margin, m.
+pub const AROUND_VOUCHED_M: f64 = 0.70;
+
+/// The person's words for the floor around the chair, kept at most.
+const MAX_FLOOR_VOUCHED: usize = 32;
 
 const CELL_M: f64 = 0.05;
 /// The person's word for backing up holds facing within this of the
@@ -114,6 +125,7 @@ impl RearWatch {
             cells: Default::default(),
             confirmed: None,
             confirmed_around: false,
+            floor_vouched: VecDeque::new(),
             confirmed_back: None,
         }
     }
@@ -157,6 +169,23 @@ impl RearWatch {
     pub fn confirm_around(&mut self, stamp: Stamp, pose: Pose2) {
         self.confirmed = Some((stamp, pose));
         self.confirmed_around = true;
+        self.floor_vouched
+            .retain(|(t, _)| t.age_at(stamp) <= self.settings.confirm_for);
+        if self.floor_vouched.len() == MAX_FLOOR_VOUCHED {
+            self.floor_vouched.pop_front();
+        }
+        self.floor_vouched.push_back((stamp, pose));
+    }
+
+    /// Whether the floor at `p` (odom) lies where the person said it is
+    /// clear around the chair within `confirm_for` ([`AROUND_VOUCHED_M`]):
+    /// floor the camera never saw there needs no new word, wherever the
+    /// chair turns.
+    pub fn floor_vouched(&self, now: Stamp, p: [f64; 2]) -> bool {
+        self.floor_vouched.iter().any(|(t, at)| {
+            t.age_at(now) <= self.settings.confirm_for
+                && (p[0] - at.x_m).hypot(p[1] - at.y_m) <= AROUND_VOUCHED_M
+        })
     }
 
     /// The person said it is clear behind for backing up `back_m`
@@ -373,6 +402,30 @@ mod tests {
         w.confirm(at(6.0), pose(0.0, 0.0));
         let v = w.view(at(7.0), pose(0.0, 0.0));
         assert!(v.seen && !v.around_vouched);
+    }
+
+    /// The word for all around vouches for the floor within its circle
+    /// wherever the chair is later (each spot's floor stays vouched for
+    /// the word's time), not beyond it, and not after that time.
+    #[test]
+    fn the_persons_word_for_all_around_holds_for_the_floor_there_wherever_the_chair_turns() {
+        let mut w = RearWatch::new(RearSettings::default());
+        assert!(!w.floor_vouched(at(1.0), [0.6, 0.0]));
+        w.confirm_around(at(0.0), pose(0.0, 0.0));
+        w.confirm_around(at(10.0), pose(2.0, 90.0));
+        for p in [[0.6, 0.0], [0.0, -0.69], [2.0, 0.65]] {
+            assert!(w.floor_vouched(at(20.0), p), "{p:?}");
+        }
+        for p in [[0.0, 0.75], [1.0, 0.0], [2.0, 0.75]] {
+            assert!(!w.floor_vouched(at(20.0), p), "{p:?}");
+        }
+        // a word for behind only leaves the floor's word as it was
+        w.confirm(at(30.0), pose(0.0, 0.0));
+        assert!(w.floor_vouched(at(31.0), [0.6, 0.0]));
+        // each word for its time
+        assert!(!w.floor_vouched(at(61.0), [0.6, 0.0]));
+        assert!(w.floor_vouched(at(61.0), [2.0, 0.65]));
+        assert!(!w.floor_vouched(at(71.0), [2.0, 0.65]));
     }
 
     #[test]

@@ -382,6 +382,65 @@ fn floor_never_seen_holds_a_turn_until_the_person_vouches_for_all_around() {
     );
 }
 
+/// Floor the camera never saw (no step down suspected there, just not
+/// seen: a box under the lasers' plane could stand on it) holds a turn on
+/// the spot whose corners would swing over it, until the person says it is
+/// clear around the chair; it holds neither driving nor a turn that swings
+/// away from it, nor anything with the check off.
+#[test]
+fn a_turn_that_would_sweep_floor_never_seen_waits_for_the_persons_word() {
+    // just ahead of the front-right corner (0.55, −0.35): turning left
+    // swings that corner onto it
+    let unseen = |w: &mut World| w.camera.value.floor_unseen_base = vec![[0.60, -0.30]];
+    let mut s = moving(0.0);
+    let mut w = World::new(20, 0.0, 0.5);
+    unseen(&mut w);
+    let c = s.step(ms(20), &w.inputs());
+    assert_eq!(c.state, SupervisorState::Stopped(StopReason::FloorUnseen));
+    assert_eq!(c.cmd, VelocityCmd::default());
+    // turning right, that corner swings back from it: the turn goes
+    let mut s = moving(0.0);
+    let mut w = World::new(20, 0.0, -0.5);
+    unseen(&mut w);
+    let c = s.step(ms(20), &w.inputs());
+    assert_eq!(c.state, SupervisorState::Navigating);
+    assert!(c.cmd.omega_radps < 0.0);
+    // "clear around me": the left turn goes
+    let mut s = moving(0.0);
+    let mut w = World::new(20, 0.0, 0.5);
+    unseen(&mut w);
+    w.rear.around_vouched = true;
+    let c = s.step(ms(20), &w.inputs());
+    assert_eq!(c.state, SupervisorState::Navigating);
+    assert!(c.cmd.omega_radps > 0.0);
+    // driving on: not an obstacle (the camera sees what stands ahead
+    // before the chair gets there)
+    let mut s = moving(0.2);
+    let mut w = World::new(20, 0.2, 0.0);
+    unseen(&mut w);
+    assert_eq!(
+        s.step(ms(20), &w.inputs()).state,
+        SupervisorState::Navigating
+    );
+    // beyond what the corners reach: the turn goes
+    let mut s = moving(0.0);
+    let mut w = World::new(20, 0.0, 0.5);
+    w.camera.value.floor_unseen_base = vec![[0.0, 0.75], [0.75, 0.0]];
+    assert_eq!(
+        s.step(ms(20), &w.inputs()).state,
+        SupervisorState::Navigating
+    );
+    // with the check off (a chair with sensors that see beside it)
+    let mut s = moving(0.0);
+    s.limits.turn_needs_seen_floor = false;
+    let mut w = World::new(20, 0.0, 0.5);
+    unseen(&mut w);
+    assert_eq!(
+        s.step(ms(20), &w.inputs()).state,
+        SupervisorState::Navigating
+    );
+}
+
 /// Both lasers (default mounts) with `values` per step.
 fn scans_with(mut values: impl FnMut(&crate::msg::LaserRay) -> u32) -> Obstacles {
     use crate::sensors::scip::SensorParams;

@@ -55,6 +55,7 @@ pub fn merge_scans(scans: &[(&Stamped<LaserScan>, &Isometry3<f64>)]) -> Option<S
             points_base,
             drop_offs_base: Vec::new(),
             drop_offs_unseen_base: Vec::new(),
+            floor_unseen_base: Vec::new(),
             rays_base,
         },
     ))

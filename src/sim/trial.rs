@@ -64,6 +64,9 @@ pub struct TrialResult {
     /// Times the chair stopped for safety on the way (the supervisor's
     /// stops, the planner's) — not counting the stop on arrival.
     pub stops: u64,
+    /// Times the chair asked the person whether it is clear (behind it,
+    /// all around it) before a turn on the spot or a back-up.
+    pub questions: u64,
     /// Doorway passages begun and given up, back-offs.
     pub navigation: crate::daemon::control::NavigationStats,
     /// The chair's last sentence.
@@ -87,13 +90,16 @@ pub const TRIAL_LIMIT: Duration =
 const ANSWER_AFTER: Duration = Duration::from_millis(1500);
 /// The chair's corners reach this far from base_link when it turns on the
 /// spot (0.55 m ahead, 0.45 m behind, 0.35 m to each side), plus a margin:
-/// nothing behind within this, the person says it is clear, m.
-const CLEAR_BEHIND_M: f64 = 0.70;
+/// nothing behind within this, the person says it is clear (all around,
+/// the circle the chair's word for the floor holds in), m.
+const CLEAR_BEHIND_M: f64 = crate::safety::rear::AROUND_VOUCHED_M;
 
 /// Backing up, the chair's rear edge (0.45 m behind base_link) moves at
 /// most this far back; the person looks along its width and a margin, m.
 const CLEAR_BACK_M: f64 = 0.40;
 const CLEAR_BACK_HALF_WIDTH_M: f64 = 0.40;
+/// The person's look is sampled this finely, m.
+const LOOK_STEP_M: f64 = 0.01;
 
 /// Where the chair asked the person to look.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -129,34 +135,34 @@ fn clear_behind(w: &super::world::SimWorld, look: Look) -> bool {
         ([-1.0, -1.0], [0.0, sy + 1.0]),
         ([sx, -1.0], [sx + 1.0, sy + 1.0]),
     ]);
-    // sample the rear half-disc, or the strip behind
+    // sample the strip behind, the rear half-disc or the whole disc every
+    // centimetre or so (a coarser look let a box's corner between its
+    // samples: a person looking sees it)
+    let n = |len_m: f64| (len_m / LOOK_STEP_M).ceil().max(1.0) as usize;
     let samples: Vec<[f64; 2]> = if look == Look::Back {
-        (0..=8)
+        let (ni, nk) = (n(CLEAR_BACK_M), n(2.0 * CLEAR_BACK_HALF_WIDTH_M));
+        (0..=ni)
             .flat_map(|i| {
-                (0..=8).map(move |k| {
+                (0..=nk).map(move |k| {
                     [
-                        -0.45 - CLEAR_BACK_M * i as f64 / 8.0,
-                        CLEAR_BACK_HALF_WIDTH_M * (k as f64 / 4.0 - 1.0),
+                        -0.45 - CLEAR_BACK_M * i as f64 / ni as f64,
+                        CLEAR_BACK_HALF_WIDTH_M * (2.0 * k as f64 / nk as f64 - 1.0),
                     ]
                 })
             })
             .collect()
     } else {
-        // the rear half in 13 bearings, or the whole circle in 25
-        let (from, bearings) = match look {
-            Look::Around => (0.0, 24),
-            _ => (std::f64::consts::FRAC_PI_2, 12),
+        // the rear half, or the whole circle
+        let (from, span) = match look {
+            Look::Around => (0.0, std::f64::consts::TAU),
+            _ => (std::f64::consts::FRAC_PI_2, std::f64::consts::PI),
         };
-        let span = if look == Look::Around {
-            std::f64::consts::TAU
-        } else {
-            std::f64::consts::PI
-        };
+        let (bearings, radii) = (n(span * CLEAR_BEHIND_M), n(CLEAR_BEHIND_M));
         (0..=bearings)
             .flat_map(move |i| {
                 let a = from + span * i as f64 / bearings as f64;
-                (1..=8).map(move |k| {
-                    let r = CLEAR_BEHIND_M * k as f64 / 8.0;
+                (1..=radii).map(move |k| {
+                    let r = CLEAR_BEHIND_M * k as f64 / radii as f64;
                     [r * a.cos(), r * a.sin()]
                 })
             })
@@ -374,6 +380,7 @@ pub async fn run(
         time_s: r.duration_s,
         outcome: r.outcome,
         stops: r.planner.stops + r.stops,
+        questions: r.said.iter().filter(|s| s.contains("Is it clear")).count() as u64,
         navigation: r.navigation,
         last_said: r.said.last().cloned(),
         supervisor: r.supervisor,

@@ -1,0 +1,101 @@
+//! The chair's footprint as a rectangle about base_link, and what a turn
+//! on the spot sweeps of the floor beside it in the next moment: the
+//! corners swing out; what lies beside a side's middle, the side comes
+//! only slowly nearer to.
+//! Pure geometry, base_link (x forward, y left), metres and radians.
+
+/// The footprint: `front` ahead of base_link, `rear` behind it, `half`
+/// to each side.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Rect {
+    pub front: f64,
+    pub rear: f64,
+    pub half: f64,
+}
+
+impl Rect {
+    /// The signed distance of `(qx, qy)` from the footprint (negative
+    /// inside).
+    pub fn gap(&self, qx: f64, qy: f64) -> f64 {
+        let dx = (-self.rear - qx).max(qx - self.front);
+        let dy = qy.abs() - self.half;
+        if dx > 0.0 || dy > 0.0 {
+            dx.max(0.0).hypot(dy.max(0.0))
+        } else {
+            dx.max(dy)
+        }
+    }
+
+    /// Whether turning on the spot by up to `angle_rad` (the sign gives
+    /// the direction: positive to the left) brings the footprint within
+    /// `margin_m` of a point and nearer to it than it is now: the floor a
+    /// corner sweeps into. A point the turn leaves as far away or moves
+    /// away from (beside a side's middle, behind a corner) is not swept.
+    pub fn turn_sweeps(&self, p: [f64; 2], angle_rad: f64, margin_m: f64) -> bool {
+        let reach = self.front.max(self.rear).hypot(self.half) + margin_m;
+        if p[0] * p[0] + p[1] * p[1] > reach * reach {
+            return false;
+        }
+        let now = self.gap(p[0], p[1]);
+        let steps = (angle_rad.abs() / SWEEP_STEP_RAD).ceil().max(1.0) as usize;
+        (1..=steps).any(|k| {
+            // the footprint turned by phi: the point turned by −phi
+            let phi = angle_rad * k as f64 / steps as f64;
+            let (c, s) = (phi.cos(), phi.sin());
+            let (qx, qy) = (c * p[0] + s * p[1], -s * p[0] + c * p[1]);
+            let g = self.gap(qx, qy);
+            g < margin_m && g < now - 1e-4
+        })
+    }
+}
+
+/// The turn is sampled every this many radians (1.3 cm at the corners).
+const SWEEP_STEP_RAD: f64 = 0.02;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const CHAIR: Rect = Rect {
+        front: 0.55,
+        rear: 0.45,
+        half: 0.35,
+    };
+
+    #[test]
+    fn the_gap_is_signed() {
+        assert!((CHAIR.gap(0.65, 0.0) - 0.10).abs() < 1e-12);
+        assert!((CHAIR.gap(0.0, -0.40) - 0.05).abs() < 1e-12);
+        assert!((CHAIR.gap(0.58, 0.39) - 0.05).abs() < 1e-12);
+        assert!((CHAIR.gap(0.0, 0.0) + 0.35).abs() < 1e-12);
+    }
+
+    /// Turning left, the front-left corner swings out to the left and the
+    /// front-right corner forward; a point ahead of the front-left corner
+    /// is not swept, and one beside the left side's middle only when the
+    /// side comes within the margin of it.
+    #[test]
+    fn a_turn_sweeps_what_its_corners_swing_into() {
+        let angle = 0.3;
+        // beside the front-left corner, on its way
+        assert!(CHAIR.turn_sweeps([0.45, 0.40], angle, 0.03));
+        // ahead of the front-right corner, on its way
+        assert!(CHAIR.turn_sweeps([0.60, -0.25], angle, 0.03));
+        // beside the left side's middle: the side turns a little towards
+        // it (4.4 cm from 10 cm away), not within the margin
+        assert!(!CHAIR.turn_sweeps([0.0, 0.45], angle, 0.03));
+        // 3 cm away, within it at once: closer as the side turns
+        assert!(CHAIR.turn_sweeps([0.0, 0.38], angle, 0.03));
+        // ahead of the front-left corner: it swings away
+        assert!(!CHAIR.turn_sweeps([0.60, 0.30], angle, 0.03));
+        // the other way round, the roles change
+        assert!(CHAIR.turn_sweeps([0.60, 0.30], -angle, 0.03));
+        assert!(!CHAIR.turn_sweeps([0.60, -0.25], -angle, 0.03));
+        // beyond what the corners reach in the angle
+        assert!(!CHAIR.turn_sweeps([0.10, 0.60], angle, 0.03));
+        // a whole turn reaches it
+        assert!(CHAIR.turn_sweeps([0.10, 0.60], std::f64::consts::PI, 0.03));
+        // beyond the corners' circle: never
+        assert!(!CHAIR.turn_sweeps([0.0, 0.70], std::f64::consts::TAU, 0.03));
+    }
+}
