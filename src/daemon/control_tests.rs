@@ -31,6 +31,17 @@ fn step_empty(c: &mut Control, ms_: u64) -> ControlOutput {
 
 /// One step at `ms_` with the empty room's inputs stamped `inputs_ms`.
 fn step_with_inputs_of(c: &mut Control, inputs_ms: u64, ms_: u64) -> ControlOutput {
+    step_seeing(c, inputs_ms, ms_, None)
+}
+
+/// One step at `ms_` with the empty room's inputs stamped `inputs_ms` and
+/// the depth camera's memory `camera`.
+fn step_seeing(
+    c: &mut Control,
+    inputs_ms: u64,
+    ms_: u64,
+    camera: Option<&Stamped<MapObstacles>>,
+) -> ControlOutput {
     let tracker = Tracker::new(crate::config::Settings::defaults().tracker);
     let now = at(ms_);
     let (o, odo) = fresh(at(inputs_ms));
@@ -40,7 +51,7 @@ fn step_with_inputs_of(c: &mut Control, inputs_ms: u64, ms_: u64) -> ControlOutp
             obstacles: Some(&o),
             odometry: Some(&odo),
             tracker: &tracker,
-            camera: None,
+            camera,
         },
     )
 }
@@ -104,49 +115,53 @@ fn floor_never_seen_around_the_chair_is_asked_about_and_yes_lets_the_search_turn
             [0.6, 0.675, 0.75].map(|r| [r * a.cos(), r * a.sin()])
         })
         .collect();
-    let tracker = Tracker::new(crate::config::Settings::defaults().tracker);
     let step = |c: &mut Control, k: u64| {
-        let now = at(50 * k);
-        let (o, odo) = fresh(now);
         let camera = Stamped::new(
-            now,
+            at(50 * k),
             MapObstacles {
                 floor_unseen_odom: ring.clone(),
                 ..Default::default()
             },
         );
-        c.step(
-            now,
-            ControlInputs {
-                obstacles: Some(&o),
-                odometry: Some(&odo),
-                tracker: &tracker,
-                camera: Some(&camera),
-            },
-        )
+        step_seeing(c, 50 * k, 50 * k, Some(&camera))
     };
+    asked_once_then_yes_turns(
+        &mut c,
+        step,
+        "Is it clear around me?",
+        crate::msg::StopReason::FloorUnseen,
+    );
+}
+
+/// A search turn started by a word waits 2 s (`step(c, k)` at 50·k ms)
+/// with the chair at rest, asking `question` once and held for `reason`;
+/// a "yes" then lets it turn within 2 s, asking nothing more.
+fn asked_once_then_yes_turns(
+    c: &mut Control,
+    mut step: impl FnMut(&mut Control, u64) -> ControlOutput,
+    question: &str,
+    reason: crate::msg::StopReason,
+) {
     c.on_input(UserInput::Goto("chair".into()));
     let mut said = Vec::new();
     for k in 0..40 {
-        let out = step(&mut c, k);
+        let out = step(c, k);
         assert_eq!(out.cmd.cmd, VelocityCmd::default(), "step {k}");
         said.extend(out.said);
     }
-    let asked = said
-        .iter()
-        .filter(|l| l.contains("Is it clear around me?"))
-        .count();
+    let asked = said.iter().filter(|l| l.contains(question)).count();
     assert_eq!(asked, 1, "{said:?}");
-    assert_eq!(
-        c.state(),
-        SupervisorState::Stopped(crate::msg::StopReason::FloorUnseen)
-    );
+    assert_eq!(c.state(), SupervisorState::Stopped(reason));
     c.on_input(UserInput::Yes);
     let mut turning = false;
     for k in 40..80 {
-        let out = step(&mut c, k);
+        let out = step(c, k);
         turning |= out.cmd.cmd.omega_radps > 0.0;
-        assert!(out.said.iter().all(|l| !l.contains("Is it clear")));
+        assert!(
+            out.said.iter().all(|l| !l.contains("Is it clear")),
+            "{:?}",
+            out.said
+        );
     }
     assert!(turning, "{:?}", c.state());
 }
@@ -155,29 +170,13 @@ fn floor_never_seen_around_the_chair_is_asked_about_and_yes_lets_the_search_turn
 fn an_unseen_rear_is_asked_about_once_and_yes_lets_the_search_turn() {
     let mut c = control(false);
     c.supervisor.limits.turn_needs_seen_rear = true;
-    c.on_input(UserInput::Goto("chair".into()));
-    let mut said = Vec::new();
-    for k in 0..40 {
-        let out = step_empty(&mut c, 50 * k);
-        assert_eq!(out.cmd.cmd, VelocityCmd::default(), "step {k}");
-        said.extend(out.said);
-    }
-    let asked: Vec<_> = said
-        .iter()
-        .filter(|l| l.contains("cannot see behind me"))
-        .collect();
-    assert_eq!(asked.len(), 1, "{said:?}");
-    assert_eq!(
-        c.state(),
-        SupervisorState::Stopped(crate::msg::StopReason::RearUnseen)
-    );
     // a "yes" vouches for this spot: the search turn starts
-    c.on_input(UserInput::Yes);
-    let mut turning = false;
-    for k in 40..50 {
-        turning |= step_empty(&mut c, 50 * k).cmd.cmd.omega_radps > 0.0;
-    }
-    assert!(turning, "{:?}", c.state());
+    asked_once_then_yes_turns(
+        &mut c,
+        |c, k| step_empty(c, 50 * k),
+        "cannot see behind me",
+        crate::msg::StopReason::RearUnseen,
+    );
     // "no": the trip goes on, not turning here and not asked again here;
     // a new word asks afresh
     let asked_in = |c: &mut Control, from: u64| {

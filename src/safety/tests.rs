@@ -391,54 +391,39 @@ fn floor_never_seen_holds_a_turn_until_the_person_vouches_for_all_around() {
 fn a_turn_that_would_sweep_floor_never_seen_waits_for_the_persons_word() {
     // just ahead of the front-right corner (0.55, −0.35): turning left
     // swings that corner onto it
-    let unseen = |w: &mut World| w.camera.value.floor_unseen_base = vec![[0.60, -0.30]];
-    let mut s = moving(0.0);
-    let mut w = World::new(20, 0.0, 0.5);
-    unseen(&mut w);
-    let c = s.step(ms(20), &w.inputs());
-    assert_eq!(c.state, SupervisorState::Stopped(StopReason::FloorUnseen));
-    assert_eq!(c.cmd, VelocityCmd::default());
+    const AHEAD_RIGHT: [[f32; 2]; 1] = [[0.60, -0.30]];
+    // the state after a step asking (v, w), with floor never seen at
+    // `unseen`, the person's word for all around, and the check on or off
+    let state = |v: f64, w: f64, unseen: &[[f32; 2]], vouched: bool, check: bool| {
+        let mut s = moving(v);
+        s.limits.turn_needs_seen_floor = check;
+        let mut world = World::new(20, v, w);
+        world.camera.value.floor_unseen_base = unseen.to_vec();
+        world.rear.around_vouched = vouched;
+        let c = s.step(ms(20), &world.inputs());
+        if c.state != SupervisorState::Navigating {
+            assert_eq!(c.cmd, VelocityCmd::default());
+        }
+        c.state
+    };
+    let held = SupervisorState::Stopped(StopReason::FloorUnseen);
+    let goes = SupervisorState::Navigating;
+    // turning left: held (the chair asks)
+    assert_eq!(state(0.0, 0.5, &AHEAD_RIGHT, false, true), held);
     // turning right, that corner swings back from it: the turn goes
-    let mut s = moving(0.0);
-    let mut w = World::new(20, 0.0, -0.5);
-    unseen(&mut w);
-    let c = s.step(ms(20), &w.inputs());
-    assert_eq!(c.state, SupervisorState::Navigating);
-    assert!(c.cmd.omega_radps < 0.0);
+    assert_eq!(state(0.0, -0.5, &AHEAD_RIGHT, false, true), goes);
     // "clear around me": the left turn goes
-    let mut s = moving(0.0);
-    let mut w = World::new(20, 0.0, 0.5);
-    unseen(&mut w);
-    w.rear.around_vouched = true;
-    let c = s.step(ms(20), &w.inputs());
-    assert_eq!(c.state, SupervisorState::Navigating);
-    assert!(c.cmd.omega_radps > 0.0);
+    assert_eq!(state(0.0, 0.5, &AHEAD_RIGHT, true, true), goes);
     // driving on: not an obstacle (the camera sees what stands ahead
     // before the chair gets there)
-    let mut s = moving(0.2);
-    let mut w = World::new(20, 0.2, 0.0);
-    unseen(&mut w);
-    assert_eq!(
-        s.step(ms(20), &w.inputs()).state,
-        SupervisorState::Navigating
-    );
+    assert_eq!(state(0.2, 0.0, &AHEAD_RIGHT, false, true), goes);
     // beyond what the corners reach: the turn goes
-    let mut s = moving(0.0);
-    let mut w = World::new(20, 0.0, 0.5);
-    w.camera.value.floor_unseen_base = vec![[0.0, 0.75], [0.75, 0.0]];
     assert_eq!(
-        s.step(ms(20), &w.inputs()).state,
-        SupervisorState::Navigating
+        state(0.0, 0.5, &[[0.0, 0.75], [0.75, 0.0]], false, true),
+        goes
     );
     // with the check off (a chair with sensors that see beside it)
-    let mut s = moving(0.0);
-    s.limits.turn_needs_seen_floor = false;
-    let mut w = World::new(20, 0.0, 0.5);
-    unseen(&mut w);
-    assert_eq!(
-        s.step(ms(20), &w.inputs()).state,
-        SupervisorState::Navigating
-    );
+    assert_eq!(state(0.0, 0.5, &AHEAD_RIGHT, false, false), goes);
 }
 
 /// Both lasers (default mounts) with `values` per step.
