@@ -16,7 +16,7 @@ use crate::estimation::fusion::Estimator;
 use crate::estimation::obstacle_map::{CellKind, FootprintM, MapView, ObstacleMap};
 use crate::estimation::tracker::Tracker;
 use crate::estimation::view::CameraView;
-use crate::msg::{MapObstacles, Object3D, Obstacles, Odometry, Stamp, Stamped, WheelTicks};
+use crate::msg::{MapObstacles, Object3D, Obstacles, Odometry, Pose2, Stamp, Stamped, WheelTicks};
 use crate::perception::depth_obstacles::{DepthScan, NearestDepth};
 
 /// The floor never seen is reported this far beyond the circle a turn on
@@ -75,8 +75,8 @@ pub struct Estimation {
     /// The latest depth frames' nearest surfaces, for the views of the
     /// same frames: what hides a track.
     nearest: VecDeque<Stamped<NearestDepth>>,
-    /// The newest frame placed into the map.
-    map_stamp: Option<Stamp>,
+    /// The newest frame placed into the map, and the chair's pose then.
+    map_stamp: Option<(Stamp, Pose2)>,
     pub stats: EstimationStats,
 }
 
@@ -145,7 +145,7 @@ impl Estimation {
                         map.insert(pose, &scan.value, *footprint);
                         self.stats.depth_frames_placed += 1;
                         self.stats.depth_cells = map.len() as u64;
-                        self.map_stamp = Some(stamp);
+                        self.map_stamp = Some((stamp, pose));
                         changed = true;
                     }
                 }
@@ -161,14 +161,11 @@ impl Estimation {
             return None;
         }
         let (map, footprint) = self.map.as_ref()?;
-        let stamp = self.map_stamp?;
+        let (stamp, pose) = self.map_stamp?;
         // the floor never seen where a turn on the spot from about here
         // would sweep (the chair moves on between frames)
-        let floor_unseen_odom = self
-            .history
-            .pose_at(stamp)
-            .map(|pose| map.unseen_near(&pose, footprint.corner_reach_m() + UNSEEN_FLOOR_BEYOND_M))
-            .unwrap_or_default();
+        let floor_unseen_odom =
+            map.unseen_near(&pose, footprint.corner_reach_m() + UNSEEN_FLOOR_BEYOND_M);
         Some(Stamped::new(
             stamp,
             MapObstacles {

@@ -177,15 +177,14 @@ impl RearWatch {
         self.floor_vouched.push_back((stamp, pose));
     }
 
-    /// Whether the floor at `p` (odom) lies where the person said it is
-    /// clear around the chair within `confirm_for` ([`AROUND_VOUCHED_M`]):
-    /// floor the camera never saw there needs no new word, wherever the
-    /// chair turns.
-    pub fn floor_vouched(&self, now: Stamp, p: [f64; 2]) -> bool {
-        self.floor_vouched.iter().any(|(t, at)| {
-            t.age_at(now) <= self.settings.confirm_for
-                && (p[0] - at.x_m).hypot(p[1] - at.y_m) <= AROUND_VOUCHED_M
-        })
+    /// Where (odom) the person said it is clear around the chair within
+    /// `confirm_for`: the floor within [`AROUND_VOUCHED_M`] of each needs
+    /// no new word, wherever the chair turns.
+    pub fn floor_vouched_at(&self, now: Stamp) -> impl Iterator<Item = [f64; 2]> + '_ {
+        self.floor_vouched
+            .iter()
+            .filter(move |(t, _)| t.age_at(now) <= self.settings.confirm_for)
+            .map(|(_, at)| [at.x_m, at.y_m])
     }
 
     /// The person said it is clear behind for backing up `back_m`
@@ -410,22 +409,27 @@ mod tests {
     #[test]
     fn the_persons_word_for_all_around_holds_for_the_floor_there_wherever_the_chair_turns() {
         let mut w = RearWatch::new(RearSettings::default());
-        assert!(!w.floor_vouched(at(1.0), [0.6, 0.0]));
+        // whether the floor at `p` (odom) lies within the word's circle
+        let vouched = |w: &RearWatch, now: Stamp, p: [f64; 2]| {
+            w.floor_vouched_at(now)
+                .any(|at| (p[0] - at[0]).hypot(p[1] - at[1]) <= AROUND_VOUCHED_M)
+        };
+        assert!(!vouched(&w, at(1.0), [0.6, 0.0]));
         w.confirm_around(at(0.0), pose(0.0, 0.0));
         w.confirm_around(at(10.0), pose(2.0, 90.0));
         for p in [[0.6, 0.0], [0.0, -0.69], [2.0, 0.65]] {
-            assert!(w.floor_vouched(at(20.0), p), "{p:?}");
+            assert!(vouched(&w, at(20.0), p), "{p:?}");
         }
         for p in [[0.0, 0.75], [1.0, 0.0], [2.0, 0.75]] {
-            assert!(!w.floor_vouched(at(20.0), p), "{p:?}");
+            assert!(!vouched(&w, at(20.0), p), "{p:?}");
         }
         // a word for behind only leaves the floor's word as it was
         w.confirm(at(30.0), pose(0.0, 0.0));
-        assert!(w.floor_vouched(at(31.0), [0.6, 0.0]));
+        assert!(vouched(&w, at(31.0), [0.6, 0.0]));
         // each word for its time
-        assert!(!w.floor_vouched(at(61.0), [0.6, 0.0]));
-        assert!(w.floor_vouched(at(61.0), [2.0, 0.65]));
-        assert!(!w.floor_vouched(at(71.0), [2.0, 0.65]));
+        assert!(!vouched(&w, at(61.0), [0.6, 0.0]));
+        assert!(vouched(&w, at(61.0), [2.0, 0.65]));
+        assert!(!vouched(&w, at(71.0), [2.0, 0.65]));
     }
 
     #[test]
