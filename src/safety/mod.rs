@@ -316,7 +316,8 @@ impl Supervisor {
         let band = l.corridor_margin_slow_m.min(l.corridor_margin_m);
         let (front, rear, half) = (l.front_offset_m, l.rear_offset_m, l.chair_width_m / 2.0);
         // signed distance from the footprint (negative inside), in its frame
-        let gap = |qx: f64, qy: f64| self.footprint().gap(qx, qy);
+        let footprint = self.footprint();
+        let gap = |qx: f64, qy: f64| footprint.gap(qx, qy);
         // the footprint's pose after CLOSING_S (the unicycle's exact arc)
         let th = omega_radps * CLOSING_S;
         let (x, y) = if omega_radps.abs() > 1e-9 {
