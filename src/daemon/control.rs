@@ -312,25 +312,7 @@ impl Control {
         let camera = inputs.camera.zip(inputs.odometry).map(|(c, odo)| {
             let pose = odo.value.pose;
             let mut o = c.value.to_base(&pose);
-            // the floor never seen where the person said it is clear
-            // around the chair holds no turn (their places in base_link)
-            let (cs, sn) = (pose.theta_rad.cos(), pose.theta_rad.sin());
-            let vouched: Vec<[f64; 2]> = self
-                .rear
-                .floor_vouched_at(now)
-                .map(|p| {
-                    let (dx, dy) = (p[0] - pose.x_m, p[1] - pose.y_m);
-                    [cs * dx + sn * dy, -sn * dx + cs * dy]
-                })
-                .collect();
-            if !vouched.is_empty() {
-                o.floor_unseen_base.retain(|q| {
-                    let (x, y) = (q[0] as f64, q[1] as f64);
-                    vouched
-                        .iter()
-                        .all(|v| (x - v[0]).hypot(y - v[1]) > crate::safety::rear::AROUND_VOUCHED_M)
-                });
-            }
+            self.drop_vouched_floor(now, &pose, &mut o.floor_unseen_base);
             Stamped::new(c.stamp, o)
         });
         if let (Some(r), Some(odo)) = (self.route.as_mut(), inputs.odometry) {

@@ -24,6 +24,30 @@ impl Control {
             .is_some_and(|p| (p.x_m - pose.x_m).hypot(p.y_m - pose.y_m) <= REFUSED_TURN_WITHIN_M)
     }
 
+    /// Drops from `floor_unseen_base` (base_link at `pose`) the floor the
+    /// person said is clear around the chair: it holds no turn.
+    pub(super) fn drop_vouched_floor(
+        &self,
+        now: Stamp,
+        pose: &crate::msg::Pose2,
+        floor_unseen_base: &mut Vec<[f32; 2]>,
+    ) {
+        let vouched: Vec<[f64; 2]> = self
+            .rear
+            .floor_vouched_at(now)
+            .map(|p| pose.base_from_odom(p))
+            .collect();
+        if vouched.is_empty() {
+            return;
+        }
+        floor_unseen_base.retain(|q| {
+            let (x, y) = (q[0] as f64, q[1] as f64);
+            vouched
+                .iter()
+                .all(|v| (x - v[0]).hypot(y - v[1]) > crate::safety::rear::AROUND_VOUCHED_M)
+        });
+    }
+
     /// Feeds the rear watch the newest scan (seen from the pose now) and
     /// the person's "yes"; what it knows of the rear now.
     pub(super) fn watch_rear(

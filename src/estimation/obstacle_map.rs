@@ -99,6 +99,11 @@ type Cells = BTreeMap<(i32, i32), (CellKind, Vec<[f64; 3]>)>;
 
 const MAX_POINTS_PER_CELL: usize = 4;
 
+/// Cell `k`'s centre in odom, for cells `cell_m` wide.
+fn centre(cell_m: f64, k: (i32, i32)) -> [f64; 2] {
+    [(k.0 as f64 + 0.5) * cell_m, (k.1 as f64 + 0.5) * cell_m]
+}
+
 /// The points farthest along −x, +x, −y and +y (distinct).
 fn extremes(points: &[[f64; 3]]) -> Vec<[f64; 3]> {
     let by = |i: usize, max: bool| {
@@ -261,13 +266,13 @@ impl ObstacleMap {
             !points.is_empty()
         });
         let cell_m = self.cell_m;
-        self.floor_seen.retain(|&(i, j)| {
-            let (x, y) = ((i as f64 + 0.5) * cell_m, (j as f64 + 0.5) * cell_m);
+        self.floor_seen.retain(|&k| {
+            let [x, y] = centre(cell_m, k);
             (x - pose.x_m).hypot(y - pose.y_m) <= r
         });
         // the cells whose centres lie under the footprint
         for k in self.cells_within(&pose, f.corner_reach_m()) {
-            let (x, y) = self.centre_base(&pose, k);
+            let [x, y] = pose.base_from_odom(centre(self.cell_m, k));
             if x >= -f.rear_m && x <= f.front_m && y.abs() <= f.half_width_m {
                 self.floor_seen.insert(k);
             }
@@ -285,21 +290,11 @@ impl ObstacleMap {
         let cell_m = self.cell_m;
         (lo.0..=hi.0)
             .flat_map(|i| (lo.1..=hi.1).map(move |j| (i, j)))
-            .filter(|&(i, j)| {
-                let (x, y) = ((i as f64 + 0.5) * cell_m, (j as f64 + 0.5) * cell_m);
+            .filter(|&k| {
+                let [x, y] = centre(cell_m, k);
                 (x - pose.x_m).hypot(y - pose.y_m) <= radius_m
             })
             .collect()
-    }
-
-    /// Cell `k`'s centre in `base_link` at `pose`.
-    fn centre_base(&self, pose: &Pose2, k: (i32, i32)) -> (f64, f64) {
-        let (c, s) = (pose.theta_rad.cos(), pose.theta_rad.sin());
-        let (dx, dy) = (
-            (k.0 as f64 + 0.5) * self.cell_m - pose.x_m,
-            (k.1 as f64 + 0.5) * self.cell_m - pose.y_m,
-        );
-        (c * dx + s * dy, -s * dx + c * dy)
     }
 
     /// The centres (odom) of the cells within `radius_m` of `pose` where
@@ -308,11 +303,10 @@ impl ObstacleMap {
     /// under the lasers' plane beside the front corner, out of the
     /// camera's view since before the chair came near).
     pub fn unseen_near(&self, pose: &Pose2, radius_m: f64) -> Vec<[f64; 2]> {
-        let cell_m = self.cell_m;
         self.cells_within(pose, radius_m)
             .into_iter()
             .filter(|k| !self.floor_seen.contains(k) && !self.cells.contains_key(k))
-            .map(|(i, j)| [(i as f64 + 0.5) * cell_m, (j as f64 + 0.5) * cell_m])
+            .map(|k| centre(self.cell_m, k))
             .collect()
     }
 

@@ -33,6 +33,13 @@ pub struct Pose2 {
 }
 
 impl Pose2 {
+    /// The point `p_odom` (this pose being odom_from_base) in base_link.
+    pub fn base_from_odom(&self, p_odom: [f64; 2]) -> [f64; 2] {
+        let (c, s) = (self.theta_rad.cos(), self.theta_rad.sin());
+        let (dx, dy) = (p_odom[0] - self.x_m, p_odom[1] - self.y_m);
+        [c * dx + s * dy, -s * dx + c * dy]
+    }
+
     /// Moves by `ds` along an arc turning by `dtheta` (exact when
     /// |dθ| is not tiny, the midpoint rule otherwise).
     pub fn advanced(&self, ds: f64, dtheta: f64) -> Pose2 {

@@ -129,13 +129,9 @@ pub struct MapObstacles {
 impl MapObstacles {
     /// In `base_link` at `odom_from_base`.
     pub fn to_base(&self, odom_from_base: &super::Pose2) -> Obstacles {
-        let (c, s) = (
-            odom_from_base.theta_rad.cos(),
-            odom_from_base.theta_rad.sin(),
-        );
         let to_base = |p: &[f64; 2]| {
-            let (dx, dy) = (p[0] - odom_from_base.x_m, p[1] - odom_from_base.y_m);
-            [(c * dx + s * dy) as f32, (-s * dx + c * dy) as f32]
+            let [x, y] = odom_from_base.base_from_odom(*p);
+            [x as f32, y as f32]
         };
         Obstacles {
             points_base: self.obstacles_odom.iter().map(to_base).collect(),

@@ -222,10 +222,7 @@ impl Supervisor {
 
     /// How far the footprint's corners reach from base_link, m.
     fn corner_reach_m(&self) -> f64 {
-        let l = &self.limits;
-        l.front_offset_m
-            .max(l.rear_offset_m)
-            .hypot(l.chair_width_m / 2.0)
+        self.footprint().corner_reach_m()
     }
 
     /// The footprint about base_link.
@@ -249,9 +246,7 @@ impl Supervisor {
         }
         let l = &self.limits;
         let w = omega_radps.abs();
-        let angle = (w * SWEEP_AHEAD_S
-            + w * w / (2.0 * l.a_angular_max_radps2.max(1e-3))
-            + SWEEP_EXTRA_RAD)
+        let angle = (w * SWEEP_AHEAD_S + w * w / (2.0 * l.a_angular_max_radps2) + SWEEP_EXTRA_RAD)
             .min(std::f64::consts::TAU)
             * omega_radps.signum();
         let margin = l.corridor_margin_slow_m.min(l.corridor_margin_m);

@@ -14,6 +14,12 @@ pub struct Rect {
 }
 
 impl Rect {
+    /// How far its farthest corner lies from base_link: the circle a turn
+    /// on the spot sweeps.
+    pub fn corner_reach_m(&self) -> f64 {
+        self.front.max(self.rear).hypot(self.half)
+    }
+
     /// The signed distance of `(qx, qy)` from the footprint (negative
     /// inside).
     pub fn gap(&self, qx: f64, qy: f64) -> f64 {
@@ -32,7 +38,7 @@ impl Rect {
     /// corner sweeps into. A point the turn leaves as far away or moves
     /// away from (beside a side's middle, behind a corner) is not swept.
     pub fn turn_sweeps(&self, p: [f64; 2], angle_rad: f64, margin_m: f64) -> bool {
-        let reach = self.front.max(self.rear).hypot(self.half) + margin_m;
+        let reach = self.corner_reach_m() + margin_m;
         if p[0] * p[0] + p[1] * p[1] > reach * reach {
             return false;
         }
