@@ -211,6 +211,8 @@ impl Room {
         // per row, the objects whose rectangle spans it, nearest first,
         // each with the columns its corners' convex hull spans there
         let mut row: Vec<Candidate> = Vec::with_capacity(order.len());
+        let mut dirs: Vec<Vector3<f64>> = Vec::with_capacity(w);
+        let mut t_wall: [Vec<f64>; 3] = std::array::from_fn(|_| Vec::with_capacity(w));
         for v in 0..h {
             row.clear();
             row.extend(
@@ -231,10 +233,25 @@ impl Room {
                         })
                     }),
             );
-            for u in 0..w {
-                let d_cam = Vector3::new((u as f64 - k.cx) / k.fx, (v as f64 - k.cy) / k.fy, 1.0);
-                let d = r * d_cam;
-                let (t, face, id) = self.cast(&o, &d, &row, u as f64);
+            // the row's rays, and each one's length to the wall it heads
+            // for along each axis: one pass per axis over the row, whose
+            // divisions run side by side (one at a time they would wait
+            // for each other)
+            dirs.clear();
+            dirs.extend((0..w).map(|u| {
+                r * Vector3::new((u as f64 - k.cx) / k.fx, (v as f64 - k.cy) / k.fy, 1.0)
+            }));
+            for (a, t_axis) in t_wall.iter_mut().enumerate() {
+                let (size, o_a) = (self.size_m[a], o[a]);
+                t_axis.clear();
+                t_axis.extend(dirs.iter().map(|d| {
+                    let wall = if d[a] > 0.0 { size } else { 0.0 };
+                    (wall - o_a) / d[a]
+                }));
+            }
+            for (u, d) in dirs.iter().enumerate() {
+                let leave = nearest_wall(d, &[t_wall[0][u], t_wall[1][u], t_wall[2][u]]);
+                let (t, face, id) = self.cast_beyond_walls(&o, d, leave, &row, u as f64);
                 let i = v * w + u;
                 if !t.is_finite() {
                     continue;
@@ -265,7 +282,9 @@ impl Room {
 
     /// Nearest hit along `o + t·d`: (t, axis of the face hit, object index
     /// or −1), among the `candidates` (nearest first) whose pixel columns
-    /// hold `u`, the ray's pixel column.
+    /// hold `u`, the ray's pixel column (the render does the same a row
+    /// at a time).
+    #[cfg(test)]
     fn cast(
         &self,
         o: &Vector3<f64>,
@@ -273,19 +292,25 @@ impl Room {
         candidates: &[Candidate],
         u: f64,
     ) -> (f64, usize, i32) {
-        let d_norm = d.norm();
-        // leaving the room from inside
-        let mut best = (f64::INFINITY, 2usize, -1i32);
-        for a in 0..3 {
-            if d[a].abs() < 1e-12 {
-                continue;
-            }
+        let t_wall: [f64; 3] = std::array::from_fn(|a| {
             let wall = if d[a] > 0.0 { self.size_m[a] } else { 0.0 };
-            let t = (wall - o[a]) / d[a];
-            if t > 0.0 && t < best.0 {
-                best = (t, a, -1);
-            }
-        }
+            (wall - o[a]) / d[a]
+        });
+        self.cast_beyond_walls(o, d, nearest_wall(d, &t_wall), candidates, u)
+    }
+
+    /// As [`Room::cast`], with where the ray leaves the room from inside
+    /// found already (`leave`: t and axis, by [`nearest_wall`]).
+    fn cast_beyond_walls(
+        &self,
+        o: &Vector3<f64>,
+        d: &Vector3<f64>,
+        leave: (f64, usize),
+        candidates: &[Candidate],
+        u: f64,
+    ) -> (f64, usize, i32) {
+        let d_norm = d.norm();
+        let mut best = (leave.0, leave.1, -1i32);
         // the floor hit inside a pit: on through its open top to the pit's
         // floor or one of its sides
         if best.1 == 2 && d.z < 0.0 && best.0.is_finite() {
@@ -318,29 +343,25 @@ impl Room {
             }
             let idx = c.idx;
             let ob = &self.objects[idx];
+            // the slabs' entry and exit, all three axes without branches
+            // (the entry only grows and the exit only shrinks, so a miss
+            // at any axis is a miss at the end)
             let (mut t0, mut t1, mut axis) = (0.0f64, f64::INFINITY, 0usize);
-            let mut hit = true;
+            let mut inside = true;
             for a in 0..3 {
                 if d[a].abs() < 1e-12 {
-                    if o[a] < ob.min_m[a] || o[a] > ob.max_m[a] {
-                        hit = false;
-                        break;
-                    }
+                    inside &= o[a] >= ob.min_m[a] && o[a] <= ob.max_m[a];
                     continue;
                 }
                 let ta = (ob.min_m[a] - o[a]) / d[a];
                 let tb = (ob.max_m[a] - o[a]) / d[a];
-                let (lo, hi) = if ta < tb { (ta, tb) } else { (tb, ta) };
-                if lo > t0 {
-                    t0 = lo;
-                    axis = a;
-                }
+                let (lo, hi) = (ta.min(tb), ta.max(tb));
+                let enters_later = lo > t0;
+                t0 = if enters_later { lo } else { t0 };
+                axis = if enters_later { a } else { axis };
                 t1 = t1.min(hi);
-                if t0 > t1 {
-                    hit = false;
-                    break;
-                }
             }
+            let hit = inside && !(t0 > t1);
             if hit && t0 > 0.0 && t0 < best.0 {
                 best = (t0, axis, idx as i32);
             }
@@ -416,6 +437,21 @@ fn box_surface(min: [f64; 3], max: [f64; 3], s: f64, hidden: [[bool; 2]; 3]) -> 
         }
     }
     out
+}
+
+/// Where a ray along `d` leaves the room from inside, from each axis's
+/// `t_wall` (the ray's length to that axis's wall it heads for): (t,
+/// axis), the nearest in front; (∞, 2) for none. Chosen without branches
+/// (which way a pixel's ray leaves changes from pixel to pixel: a branch
+/// there is mispredicted often).
+fn nearest_wall(d: &Vector3<f64>, t_wall: &[f64; 3]) -> (f64, usize) {
+    let mut best = (f64::INFINITY, 2usize);
+    for (a, &t) in t_wall.iter().enumerate() {
+        let take = d[a].abs() >= 1e-12 && t > 0.0 && t < best.0;
+        best.0 = if take { t } else { best.0 };
+        best.1 = if take { a } else { best.1 };
+    }
+    best
 }
 
 /// The pixel columns, a pixel's margin about them, that the convex hull
