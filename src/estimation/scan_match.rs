@@ -150,7 +150,11 @@ fn normals(pts: &[[f64; 2]], grid: &Grid, radius_m: f64) -> Vec<Option<[f64; 2]>
 }
 
 fn apply(t: &Pose2, p: &[f64; 2]) -> [f64; 2] {
-    let (c, s) = (t.theta_rad.cos(), t.theta_rad.sin());
+    apply_turned(t, t.theta_rad.cos(), t.theta_rad.sin(), p)
+}
+
+/// [`apply`] with the pose's cosine `c` and sine `s` given.
+fn apply_turned(t: &Pose2, c: f64, s: f64, p: &[f64; 2]) -> [f64; 2] {
     [t.x_m + c * p[0] - s * p[1], t.y_m + s * p[0] + c * p[1]]
 }
 
@@ -269,8 +273,10 @@ pub fn icp_against(
         iterations = it + 1;
         let gate_now = gate;
         pairs.clear();
+        // the pose's cosine and sine once for all the scan's points
+        let (c, s) = (t.theta_rad.cos(), t.theta_rad.sin());
         for q in current {
-            let qt = apply(&t, q);
+            let qt = apply_turned(&t, c, s, q);
             if let Some((i, d2)) = cache.nearest(grid, reference, &qt, gate_now) {
                 pairs.push((qt, reference[i], d2, ref_normals[i]));
             }

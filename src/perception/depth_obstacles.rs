@@ -207,10 +207,10 @@ pub fn scan(
     let stride = s.stride_px.max(1);
     let origin = base_from_depth.translation.vector;
     // per cell: its points' count and extremes
-    let mut obstacles: BTreeMap<Cell, Extremes> = BTreeMap::new();
-    let mut drops: BTreeMap<Cell, Extremes> = BTreeMap::new();
+    // obstacles, drop-offs and floor, by `Kind`
+    let mut maps: [BTreeMap<Cell, Extremes>; 3] = Default::default();
     let mut drops_unseen: BTreeMap<Cell, Extremes> = BTreeMap::new();
-    let mut floor: BTreeMap<Cell, Extremes> = BTreeMap::new();
+    let mut run: Option<(Kind, Cell, Extremes)> = None;
     let (w, h) = (depth.width().min(k.width), depth.height().min(k.height));
     let mut nearest = NearestDepth::new(k, base_from_depth, w, h);
     let data = depth.data();
@@ -236,8 +236,8 @@ pub fn scan(
             if p.x * p.x + p.y * p.y > s.max_range_m * s.max_range_m {
                 continue;
             }
-            let (map, at) = if p.z > s.floor_band_m && p.z <= s.max_height_m {
-                (&mut obstacles, (p.x, p.y))
+            let (kind, at) = if p.z > s.floor_band_m && p.z <= s.max_height_m {
+                (Kind::Obstacle, (p.x, p.y))
             } else if p.z < -s.drop_min_m {
                 // where the ray crossed the floor plane
                 let dz = origin.z - p.z;
@@ -263,17 +263,34 @@ pub fn scan(
                         );
                     }
                 }
-                (&mut drops, crossing)
+                (Kind::Drop, crossing)
             } else if p.z.abs() <= s.floor_band_m {
-                (&mut floor, (p.x, p.y))
+                (Kind::Floor, (p.x, p.y))
             } else {
                 continue;
             };
             if let Some(c) = cell_of(at.0, at.1, s.cell_m) {
-                map.entry(c).or_default().add([at.0, at.1], p.z);
+                // neighbouring pixels mostly fall in one cell: a run of
+                // them is gathered here and put in its map once
+                if run.as_ref().is_some_and(|r| r.0 == kind && r.1 == c) {
+                    if let Some(r) = run.as_mut() {
+                        r.2.add([at.0, at.1], p.z);
+                    }
+                } else {
+                    if let Some((kind, c, e)) = run.take() {
+                        maps[kind as usize].entry(c).or_default().merge(&e);
+                    }
+                    let mut e = Extremes::default();
+                    e.add([at.0, at.1], p.z);
+                    run = Some((kind, c, e));
+                }
             }
         }
     }
+    if let Some((kind, c, e)) = run.take() {
+        maps[kind as usize].entry(c).or_default().merge(&e);
+    }
+    let [obstacles, drops, floor] = maps;
     // each cell as its extreme points: on a surface seen at a slant a
     // cell's centre lies up to half its diagonal (3.5 cm) off it, and a
     // mean of its points lies inside an object's edge; the points
@@ -317,6 +334,14 @@ pub fn scan(
     }
 }
 
+/// Which of a frame's maps a point goes to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Kind {
+    Obstacle = 0,
+    Drop = 1,
+    Floor = 2,
+}
+
 /// A cell's point count, its points farthest along −x, +x, −y, +y and
 /// the lowest height among its points.
 #[derive(Debug, Clone, Copy, Default)]
@@ -349,6 +374,33 @@ impl Extremes {
             }
         }
         self.count += 1;
+    }
+
+    /// As if `later`'s points were added after this one's, one by one
+    /// (an extreme tied keeps the earlier point, as `add` does).
+    fn merge(&mut self, later: &Extremes) {
+        if later.count == 0 {
+            return;
+        }
+        if self.count == 0 {
+            *self = *later;
+            return;
+        }
+        self.low_z_m = self.low_z_m.min(later.low_z_m);
+        let (e, l) = (&mut self.points, &later.points);
+        if l[0][0] < e[0][0] {
+            e[0] = l[0];
+        }
+        if l[1][0] > e[1][0] {
+            e[1] = l[1];
+        }
+        if l[2][1] < e[2][1] {
+            e[2] = l[2];
+        }
+        if l[3][1] > e[3][1] {
+            e[3] = l[3];
+        }
+        self.count += later.count;
     }
 
     /// The distinct extreme points, appended to `out`.

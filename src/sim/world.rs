@@ -422,6 +422,13 @@ impl SimWorld {
     /// A URG-04LX scan from the laser at `base_from_laser`.
     pub fn laser_scan(&self, base_from_laser: &Isometry3<f64>, sensor_ms: u32) -> LaserScan {
         let p = SensorParams::URG_04LX;
+        LaserScan::from_values(&p, p.amin, &self.laser_values(base_from_laser), sensor_ms)
+    }
+
+    /// The ranges of [`SimWorld::laser_scan`], mm (0: no return), step by
+    /// step from the first.
+    pub fn laser_values(&self, base_from_laser: &Isometry3<f64>) -> Vec<u32> {
+        let p = SensorParams::URG_04LX;
         let t = base_from_laser.translation.vector;
         let laser_yaw = base_from_laser.rotation.euler_angles().2;
         let (c, s) = (self.truth.theta_rad.cos(), self.truth.theta_rad.sin());
@@ -430,7 +437,7 @@ impl SimWorld {
             self.truth.y_m + s * t.x + c * t.y,
         ];
         let segs = by_distance(origin, &segments_at(&self.room, t.z));
-        let values: Vec<u32> = (p.amin..=p.amax)
+        (p.amin..=p.amax)
             .map(|step| {
                 let a = self.truth.theta_rad + laser_yaw + p.step_angle_rad(step);
                 match ray_cast_nearest_first(origin, a, &segs) {
@@ -441,8 +448,7 @@ impl SimWorld {
                     _ => 0,
                 }
             })
-            .collect();
-        LaserScan::from_values(&p, p.amin, &values, sensor_ms)
+            .collect()
     }
 
     /// The camera's pose in the world.
@@ -483,17 +489,39 @@ impl SimWorld {
     /// room, or None for a wall.
     pub fn clearance_to(&self) -> (f64, Option<usize>) {
         let [sx, sy, _] = self.room.size_m;
+        let outline = self.outline_world();
+        // each object's distance from base_link less the outline's reach
+        // from it: no outline point is nearer than that (a box's signed
+        // distance changes no faster than the point moves), so an object
+        // whose bound is no nearer than the best so far cannot be nearer
+        // at any point, and is not measured (the answer is the same)
+        let here = [self.truth.x_m, self.truth.y_m];
+        let reach_m = outline
+            .iter()
+            .map(|p| (p[0] - here[0]).hypot(p[1] - here[1]))
+            .fold(0.0, f64::max)
+            + 1e-6;
+        let bounds: Vec<(usize, [f64; 2], [f64; 2], f64)> = self
+            .room
+            .objects
+            .iter()
+            .enumerate()
+            .filter(|(_, o)| o.max_m[2] > 0.05)
+            .map(|(i, o)| {
+                let (lo, hi) = ([o.min_m[0], o.min_m[1]], [o.max_m[0], o.max_m[1]]);
+                (i, lo, hi, box_distance(lo, hi, here) - reach_m)
+            })
+            .collect();
         let mut best = (f64::INFINITY, None);
-        for p in self.outline_world() {
+        for p in outline {
             let wall = p[0].min(p[1]).min(sx - p[0]).min(sy - p[1]);
             if wall < best.0 {
                 best = (wall, None);
             }
-            for (i, o) in self.room.objects.iter().enumerate() {
-                if o.max_m[2] <= 0.05 {
+            for &(i, lo, hi, bound) in &bounds {
+                if bound >= best.0 {
                     continue;
                 }
-                let (lo, hi) = ([o.min_m[0], o.min_m[1]], [o.max_m[0], o.max_m[1]]);
                 let d = box_distance(lo, hi, p);
                 if d < best.0 {
                     best = (d, Some(i));
