@@ -449,6 +449,50 @@ mod tests {
     use super::*;
     use nalgebra::{Matrix3, Rotation3, Translation3, UnitQuaternion};
 
+    /// The fields of a cell's extremes, to compare them exactly.
+    fn fields(e: &Extremes) -> (usize, [[u64; 2]; 4], u64) {
+        (
+            e.count,
+            e.points.map(|p| p.map(f64::to_bits)),
+            e.low_z_m.to_bits(),
+        )
+    }
+
+    #[test]
+    fn runs_merged_are_the_points_added_one_by_one() {
+        let mut rng = crate::sim::scene::SplitMix64::new(5);
+        let mut checked_ties = 0;
+        for _ in 0..500 {
+            // coarse values: ties on an extreme are frequent
+            let n = 1 + rng.below(12);
+            let pts: Vec<([f64; 2], f64)> = (0..n)
+                .map(|_| {
+                    let q = |rng: &mut crate::sim::scene::SplitMix64| rng.below(4) as f64 * 0.01;
+                    ([q(&mut rng), q(&mut rng)], q(&mut rng))
+                })
+                .collect();
+            let mut one_by_one = Extremes::default();
+            for (p, z) in &pts {
+                one_by_one.add(*p, *z);
+            }
+            // the same points cut into runs at random places
+            let mut merged = Extremes::default();
+            let mut run = Extremes::default();
+            for (p, z) in &pts {
+                if rng.chance(0.4) {
+                    merged.merge(&run);
+                    run = Extremes::default();
+                }
+                run.add(*p, *z);
+            }
+            merged.merge(&run);
+            merged.merge(&Extremes::default());
+            assert_eq!(fields(&merged), fields(&one_by_one), "{pts:?}");
+            checked_ties += usize::from(pts.iter().filter(|(p, _)| p[0] == 0.0).count() > 1);
+        }
+        assert!(checked_ties > 50, "{checked_ties}");
+    }
+
     fn k() -> Intrinsics {
         Intrinsics {
             width: 160,

@@ -48,6 +48,58 @@ fn casting_nearest_segments_first_finds_what_casting_against_all_does() {
 }
 
 #[test]
+fn the_clearance_skipping_far_objects_is_the_clearance_to_every_object() {
+    // the same measure over every object and outline point, nothing skipped
+    let every = |w: &SimWorld| {
+        let [sx, sy, _] = w.room.size_m;
+        let mut best = (f64::INFINITY, None);
+        for p in w.outline_world() {
+            let wall = p[0].min(p[1]).min(sx - p[0]).min(sy - p[1]);
+            if wall < best.0 {
+                best = (wall, None);
+            }
+            for (i, o) in w.room.objects.iter().enumerate() {
+                let d = box_distance([o.min_m[0], o.min_m[1]], [o.max_m[0], o.max_m[1]], p);
+                if o.max_m[2] > 0.05 && d < best.0 {
+                    best = (d, Some(i));
+                }
+            }
+        }
+        best
+    };
+    let mut rng = crate::sim::scene::SplitMix64::new(3);
+    let (mut touching, mut objects) = (0, 0);
+    for k in 0..20 {
+        let scene = crate::sim::scene::generate(crate::sim::scene::scene_seed(1, k));
+        let mut w = SimWorld::in_room(
+            scene.room.clone(),
+            scene.start,
+            DiffDriveParams::paper_chair(),
+        );
+        for _ in 0..200 {
+            let [sx, sy, _] = w.room.size_m;
+            w.truth = Pose2 {
+                x_m: rng.range(0.0, sx),
+                y_m: rng.range(0.0, sy),
+                theta_rad: rng.range(-3.2, 3.2),
+            };
+            let (got, want) = (w.clearance_to(), every(&w));
+            assert_eq!(
+                got.0.to_bits(),
+                want.0.to_bits(),
+                "scene {k} at {:?}",
+                w.truth
+            );
+            assert_eq!(got.1, want.1, "scene {k} at {:?}", w.truth);
+            touching += usize::from(want.0 <= 0.0);
+            objects += usize::from(want.1.is_some());
+        }
+    }
+    // overlapping objects and nearest objects (not walls) were among them
+    assert!(touching > 100 && objects > 1000, "{touching} {objects}");
+}
+
+#[test]
 fn the_start_is_free_and_a_wall_is_where_the_laser_says() {
     let w = world();
     assert!(w.clearance() > 0.3, "{}", w.clearance());
