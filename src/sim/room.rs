@@ -361,7 +361,7 @@ impl Room {
                 axis = if enters_later { a } else { axis };
                 t1 = t1.min(hi);
             }
-            let hit = inside && !(t0 > t1);
+            let hit = inside && t0 <= t1;
             if hit && t0 > 0.0 && t0 < best.0 {
                 best = (t0, axis, idx as i32);
             }
