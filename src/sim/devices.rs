@@ -221,9 +221,8 @@ pub fn devices_with(
                 WORLD_STEP,
             );
             let mut k: u64 = 0;
-            // the last ranges of both lasers, with the chair's true pose
-            // (bits) and the room they were cast in
-            let mut still_ranges: Option<([u64; 3], super::room::Room, [Vec<u32>; 2])> = None;
+            // the last ranges of both lasers
+            let mut still_ranges: Still<[Vec<u32>; 2]> = Still::default();
             loop {
                 tokio::select! {
                     biased;
@@ -245,25 +244,15 @@ pub fn devices_with(
                 if k.is_multiple_of(LASER_EVERY) {
                     let ms = (now.0.as_millis() & 0xFF_FFFF) as u32;
                     // a chair at rest in a still room: the last ranges again
-                    let pose_bits = [w.truth.x_m, w.truth.y_m, w.truth.theta_rad].map(f64::to_bits);
-                    let ranges = match still_ranges.take() {
-                        Some((bits, room, ranges)) if bits == pose_bits && room == w.room => {
-                            (bits, room, ranges)
-                        }
-                        _ => (
-                            pose_bits,
-                            w.room.clone(),
-                            lasers_at.map(|at| w.laser_values(&at)),
-                        ),
-                    };
+                    let ranges =
+                        still_ranges.get_or(&w, |w| lasers_at.map(|at| w.laser_values(&at)));
                     let p = crate::sensors::scip::SensorParams::URG_04LX;
-                    for (tx, values) in [&left_tx, &right_tx].into_iter().zip(&ranges.2) {
+                    for (tx, values) in [&left_tx, &right_tx].into_iter().zip(&ranges) {
                         tx.send_replace(Some(Stamped::new(
                             now,
                             crate::msg::LaserScan::from_values(&p, p.amin, values, ms),
                         )));
                     }
-                    still_ranges = Some(ranges);
                 }
                 drop(w);
                 steps.stepped();
@@ -345,7 +334,7 @@ pub fn devices_with(
                 base_from_camera,
                 last: last.clone(),
                 fresh: fresh.clone(),
-                still: None,
+                still: Still::default(),
             }) as Box<dyn CameraSource>)
         }),
         detector: Box::new(detector),
@@ -395,6 +384,49 @@ pub fn devices_with(
     Ok((devices, SimHandle { world, bus, chair }))
 }
 
+/// The last of what the simulator computes from the chair's true pose and
+/// the room alone (a rendering, laser ranges), with the pose (its bits)
+/// and the room it was computed from: while the chair stands still in a
+/// still room it is the answer again, to the bit.
+struct Still<T> {
+    last: Option<([u64; 3], super::room::Room, T)>,
+}
+
+impl<T> Default for Still<T> {
+    fn default() -> Self {
+        Still { last: None }
+    }
+}
+
+impl<T: Clone> Still<T> {
+    /// The last answer if `w`'s chair and room are as they were for it;
+    /// otherwise `compute(w)`, kept for next time.
+    fn get_or(&mut self, w: &SimWorld, compute: impl FnOnce(&SimWorld) -> T) -> T {
+        match self.try_get_or(w, |w| Ok::<T, std::convert::Infallible>(compute(w))) {
+            Ok(value) => value,
+            Err(never) => match never {},
+        }
+    }
+
+    /// As [`Still::get_or`], for a computation that may fail (kept only
+    /// when it did not).
+    fn try_get_or<E>(
+        &mut self,
+        w: &SimWorld,
+        compute: impl FnOnce(&SimWorld) -> Result<T, E>,
+    ) -> Result<T, E> {
+        let pose_bits = [w.truth.x_m, w.truth.y_m, w.truth.theta_rad].map(f64::to_bits);
+        if let Some((bits, room, value)) = &self.last {
+            if *bits == pose_bits && *room == w.room {
+                return Ok(value.clone());
+            }
+        }
+        let value = compute(w)?;
+        self.last = Some((pose_bits, w.room.clone(), value.clone()));
+        Ok(value)
+    }
+}
+
 /// The simulator's RGB-D camera: the room rendered from the chair's true
 /// pose, depth registered to colour.
 struct SimCamera {
@@ -405,9 +437,8 @@ struct SimCamera {
     last: LastView,
     /// Wait for the world's next step before rendering.
     fresh: Option<WorldSteps>,
-    /// The last rendering, with the chair's true pose (bits) and the room
-    /// it was rendered from.
-    still: Option<([u64; 3], super::room::Room, super::room::Rendered)>,
+    /// The last rendering.
+    still: Still<super::room::Rendered>,
 }
 
 impl CameraSource for SimCamera {
@@ -426,15 +457,10 @@ impl CameraSource for SimCamera {
                 .map_err(|_| CameraError::Device("the simulated world is poisoned".into()))?;
             // a chair at rest in a still room sees what it saw: the last
             // rendering again (about a fifth of a benchmark's frames)
-            let pose_bits = [w.truth.x_m, w.truth.y_m, w.truth.theta_rad].map(f64::to_bits);
-            let rendered = match &self.still {
-                Some((bits, room, r)) if *bits == pose_bits && *room == w.room => r.clone(),
-                _ => {
-                    let r = w.render(&self.k, &self.base_from_camera)?;
-                    self.still = Some((pose_bits, w.room.clone(), r.clone()));
-                    r
-                }
-            };
+            let (k, base_from_camera) = (&self.k, &self.base_from_camera);
+            let rendered = self
+                .still
+                .try_get_or(&w, |w| w.render(k, base_from_camera))?;
             (rendered, w.now)
         };
         if let Ok(mut l) = self.last.lock() {
@@ -567,6 +593,44 @@ impl Detector for SimDetector {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The last answer is given again only for the same chair pose, to the
+    /// bit, in the same room; any change computes it anew.
+    #[test]
+    fn a_still_world_gives_its_last_answer_and_a_changed_one_a_new_one() {
+        let mut w =
+            SimWorld::living_room(crate::estimation::odometry::DiffDriveParams::paper_chair());
+        let mut still: Still<u32> = Still::default();
+        let mut computed = 0;
+        let mut ask = |w: &SimWorld, still: &mut Still<u32>| {
+            still.get_or(w, |_| {
+                computed += 1;
+                computed
+            })
+        };
+        assert_eq!(ask(&w, &mut still), 1);
+        assert_eq!(ask(&w, &mut still), 1, "the same world: the last answer");
+        w.truth.x_m = f64::from_bits(w.truth.x_m.to_bits() + 1);
+        assert_eq!(
+            ask(&w, &mut still),
+            2,
+            "moved by one unit in the last place"
+        );
+        w.truth.theta_rad = -0.0 * w.truth.theta_rad.signum();
+        let turned = ask(&w, &mut still);
+        w.truth.theta_rad = -w.truth.theta_rad;
+        assert_ne!(ask(&w, &mut still), turned, "0 and -0 are different bits");
+        let before = ask(&w, &mut still);
+        w.room.objects[0].min_m[0] += 0.01;
+        assert_eq!(ask(&w, &mut still), before + 1, "an object moved");
+        assert_eq!(ask(&w, &mut still), before + 1);
+        // a computation that failed is not kept
+        let failed: Result<u32, &str> = still.try_get_or(&w, |_| Err("no"));
+        assert!(failed.is_ok(), "the room and pose are as before: kept");
+        w.truth.y_m += 0.5;
+        assert_eq!(still.try_get_or(&w, |_| Err("no")), Err::<u32, _>("no"));
+        assert_eq!(still.get_or(&w, |_| 99), 99);
+    }
 
     /// The camera's wait for a fresh frame ends at the world's next step,
     /// not before it (a step taken before the wait does not count), and
