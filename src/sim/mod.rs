@@ -14,6 +14,7 @@ pub mod replica;
 pub mod rnet;
 pub mod room;
 pub mod scene;
+mod still;
 pub mod topdown;
 pub mod trial;
 pub mod world;
