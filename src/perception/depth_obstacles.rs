@@ -272,17 +272,16 @@ pub fn scan(
             if let Some(c) = cell_of(at.0, at.1, s.cell_m) {
                 // neighbouring pixels mostly fall in one cell: a run of
                 // them is gathered here and put in its map once
-                if run.as_ref().is_some_and(|r| r.0 == kind && r.1 == c) {
-                    if let Some(r) = run.as_mut() {
-                        r.2.add([at.0, at.1], p.z);
+                match &mut run {
+                    Some((k, rc, e)) if *k == kind && *rc == c => e.add([at.0, at.1], p.z),
+                    _ => {
+                        if let Some((kind, c, e)) = run.take() {
+                            maps[kind as usize].entry(c).or_default().merge(&e);
+                        }
+                        let mut e = Extremes::default();
+                        e.add([at.0, at.1], p.z);
+                        run = Some((kind, c, e));
                     }
-                } else {
-                    if let Some((kind, c, e)) = run.take() {
-                        maps[kind as usize].entry(c).or_default().merge(&e);
-                    }
-                    let mut e = Extremes::default();
-                    e.add([at.0, at.1], p.z);
-                    run = Some((kind, c, e));
                 }
             }
         }
