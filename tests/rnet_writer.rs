@@ -519,7 +519,7 @@ async fn check_listen_reports_ids_heartbeats_and_battery() {
 /// thread, real time): a JSM that keeps talking after the silence request
 /// makes a JSMerror takeover fail, and that is an error naming why; a JSM
 /// that honours it is taken over.
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[tokio::test(start_paused = true)]
 async fn check_drive_fails_when_the_takeover_does_not_happen() {
     for ignores_silence in [true, false] {
         let clock: Arc<dyn Clock> = Arc::new(TokioClock::new());
@@ -536,15 +536,32 @@ async fn check_drive_fails_when_the_takeover_does_not_happen() {
         tokio::spawn(run_sim_chair(
             bus.endpoint(),
             chair.clone(),
-            clock,
+            clock.clone(),
             stop_chair.clone(),
         ));
         let endpoint = bus.endpoint();
-        let r = opennav::actuation::check::drive(
-            move || Ok(endpoint),
-            RnetSettings::new(TakeoverMode::JsmError, MAPPING),
+        // the writer as a task on the paused clock (on the chair: its own
+        // real-time thread, `check::drive`)
+        let start_writer = move |io| {
+            let task = tokio::spawn(
+                RnetActuator {
+                    bus: endpoint,
+                    settings: RnetSettings {
+                        precise_timer: false,
+                        ..RnetSettings::new(TakeoverMode::JsmError, MAPPING)
+                    },
+                }
+                .run(io),
+            );
+            async move { task.await.expect("writer task") }
+        };
+        let r = opennav::actuation::check::drive_with(
+            start_writer,
+            TakeoverMode::JsmError,
+            MAPPING,
             (0, 20),
             Duration::from_millis(600),
+            clock,
             CancellationToken::new(),
         )
         .await;
@@ -579,4 +596,26 @@ async fn the_speed_setting_is_pinned_at_takeover_and_every_second_in_both_modes(
         assert!(log.iter().all(|&p| p == MAX_SPEED_PERCENT));
         finish(r).await;
     }
+}
+
+/// `check drive` on its real writer thread: a bus that cannot be opened
+/// ends it at once with the bus's own error, not a silent empty drive.
+#[tokio::test]
+async fn check_drive_names_the_bus_that_cannot_be_opened() {
+    let r = opennav::actuation::check::drive(
+        || -> Result<opennav::actuation::can::MemoryEndpoint, opennav::actuation::can::CanBusError> {
+            Err(opennav::actuation::can::CanBusError::Open {
+                iface: "can7".into(),
+                source: std::io::Error::from(std::io::ErrorKind::NotFound),
+            })
+        },
+        RnetSettings::new(TakeoverMode::JsmError, MAPPING),
+        (0, 20),
+        // never reached: the writer's end ends the drive
+        Duration::from_secs(3600),
+        CancellationToken::new(),
+    )
+    .await;
+    let e = r.expect_err("no bus").to_string();
+    assert!(e.contains("can7"), "{e}");
 }

@@ -5,6 +5,7 @@
 //! centre and release at once.
 
 use std::collections::BTreeMap;
+use std::future::Future;
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -13,9 +14,11 @@ use tokio::sync::{mpsc, watch};
 use tokio_util::sync::CancellationToken;
 
 use super::can::{BusEvent, CanBus, CanBusError};
-use super::rnet::{decode, RnetMessage, TakeoverMode};
+use super::rnet::{decode, JoystickMapping, RnetMessage, TakeoverMode};
 use super::writer::{RnetActuator, RnetSettings};
-use super::{spawn_actuator_thread, ActuatorError, ActuatorEvent, ActuatorIo, ActuatorStatus};
+use super::{
+    spawn_actuator_thread, thread_result, ActuatorError, ActuatorEvent, ActuatorIo, ActuatorStatus,
+};
 use crate::msg::{Clock, TokioClock};
 use crate::msg::{SafeCmd, SupervisorState, VelocityCmd};
 
@@ -102,6 +105,7 @@ pub struct DriveReport {
 /// `duration`, then centres and releases; `stop` (a signal) ends it early
 /// the same way. The command is refreshed every 20 ms as the supervisor
 /// would, so the writer's freshness rule is exercised as on the chair.
+/// The writer runs on its own real-time thread, as in the daemon.
 pub async fn drive<B: CanBus, F>(
     make_bus: F,
     settings: RnetSettings,
@@ -112,31 +116,66 @@ pub async fn drive<B: CanBus, F>(
 where
     F: FnOnce() -> Result<B, CanBusError> + Send + 'static,
 {
-    let clock: Arc<dyn Clock> = Arc::new(TokioClock::new());
-    let (v_mps, omega_radps) = settings.mapping.to_velocity(joystick.0, joystick.1);
-    let settings_mode = settings.mode;
+    let mode = settings.mode;
+    let mapping = settings.mapping;
+    let start_writer = move |io: ActuatorIo| {
+        let spawned = spawn_actuator_thread(
+            "rnet-writer",
+            50,
+            move || {
+                Ok(RnetActuator {
+                    bus: make_bus()?,
+                    settings,
+                })
+            },
+            io,
+        );
+        async move {
+            let writer = spawned.map_err(|e| ActuatorError::Task(format!("rnet-writer: {e}")))?;
+            thread_result(writer).await
+        }
+    };
+    drive_with(
+        start_writer,
+        mode,
+        mapping,
+        joystick,
+        duration,
+        Arc::new(TokioClock::new()),
+        stop,
+    )
+    .await
+}
+
+/// [`drive`] with the writer started by `start_writer`: it must start the
+/// writer at once on the `ActuatorIo` it is given, and return a future of
+/// the writer's end. Tests start it as a task on tokio's paused clock.
+pub async fn drive_with<W, Fut>(
+    start_writer: W,
+    mode: TakeoverMode,
+    mapping: JoystickMapping,
+    joystick: (i8, i8),
+    duration: Duration,
+    clock: Arc<dyn Clock>,
+    stop: CancellationToken,
+) -> Result<DriveReport, ActuatorError>
+where
+    W: FnOnce(ActuatorIo) -> Fut,
+    Fut: Future<Output = Result<ActuatorStatus, ActuatorError>>,
+{
+    let (v_mps, omega_radps) = mapping.to_velocity(joystick.0, joystick.1);
+    let settings_mode = mode;
     let (cmd_tx, cmd_rx) = watch::channel(None);
     let (ev_tx, mut ev_rx) = mpsc::channel(64);
     let (status_tx, _status_rx) = watch::channel(ActuatorStatus::default());
     let writer_cancel = CancellationToken::new();
-    let writer = spawn_actuator_thread(
-        "rnet-writer",
-        50,
-        move || {
-            Ok(RnetActuator {
-                bus: make_bus()?,
-                settings,
-            })
-        },
-        ActuatorIo {
-            commands: cmd_rx,
-            events: ev_tx,
-            status: status_tx,
-            cancel: writer_cancel.clone(),
-            clock: clock.clone(),
-        },
-    )
-    .map_err(|e| ActuatorError::Task(e.to_string()))?;
+    let writer = start_writer(ActuatorIo {
+        commands: cmd_rx,
+        events: ev_tx,
+        status: status_tx,
+        cancel: writer_cancel.clone(),
+        clock: clock.clone(),
+    });
     let mut events = Vec::new();
     let end = tokio::time::sleep(duration);
     tokio::pin!(end);
@@ -173,10 +212,7 @@ where
     }
     cmd_tx.send_replace(None);
     writer_cancel.cancel();
-    let status = tokio::task::spawn_blocking(move || writer.join())
-        .await
-        .map_err(|e| ActuatorError::Task(e.to_string()))?
-        .map_err(|_| ActuatorError::Task("writer thread panicked".into()))??;
+    let status = writer.await?;
     while let Ok(e) = ev_rx.try_recv() {
         events.push(e);
     }
