@@ -133,6 +133,11 @@ pub struct Control {
     /// turns nor asks again within [`REFUSED_TURN_WITHIN_M`] of it, and
     /// looks for another way (arcs, another place to search from).
     turn_refused_at: Option<crate::msg::Pose2>,
+    /// Where the person said it is not clear around the chair: the floor
+    /// the camera never saw within [`crate::safety::rear::AROUND_VOUCHED_M`]
+    /// of it is an obstacle until the camera sees it (something low may
+    /// lie there that no sensor sees).
+    floor_refused_at: Option<crate::msg::Pose2>,
     /// "yes" arrived: vouch for the rear at the next step.
     rear_yes: bool,
     /// Since when a search turn is held by an obstacle.
@@ -226,6 +231,7 @@ impl Control {
             asked_back_up: false,
             asked_around: false,
             turn_refused_at: None,
+            floor_refused_at: None,
             rear_yes: false,
             turn_held_since: None,
             back_off: BackOff::default(),
@@ -313,6 +319,7 @@ impl Control {
             let pose = odo.value.pose;
             let mut o = c.value.to_base(&pose);
             self.drop_vouched_floor(now, &pose, &mut o.floor_unseen_base);
+            self.hold_refused_floor(&pose, &mut o);
             Stamped::new(c.stamp, o)
         });
         if let (Some(r), Some(odo)) = (self.route.as_mut(), inputs.odometry) {

@@ -35,6 +35,7 @@ impl Control {
                 // about turning afresh
                 self.asked_goal = None;
                 self.turn_refused_at = None;
+                self.floor_refused_at = None;
                 self.goal.set_prompt(&word);
                 self.say(format!("Looking for a {word}."));
             }
@@ -109,6 +110,12 @@ impl Control {
                 // another way (the planner's arcs, another place to look
                 // from), and "stop" stays
                 self.turn_refused_at = self.asked_rear.take();
+                if self.asked_around {
+                    self.floor_refused_at = self.turn_refused_at;
+                }
+                if let Some(r) = self.route.as_mut() {
+                    r.refuse_turns();
+                }
                 self.say(
                     "I will not turn here. I will look for another way; say stop to stay here."
                         .into(),

@@ -48,6 +48,28 @@ impl Control {
         });
     }
 
+    /// Where the person said it is not clear around the chair: the floor
+    /// the camera never saw within [`crate::safety::rear::AROUND_VOUCHED_M`]
+    /// of that spot joins the camera's obstacles (`o`, base_link at
+    /// `pose`), so that no arc, turn or plan enters it before the camera
+    /// has seen it.
+    pub(super) fn hold_refused_floor(
+        &self,
+        pose: &crate::msg::Pose2,
+        o: &mut crate::msg::sensors::Obstacles,
+    ) {
+        let Some(at) = self.floor_refused_at else {
+            return;
+        };
+        let c = pose.base_from_odom([at.x_m, at.y_m]);
+        let within = crate::safety::rear::AROUND_VOUCHED_M;
+        let refused = o
+            .floor_unseen_base
+            .iter()
+            .filter(|q| (q[0] as f64 - c[0]).hypot(q[1] as f64 - c[1]) <= within);
+        o.points_base.extend(refused);
+    }
+
     /// Feeds the rear watch the newest scan (seen from the pose now) and
     /// the person's "yes"; what it knows of the rear now.
     pub(super) fn watch_rear(

@@ -851,3 +851,6 @@ fn held_on_the_way_to_an_object_without_a_break_it_gives_the_goal_up_and_stops()
         assert_eq!(*c.goal_state(), GoalState::None);
     }
 }
+
+#[path = "control_floor_tests.rs"]
+mod floor;

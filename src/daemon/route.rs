@@ -202,6 +202,14 @@ impl Router {
             .is_some_and(|(p, _, _)| p.refuse_back_up())
     }
 
+    /// The person said no to a turn on the spot: a passage under way
+    /// lines up and squares by arcs from now on.
+    pub(super) fn refuse_turns(&mut self) {
+        if let Some((p, _, _)) = self.passage.as_mut() {
+            p.refuse_turns();
+        }
+    }
+
     /// Whether the map has something within [`TIGHT_M`] of the chair's
     /// centre line up to 0.6 m ahead.
     pub(super) fn tight_ahead(&mut self, pose: crate::msg::Pose2) -> bool {

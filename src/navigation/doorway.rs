@@ -172,6 +172,10 @@ impl Default for PassageSettings {
 /// from at most this far off the middle line, m.
 pub const LINE_UP_HELD_FROM_M: f64 = 1.0;
 
+/// Passing steers back onto the axis from at most this far off it; more,
+/// it squares again (`Phase::Align`), rad.
+const PASS_STEERS_WITHIN_RAD: f64 = 0.35;
+
 /// Backing up only this square to the doorway, rad.
 const BACK_UP_SQUARE_RAD: f64 = 0.2;
 
@@ -190,6 +194,9 @@ pub struct Passage {
     /// Whether it has lined up from where it was held on its way to the
     /// point before the doorway ([`Passage::held_on_approach`]).
     pub lined_up_where_held: bool,
+    /// The person said no to a turn on the spot during this passage
+    /// ([`Passage::refuse_turns`]): it lines up and squares by arcs.
+    pub turns_refused: bool,
 }
 
 /// Jamb points are taken within this of the wall's middle plane along the
@@ -245,7 +252,16 @@ impl Passage {
             settings,
             backed_up: 0,
             lined_up_where_held: false,
+            turns_refused: false,
         }
+    }
+
+    /// No turn on the spot (the person said it is not clear around the
+    /// chair, where it wanted to turn to line up or to square): for the
+    /// rest of this passage it turns on a crawl's arc instead, each
+    /// checked by the supervisor as any arc (the stop corridor along it).
+    pub fn refuse_turns(&mut self) {
+        self.turns_refused = true;
     }
 
     /// Held on the way to the point before the doorway (something stands
@@ -383,8 +399,10 @@ impl Passage {
                         continue;
                     }
                     let bearing = wrap_angle((to[1] - p[1]).atan2(to[0] - p[0]) - pose.theta_rad);
-                    // face it on the spot, then straight on, steering onto it
-                    return PassageCmd::Drive(if bearing.abs() > 0.12 {
+                    // face it on the spot (or, no turn on the spot
+                    // allowed, on a crawl's arc), then straight on,
+                    // steering onto it
+                    return PassageCmd::Drive(if bearing.abs() > 0.12 && !self.turns_refused {
                         VelocityCmd {
                             v_mps: 0.0,
                             omega_radps: s.turn_radps.copysign(bearing),
@@ -398,6 +416,18 @@ impl Passage {
                     });
                 }
                 Phase::Align => {
+                    if self.turns_refused && heading_err.abs() <= PASS_STEERS_WITHIN_RAD {
+                        // no turn on the spot: squared while passing
+                        self.phase = Phase::Pass;
+                        continue;
+                    }
+                    if self.turns_refused {
+                        return PassageCmd::Drive(VelocityCmd {
+                            v_mps: s.crawl_mps,
+                            omega_radps: (-s.k_heading * heading_err)
+                                .clamp(-s.omega_max_radps, s.omega_max_radps),
+                        });
+                    }
                     if heading_err.abs() > s.aligned_rad {
                         return PassageCmd::Drive(VelocityCmd {
                             v_mps: 0.0,
@@ -407,7 +437,7 @@ impl Passage {
                     self.phase = Phase::Pass;
                 }
                 Phase::Pass => {
-                    if heading_err.abs() > 0.35 {
+                    if heading_err.abs() > PASS_STEERS_WITHIN_RAD {
                         // pushed off the line: line up again
                         self.phase = Phase::Align;
                         continue;

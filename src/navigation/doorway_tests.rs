@@ -439,3 +439,51 @@ fn held_on_the_way_to_the_point_before_it_the_chair_lines_up_from_there() {
         assert_eq!(p.phase, Phase::Approach);
     }
 }
+
+/// The person said no to a turn on the spot: the passage lines up and
+/// squares on a crawl's arcs, never a turn on the spot, and still gets
+/// through near the middle line.
+#[test]
+fn with_turns_refused_the_chair_lines_up_on_arcs_and_gets_through() {
+    let door = Doorway {
+        center: [2.0, 1.0],
+        axis_rad: 0.0,
+        width_m: 0.90,
+    };
+    // before the doorway, off its middle line, facing 30 degrees off it
+    let start = Pose2 {
+        x_m: 0.4,
+        y_m: 1.3,
+        theta_rad: -0.5,
+    };
+    let turns_on_the_spot = |p: &mut Passage| {
+        let mut pose = start;
+        let mut turns = 0;
+        for _ in 0..2000 {
+            let cmd = match p.step(pose, [4.0, 1.0]) {
+                PassageCmd::Done => break,
+                PassageCmd::Drive(c) => c,
+                PassageCmd::Aim(_) => panic!("{:?} at {pose:?}: lined up from here", p.phase),
+            };
+            if cmd.v_mps.abs() < 0.05 && cmd.omega_radps.abs() > 0.0 {
+                turns += 1;
+            }
+            pose = pose.advanced(cmd.v_mps * 0.05, cmd.omega_radps * 0.05);
+        }
+        (turns, pose)
+    };
+    // the same start: it turns on the spot to line up
+    let mut p = Passage::new(door, PassageSettings::default());
+    p.phase = Phase::LineUp { at_m: -1.1 };
+    let (turns, _) = turns_on_the_spot(&mut p);
+    assert!(turns > 0);
+    // refused: on arcs only, and through
+    let mut p = Passage::new(door, PassageSettings::default());
+    p.phase = Phase::LineUp { at_m: -1.1 };
+    p.refuse_turns();
+    let (turns, end) = turns_on_the_spot(&mut p);
+    assert_eq!(turns, 0);
+    let (along, left) = door.local([end.x_m, end.y_m]);
+    assert!(along > 0.6, "{end:?}");
+    assert!(left.abs() < 0.05, "{end:?}");
+}
