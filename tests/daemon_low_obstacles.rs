@@ -130,9 +130,10 @@ fn check_stopped_before(across: Across, r: &RunReport, s: &SimSummary, reason: S
     // for a way round clears it, for the unseen rear (or the floor beside
     // the chair the camera never saw) that such a turn needs, the person
     // asked about it
-    let asked = r.said.iter().any(|s| {
-        s.contains("cannot see behind me") || s.contains("cannot see the floor all around me")
-    });
+    let asked = r
+        .said
+        .iter()
+        .any(|s| s.contains("cannot see behind me") || s.contains("cannot see the floor"));
     let held_for_the_turn = matches!(
         r.supervisor,
         SupervisorState::Stopped(StopReason::RearUnseen | StopReason::FloorUnseen)

@@ -146,8 +146,9 @@ impl Control {
                      Is it clear behind? Say yes to let me back up, or no."
                         .into()
                 } else if around {
-                    "I need to turn on the spot, and I cannot see the floor all around me. \
-                     Is it clear around me? Say yes to let me turn, or no."
+                    "I need to turn on the spot, and I cannot see behind me or the floor near \
+                     me. Is it clear around me? Nothing behind me, nothing low beside or \
+                     before me. Say yes to let me turn, or no."
                         .into()
                 } else {
                     "I need to turn on the spot, and I cannot see behind me. \

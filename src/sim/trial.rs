@@ -114,26 +114,36 @@ enum Look {
 
 /// What a truthful person sees around the chair (walls, boxes taller than
 /// 5 cm, steps down): for a turn, nothing within [`CLEAR_BEHIND_M`] of
-/// base_link on the rear half (`Behind`) or all round (`Around`); backing
+/// base_link on the rear half (`Behind`), or (`Around`) nothing there
+/// and nothing low (under the lasers' plane, `laser_plane_m` up) or
+/// stepping down on the front half: what the chair asks about is what it
+/// cannot see, and the lasers see the rest ahead and beside it; backing
 /// up, nothing in the strip the rear backs into ([`CLEAR_BACK_M`]).
-fn clear_behind(w: &super::world::SimWorld, look: Look) -> bool {
+fn clear_behind(w: &super::world::SimWorld, look: Look, laser_plane_m: f64) -> bool {
     let t = w.truth;
     let (c, s) = (t.theta_rad.cos(), t.theta_rad.sin());
     let [sx, sy, _] = w.room.size_m;
-    let mut boxes: Vec<([f64; 2], [f64; 2])> = w
+    // each box, and whether it is low (under the lasers' plane)
+    let mut boxes: Vec<([f64; 2], [f64; 2], bool)> = w
         .room
         .objects
         .iter()
         .filter(|o| o.max_m[2] > 0.05)
-        .map(|o| ([o.min_m[0], o.min_m[1]], [o.max_m[0], o.max_m[1]]))
+        .map(|o| {
+            (
+                [o.min_m[0], o.min_m[1]],
+                [o.max_m[0], o.max_m[1]],
+                o.max_m[2] < laser_plane_m,
+            )
+        })
         .collect();
-    boxes.extend(w.room.pits.iter().map(|p| (p.min_m, p.max_m)));
+    boxes.extend(w.room.pits.iter().map(|p| (p.min_m, p.max_m, true)));
     // the outer walls as thin boxes
     boxes.extend([
-        ([-1.0, -1.0], [sx + 1.0, 0.0]),
-        ([-1.0, sy], [sx + 1.0, sy + 1.0]),
-        ([-1.0, -1.0], [0.0, sy + 1.0]),
-        ([sx, -1.0], [sx + 1.0, sy + 1.0]),
+        ([-1.0, -1.0], [sx + 1.0, 0.0], false),
+        ([-1.0, sy], [sx + 1.0, sy + 1.0], false),
+        ([-1.0, -1.0], [0.0, sy + 1.0], false),
+        ([sx, -1.0], [sx + 1.0, sy + 1.0], false),
     ]);
     // sample the strip behind, the rear half-disc or the whole disc every
     // centimetre or so (a coarser look let a box's corner between its
@@ -171,10 +181,11 @@ fn clear_behind(w: &super::world::SimWorld, look: Look) -> bool {
     {
         for [bx, by] in samples {
             let (x, y) = (t.x_m + c * bx - s * by, t.y_m + s * bx + c * by);
-            if boxes
-                .iter()
-                .any(|(lo, hi)| x >= lo[0] && x <= hi[0] && y >= lo[1] && y <= hi[1])
-            {
+            // ahead of base_link, looking all round: only what is low
+            let low_only = look == Look::Around && bx > 0.0;
+            if boxes.iter().any(|(lo, hi, low)| {
+                (*low || !low_only) && x >= lo[0] && x <= hi[0] && y >= lo[1] && y <= hi[1]
+            }) {
                 return false;
             }
         }
@@ -186,6 +197,7 @@ fn clear_behind(w: &super::world::SimWorld, look: Look) -> bool {
 /// answers its questions from what is really there.
 async fn person(
     word: String,
+    laser_plane_m: f64,
     world: Arc<Mutex<super::world::SimWorld>>,
     tx: tokio::sync::mpsc::Sender<UserInput>,
     mut heard: tokio::sync::mpsc::UnboundedReceiver<String>,
@@ -210,7 +222,7 @@ async fn person(
                 tokio::time::sleep(ANSWER_AFTER).await;
                 let clear = world
                     .lock()
-                    .map(|w| clear_behind(&w, look))
+                    .map(|w| clear_behind(&w, look, laser_plane_m))
                     .unwrap_or(false);
                 Some(if clear { UserInput::Yes } else { UserInput::No })
             } else if sentence.starts_with("Staying here.") {
@@ -252,8 +264,12 @@ pub async fn run(
     let (devs, sim) = devices(settings, world, clock.clone()).map_err(|e| e.to_string())?;
     let (tx, rx) = tokio::sync::mpsc::channel(4);
     let (speech_tx, speech_rx) = tokio::sync::mpsc::unbounded_channel();
+    // the lower scanner's plane: under it, only the camera sees a box
+    let laser_plane_m =
+        settings.lasers.left.translation_m[2].min(settings.lasers.right.translation_m[2]);
     tokio::spawn(person(
         scene.prompt.clone(),
+        laser_plane_m,
         sim.world.clone(),
         tx,
         speech_rx,
