@@ -3,33 +3,13 @@
 
 use super::*;
 
-/// Floor no camera frame saw all round the chair, 0.6–0.75 m out.
-fn ring_unseen() -> Vec<[f64; 2]> {
-    (0..72)
-        .flat_map(|i| {
-            let a = i as f64 * 5f64.to_radians();
-            [0.6, 0.675, 0.75].map(|r| [r * a.cos(), r * a.sin()])
-        })
-        .collect()
-}
-
 /// "No" to "is it clear around me?": the chair neither turns nor drives
 /// into the floor it never saw there (something may lie on it that no
 /// sensor sees); a new word clears the refusal with the trip.
 #[test]
 fn after_a_no_about_all_around_the_unseen_floor_there_holds_the_chair() {
     let mut c = control(false);
-    let ring = ring_unseen();
-    let step = |c: &mut Control, k: u64| {
-        let camera = Stamped::new(
-            at(50 * k),
-            MapObstacles {
-                floor_unseen_odom: ring.clone(),
-                ..Default::default()
-            },
-        );
-        step_seeing(c, 50 * k, 50 * k, Some(&camera))
-    };
+    let step = step_with_unseen_ring;
     c.on_input(UserInput::Goto("chair".into()));
     let mut said = Vec::new();
     for k in 0..40 {

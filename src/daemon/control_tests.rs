@@ -103,31 +103,34 @@ fn a_word_starts_the_search_turn_and_a_stop_zeroes_it() {
     assert_eq!(out.done, None, "the daemon goes on after a stop");
 }
 
-/// Floor no camera frame saw all round the chair (a ring of cells from
-/// 0.6 to 0.75 m out): the search turn waits and the chair asks about all
-/// around, once; "yes" lets it turn, and the floor stays vouched for there.
-#[test]
-fn floor_never_seen_around_the_chair_is_asked_about_and_yes_lets_the_search_turn() {
-    let mut c = control(false);
+/// Step `k` (at 50·k ms) of the empty room with floor no camera frame saw
+/// all round the chair: a ring of cells 0.6–0.75 m out.
+fn step_with_unseen_ring(c: &mut Control, k: u64) -> ControlOutput {
     let ring: Vec<[f64; 2]> = (0..72)
         .flat_map(|i| {
             let a = i as f64 * 5f64.to_radians();
             [0.6, 0.675, 0.75].map(|r| [r * a.cos(), r * a.sin()])
         })
         .collect();
-    let step = |c: &mut Control, k: u64| {
-        let camera = Stamped::new(
-            at(50 * k),
-            MapObstacles {
-                floor_unseen_odom: ring.clone(),
-                ..Default::default()
-            },
-        );
-        step_seeing(c, 50 * k, 50 * k, Some(&camera))
-    };
+    let camera = Stamped::new(
+        at(50 * k),
+        MapObstacles {
+            floor_unseen_odom: ring,
+            ..Default::default()
+        },
+    );
+    step_seeing(c, 50 * k, 50 * k, Some(&camera))
+}
+
+/// Floor no camera frame saw all round the chair (a ring of cells from
+/// 0.6 to 0.75 m out): the search turn waits and the chair asks about all
+/// around, once; "yes" lets it turn, and the floor stays vouched for there.
+#[test]
+fn floor_never_seen_around_the_chair_is_asked_about_and_yes_lets_the_search_turn() {
+    let mut c = control(false);
     asked_once_then_yes_turns(
         &mut c,
-        step,
+        step_with_unseen_ring,
         "Is it clear around me?",
         crate::msg::StopReason::FloorUnseen,
     );
