@@ -404,3 +404,55 @@ pub async fn run(
         files,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::msg::Pose2;
+    use crate::sim::room::{Room, SimObject};
+
+    /// A 4 × 4 m room with one box of `height_m` whose near face is 0.5 m
+    /// from the chair in the middle, ahead of it (`ahead`) or behind.
+    fn world_with_box(height_m: f64, ahead: bool) -> super::super::world::SimWorld {
+        let x = if ahead { [2.5, 2.8] } else { [1.2, 1.5] };
+        let room = Room {
+            size_m: [4.0, 4.0, 2.5],
+            objects: vec![SimObject {
+                label_id: 1,
+                label: "box".into(),
+                min_m: [x[0], 1.9, 0.0],
+                max_m: [x[1], 2.1, height_m],
+                color: [0, 0, 0],
+            }],
+            pits: Vec::new(),
+        };
+        let start = Pose2 {
+            x_m: 2.0,
+            y_m: 2.0,
+            theta_rad: 0.0,
+        };
+        super::super::world::SimWorld::in_room(
+            room,
+            start,
+            crate::config::Settings::defaults().drive_params(),
+        )
+    }
+
+    /// Asked about all round, the person counts ahead of the chair only
+    /// what the lasers (0.66 m up) cannot see, and behind it anything.
+    #[test]
+    fn all_round_the_person_counts_only_low_things_ahead_and_anything_behind() {
+        let plane = 0.66;
+        let clear =
+            |h: f64, ahead: bool, look: Look| clear_behind(&world_with_box(h, ahead), look, plane);
+        // ahead: a low box is not clear, a tall cupboard the lasers see is
+        assert!(!clear(0.3, true, Look::Around));
+        assert!(clear(1.8, true, Look::Around));
+        // behind: either is not clear
+        assert!(!clear(0.3, false, Look::Around));
+        assert!(!clear(1.8, false, Look::Around));
+        // asked about behind only, nothing ahead counts
+        assert!(clear(0.3, true, Look::Behind));
+        assert!(!clear(1.8, false, Look::Behind));
+    }
+}
