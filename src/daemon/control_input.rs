@@ -112,6 +112,7 @@ impl Control {
                 self.turn_refused_at = self.asked_rear.take();
                 if self.asked_around {
                     self.floor_refused_at = self.turn_refused_at;
+                    tracing::info!(at = ?self.floor_refused_at, "not clear around: the floor never seen here holds the chair until seen");
                 }
                 if let Some(r) = self.route.as_mut() {
                     r.refuse_turns();

@@ -207,6 +207,7 @@ impl Router {
     pub(super) fn refuse_turns(&mut self) {
         if let Some((p, _, _)) = self.passage.as_mut() {
             p.refuse_turns();
+            tracing::info!(center = ?p.door.center, phase = ?p.phase, "doorway: turn on the spot refused, lining up on arcs");
         }
     }
 
