@@ -16,13 +16,19 @@ use crate::estimation::fusion::Estimator;
 use crate::estimation::obstacle_map::{CellKind, FootprintM, MapView, ObstacleMap};
 use crate::estimation::tracker::Tracker;
 use crate::estimation::view::CameraView;
-use crate::msg::{MapObstacles, Object3D, Obstacles, Odometry, Pose2, Stamp, Stamped, WheelTicks};
+use crate::msg::{
+    LaserRay, MapObstacles, Object3D, Obstacles, Odometry, Pose2, Stamp, Stamped, WheelTicks,
+};
 use crate::perception::depth_obstacles::{DepthScan, NearestDepth};
 
 /// The floor never seen is reported this far beyond the circle a turn on
 /// the spot sweeps (the supervisor's margin, the chair's motion between
 /// frames, half a cell's diagonal), m.
 const UNSEEN_FLOOR_BEYOND_M: f64 = 0.15;
+
+/// Laser scans are put to the camera's memory this far apart at least
+/// (what the lasers see through there: a person walking on).
+const RAYS_EVERY: std::time::Duration = std::time::Duration::from_millis(200);
 
 /// Counters for the report.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
@@ -42,6 +48,11 @@ pub struct EstimationStats {
     pub depth_frames_without_pose: u64,
     /// Cells in the obstacle memory now.
     pub depth_cells: u64,
+    /// Laser scans that forgot cells of the memory (what the lasers saw
+    /// there has gone), and scans dropped for the memory (no pose at
+    /// their stamp).
+    pub depth_cells_seen_through: u64,
+    pub laser_scans_without_pose: u64,
 }
 
 pub struct EstimationIo {
@@ -77,6 +88,11 @@ pub struct Estimation {
     nearest: VecDeque<Stamped<NearestDepth>>,
     /// The newest frame placed into the map, and the chair's pose then.
     map_stamp: Option<(Stamp, Pose2)>,
+    /// The newest laser scan's rays, waiting for odometry to pass its
+    /// stamp (a newer scan replaces it).
+    pending_rays: Option<Stamped<Vec<LaserRay>>>,
+    /// The stamp of the last scan put to the memory.
+    rays_placed_at: Option<Stamp>,
     pub stats: EstimationStats,
 }
 
@@ -92,6 +108,8 @@ impl Estimation {
             pending_scans: VecDeque::new(),
             nearest: VecDeque::new(),
             map_stamp: None,
+            pending_rays: None,
+            rays_placed_at: None,
             stats: EstimationStats::default(),
         }
     }
@@ -160,6 +178,12 @@ impl Estimation {
         if !changed {
             return None;
         }
+        self.map_obstacles()
+    }
+
+    /// The memory as the supervisor and the planner take it, stamped with
+    /// the newest frame placed (None: no frame yet).
+    fn map_obstacles(&self) -> Option<Stamped<MapObstacles>> {
         let (map, footprint) = self.map.as_ref()?;
         let (stamp, pose) = self.map_stamp?;
         // the floor never seen where a turn on the spot from about here
@@ -184,7 +208,51 @@ impl Estimation {
         Stamped::new(t.stamp, e)
     }
 
-    pub fn on_scan(&mut self, o: &Stamped<Obstacles>) {
+    /// A merged laser scan: scan matching, and what the lasers now see
+    /// through in the camera's memory ([`ObstacleMap::on_lasers`]);
+    /// returns the memory when that changed it.
+    pub fn on_scan(&mut self, o: &Stamped<Obstacles>) -> Option<Stamped<MapObstacles>> {
+        self.match_scan(o);
+        if self.map.is_none() || self.map_stamp.is_none() {
+            return None;
+        }
+        // every few scans is enough for a person walking past
+        if self
+            .rays_placed_at
+            .is_some_and(|t| t.age_at(o.stamp) < RAYS_EVERY)
+        {
+            return None;
+        }
+        self.pending_rays = Some(Stamped::new(o.stamp, o.value.rays_base.clone()));
+        self.place_rays()
+    }
+
+    /// Puts the waiting scan's rays to the memory once the pose history
+    /// covers their stamp; a scan older than the history is dropped.
+    pub fn place_rays(&mut self) -> Option<Stamped<MapObstacles>> {
+        let stamp = self.pending_rays.as_ref()?.stamp;
+        let pose = match self.history.pose_at(stamp) {
+            Some(p) => p,
+            None if self.history_covers_after(stamp) => {
+                self.pending_rays = None;
+                self.stats.laser_scans_without_pose += 1;
+                return None;
+            }
+            None => return None,
+        };
+        let rays = self.pending_rays.take()?;
+        self.rays_placed_at = Some(stamp);
+        let (map, _) = self.map.as_mut()?;
+        let forgot = map.on_lasers(pose, &rays.value);
+        self.stats.depth_cells = map.len() as u64;
+        if !forgot {
+            return None;
+        }
+        self.stats.depth_cells_seen_through += 1;
+        self.map_obstacles()
+    }
+
+    fn match_scan(&mut self, o: &Stamped<Obstacles>) {
         let pts: Vec<[f64; 2]> = o
             .value
             .points_base
@@ -294,12 +362,18 @@ pub async fn run(
                 if let Some(m) = est.place_scans() {
                     io.camera_obstacles.send_replace(Some(m));
                 }
+                if let Some(m) = est.place_rays() {
+                    io.camera_obstacles.send_replace(Some(m));
+                }
                 io.stats.send_replace(est.stats);
             }
             r = io.obstacles.changed() => {
                 r.map_err(|_| "the obstacles' channel closed".to_string())?;
                 let Some(o) = io.obstacles.borrow_and_update().clone() else { continue };
-                est.on_scan(&o);
+                if let Some(m) = est.on_scan(&o) {
+                    io.camera_obstacles.send_replace(Some(m));
+                }
+                io.stats.send_replace(est.stats);
             }
             v = io.objects.recv(), if objects_open => match v {
                 Some(v) => {

@@ -58,6 +58,12 @@ pub struct ObstacleMap {
     /// that may lie out of view ([`DepthScan::drop_offs_unseen_base`]) is
     /// not put where the floor is known.
     floor_seen: BTreeSet<(i32, i32)>,
+    /// Obstacle cells a laser's return landed on ([`ObstacleMap::on_lasers`]),
+    /// and those the latest scan's returns landed on (sorted): a cell the
+    /// camera puts again keeps its mark only if that scan saw it too
+    /// (what the camera sees there now may not be what the lasers saw).
+    laser_seen: BTreeSet<(i32, i32)>,
+    hit_last_scan: Vec<(i32, i32)>,
 }
 
 /// What a depth frame could see, for [`ObstacleMap::with_view`].
@@ -149,6 +155,8 @@ impl ObstacleMap {
             cells: BTreeMap::new(),
             view: None,
             floor_seen: BTreeSet::new(),
+            laser_seen: BTreeSet::new(),
+            hit_last_scan: Vec::new(),
         }
     }
 
@@ -241,6 +249,10 @@ impl ObstacleMap {
             if points.len() > MAX_POINTS_PER_CELL {
                 points = extremes(&points);
             }
+            // put again: the lasers saw it if their latest scan did
+            if self.hit_last_scan.binary_search(&k).is_err() {
+                self.laser_seen.remove(&k);
+            }
             self.cells.insert(k, (kind, points));
         }
         self.forget(pose, footprint);
@@ -265,6 +277,8 @@ impl ObstacleMap {
             points.retain(keep);
             !points.is_empty()
         });
+        let cells = &self.cells;
+        self.laser_seen.retain(|k| cells.contains_key(k));
         let cell_m = self.cell_m;
         self.floor_seen.retain(|&k| {
             let [x, y] = centre(cell_m, k);
@@ -323,10 +337,18 @@ impl ObstacleMap {
         self.cells.len()
     }
 
+    /// Obstacle cells the lasers see too (a return landed on them).
+    pub fn laser_seen_len(&self) -> usize {
+        self.laser_seen.len()
+    }
+
     pub fn is_empty(&self) -> bool {
         self.cells.is_empty()
     }
 }
+
+#[path = "obstacle_map_lasers.rs"]
+mod lasers;
 
 #[cfg(test)]
 mod tests {
