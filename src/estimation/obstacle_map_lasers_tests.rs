@@ -120,10 +120,24 @@ fn person_seen(centre: [f64; 2]) -> DepthScan {
     }
 }
 
+/// Where the person stands in the tests (odom, m) and their radius.
+const PERSON: [f64; 2] = [2.0, 0.3];
+const PERSON_R: f64 = 0.2;
+
+/// A memory with the person seen by the camera from `HERE` and then by
+/// the lasers; its cells' count.
+fn person_seen_by_both() -> (ObstacleMap, usize) {
+    let mut m = ObstacleMap::new(0.05, 4.0);
+    m.insert(HERE, &person_seen(PERSON), F);
+    let cells = m.len();
+    m.on_lasers(HERE, &scan(&[(PERSON, PERSON_R)], None));
+    (m, cells)
+}
+
 #[test]
 fn a_person_the_lasers_saw_is_forgotten_once_their_rays_pass_where_they_stood() {
     let mut m = ObstacleMap::new(0.05, 4.0);
-    let person = [2.0, 0.3];
+    let person = PERSON;
     m.insert(HERE, &person_seen(person), F);
     let cells = m.len();
     assert!(cells >= 5, "{cells}");
@@ -157,14 +171,11 @@ fn a_box_under_the_lasers_plane_is_kept_when_the_rays_pass_over_it() {
 
 #[test]
 fn a_thing_the_rays_still_end_at_or_beside_is_kept() {
-    let mut m = ObstacleMap::new(0.05, 4.0);
-    let person = [2.0, 0.3];
-    m.insert(HERE, &person_seen(person), F);
-    let cells = m.len();
-    m.on_lasers(HERE, &scan(&[(person, 0.2)], None));
+    let (mut m, cells) = person_seen_by_both();
     // the lasers now find its surface 4 cm farther (the chair's pose a
     // little off, noise): rays end beside each cell
-    assert!(!m.on_lasers(HERE, &scan(&[([2.04, 0.3], 0.2)], None)));
+    let farther = [PERSON[0] + 0.04, PERSON[1]];
+    assert!(!m.on_lasers(HERE, &scan(&[(farther, PERSON_R)], None)));
     assert_eq!(m.len(), cells);
 }
 
@@ -172,11 +183,8 @@ fn a_thing_the_rays_still_end_at_or_beside_is_kept() {
 fn blind_steps_never_forget_anything() {
     // a black coat: the steps toward where the person stood come back
     // blind, and the others pass nowhere near
-    let mut m = ObstacleMap::new(0.05, 4.0);
-    let person = [2.0, 0.3];
-    m.insert(HERE, &person_seen(person), F);
-    let cells = m.len();
-    m.on_lasers(HERE, &scan(&[(person, 0.2)], None));
+    let (mut m, cells) = person_seen_by_both();
+    let person = PERSON;
     let toward = person[1].atan2(person[0]);
     assert!(!m.on_lasers(HERE, &scan(&[], Some((toward, 0.2)))));
     assert_eq!(m.len(), cells);
@@ -184,10 +192,8 @@ fn blind_steps_never_forget_anything() {
 
 #[test]
 fn a_cell_the_camera_puts_again_keeps_its_mark_only_if_the_latest_scan_saw_it() {
-    let mut m = ObstacleMap::new(0.05, 4.0);
-    let person = [2.0, 0.3];
-    m.insert(HERE, &person_seen(person), F);
-    m.on_lasers(HERE, &scan(&[(person, 0.2)], None));
+    let (mut m, _) = person_seen_by_both();
+    let person = PERSON;
     let marked = m.laser_seen_len();
     assert!(marked > 0);
     // the person still there: the camera puts the cells again, the marks
@@ -208,11 +214,8 @@ fn a_cell_the_camera_puts_again_keeps_its_mark_only_if_the_latest_scan_saw_it() 
 fn the_chair_turned_the_rays_are_placed_with_its_pose() {
     // seen from the origin; the chair then turns a quarter left and moves:
     // the person, still there, is now to its right
-    let mut m = ObstacleMap::new(0.05, 4.0);
-    let person = [2.0, 0.3];
-    m.insert(HERE, &person_seen(person), F);
-    let cells = m.len();
-    m.on_lasers(HERE, &scan(&[(person, 0.2)], None));
+    let (mut m, cells) = person_seen_by_both();
+    let person = PERSON;
     let turned = Pose2 {
         x_m: 0.5,
         y_m: -0.5,
@@ -287,7 +290,7 @@ fn the_estimation_sends_the_memory_the_lasers_changed() {
     for i in 0..=10 {
         est.history.push(t(i as f64 * 0.1), HERE);
     }
-    let person = [2.0, 0.3];
+    let person = PERSON;
     let rays = |cylinders: &[([f64; 2], f64)]| Obstacles {
         rays_base: scan(cylinders, None),
         ..Default::default()
