@@ -49,9 +49,9 @@ pub struct EstimationStats {
     /// Cells in the obstacle memory now.
     pub depth_cells: u64,
     /// Laser scans that forgot cells of the memory (what the lasers saw
-    /// there has gone), and scans dropped for the memory (no pose at
-    /// their stamp).
-    pub depth_cells_seen_through: u64,
+    /// there has gone; scans, not cells), and scans dropped for the memory
+    /// (no pose at their stamp).
+    pub laser_scans_forgetting_cells: u64,
     pub laser_scans_without_pose: u64,
 }
 
@@ -248,7 +248,7 @@ impl Estimation {
         if !forgot {
             return None;
         }
-        self.stats.depth_cells_seen_through += 1;
+        self.stats.laser_scans_forgetting_cells += 1;
         self.map_obstacles()
     }
 

@@ -169,6 +169,18 @@ impl ObstacleMap {
             return false;
         }
         let cell_m = self.cell_m;
+        // the pose's cosine and sine once for the scan
+        let (c, s) = (pose.theta_rad.cos(), pose.theta_rad.sin());
+        let to_odom = |p: [f64; 2]| {
+            [
+                pose.x_m + c * p[0] - s * p[1],
+                pose.y_m + s * p[0] + c * p[1],
+            ]
+        };
+        let to_base = |p: [f64; 2]| {
+            let (dx, dy) = (p[0] - pose.x_m, p[1] - pose.y_m);
+            [c * dx + s * dy, -s * dx + c * dy]
+        };
         // the obstacle cells this scan's returns land in
         let mut hit: Vec<(i32, i32)> = rays_base
             .iter()
@@ -179,7 +191,7 @@ impl ObstacleMap {
                     r.origin_m[0] as f64 + range * r.dir[0] as f64,
                     r.origin_m[1] as f64 + range * r.dir[1] as f64,
                 ];
-                let k = self.cell(pose.odom_from_base(p))?;
+                let k = self.cell(to_odom(p))?;
                 matches!(self.cells.get(&k), Some((CellKind::Obstacle, _))).then_some(k)
             })
             .collect();
@@ -197,14 +209,13 @@ impl ObstacleMap {
                 continue;
             }
             points_base.clear();
-            points_base.extend(points.iter().map(|q| pose.base_from_odom([q[0], q[1]])));
+            points_base.extend(points.iter().map(|q| to_base([q[0], q[1]])));
             let remembered_base = |q: [f64; 2]| {
-                let q = pose.odom_from_base(q);
-                self.cell(q)
+                self.cell(to_odom(q))
                     .and_then(|k| self.cells.get(&k))
                     .is_some_and(|(kind, _)| *kind == CellKind::Obstacle)
             };
-            let p_base = pose.base_from_odom(centre(cell_m, *k));
+            let p_base = to_base(centre(cell_m, *k));
             let passes = through(&fans, p_base, &points_base, cell_m, &remembered_base);
             if passes >= PASSES_TO_FORGET && !kept(&fans, p_base) {
                 gone.push(*k);

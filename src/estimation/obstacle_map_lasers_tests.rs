@@ -316,7 +316,7 @@ fn the_estimation_sends_the_memory_the_lasers_changed() {
         "{:?}",
         after.value.obstacles_odom
     );
-    assert_eq!(est.stats.depth_cells_seen_through, 1);
+    assert_eq!(est.stats.laser_scans_forgetting_cells, 1);
 
     // a person seen again; a scan newer than the odometry waits for it
     est.on_depth_scan(Stamped::new(t(0.9), person_seen(person)));

@@ -40,16 +40,6 @@ impl Pose2 {
         [c * dx + s * dy, -s * dx + c * dy]
     }
 
-    /// The point `p_base` (base_link) in odom, this pose being
-    /// odom_from_base.
-    pub fn odom_from_base(&self, p_base: [f64; 2]) -> [f64; 2] {
-        let (c, s) = (self.theta_rad.cos(), self.theta_rad.sin());
-        [
-            self.x_m + c * p_base[0] - s * p_base[1],
-            self.y_m + s * p_base[0] + c * p_base[1],
-        ]
-    }
-
     /// Moves by `ds` along an arc turning by `dtheta` (exact when
     /// |dθ| is not tiny, the midpoint rule otherwise).
     pub fn advanced(&self, ds: f64, dtheta: f64) -> Pose2 {
