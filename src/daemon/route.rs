@@ -342,14 +342,24 @@ impl Router {
             return None;
         }
         // held on the way to the point before it: lined up from here
-        if blocked.is_some_and(|b| b.age_at(now) >= LINE_UP_HELD_AFTER)
-            && passage.held_on_approach(pose)
-        {
+        let held_a_while = blocked.is_some_and(|b| b.age_at(now) >= LINE_UP_HELD_AFTER);
+        if held_a_while && passage.held_on_approach(pose) {
             let (along_m, left_m) = passage.door.local(from);
             tracing::info!(
                 along_m,
                 left_m,
                 "doorway: held on the way to it, lining up from here"
+            );
+            *blocked = None;
+        } else if held_a_while && passage.held_turning(pose) {
+            // a turn on the spot held (a corner's circle reaches a jamb or
+            // something beside the chair): on a crawl's arcs instead
+            let (along_m, left_m) = passage.door.local(from);
+            tracing::info!(
+                along_m,
+                left_m,
+                phase = ?passage.phase,
+                "doorway: turn on the spot held, lining up on arcs"
             );
             *blocked = None;
         }

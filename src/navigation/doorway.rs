@@ -176,6 +176,10 @@ pub const LINE_UP_HELD_FROM_M: f64 = 1.0;
 /// it squares again (`Phase::Align`), rad.
 const PASS_STEERS_WITHIN_RAD: f64 = 0.35;
 
+/// Lining up, the chair turns on the spot to face the point when it is
+/// more than this off the heading, rad.
+const LINE_UP_TURNS_RAD: f64 = 0.12;
+
 /// Backing up only this square to the doorway, rad.
 const BACK_UP_SQUARE_RAD: f64 = 0.2;
 
@@ -194,8 +198,9 @@ pub struct Passage {
     /// Whether it has lined up from where it was held on its way to the
     /// point before the doorway ([`Passage::held_on_approach`]).
     pub lined_up_where_held: bool,
-    /// The person said no to a turn on the spot during this passage
-    /// ([`Passage::refuse_turns`]): it lines up and squares by arcs.
+    /// No turn on the spot for the rest of this passage: the person said
+    /// no to one ([`Passage::refuse_turns`]), or one was held
+    /// ([`Passage::held_turning`]); it lines up and squares by arcs.
     pub turns_refused: bool,
 }
 
@@ -285,6 +290,29 @@ impl Passage {
             self.phase = Phase::LineUp { at_m: line_up_at };
         }
         lines_up
+    }
+
+    /// Held lining up or squaring to the doorway with `pose`, where the
+    /// manoeuvre turns on the spot (turns still allowed, a line-up's point
+    /// off the heading, or squaring): from now on it turns on a crawl's
+    /// arcs instead ([`Passage::refuse_turns`]), each checked by the
+    /// supervisor as any arc. Whether it does.
+    pub fn held_turning(&mut self, pose: Pose2) -> bool {
+        let p = [pose.x_m, pose.y_m];
+        let turning = match self.phase {
+            Phase::LineUp { at_m } => {
+                let to = self.door.on_axis(at_m);
+                let bearing = wrap_angle((to[1] - p[1]).atan2(to[0] - p[0]) - pose.theta_rad);
+                bearing.abs() > LINE_UP_TURNS_RAD
+            }
+            Phase::Align => true,
+            _ => false,
+        };
+        let arcs = turning && !self.turns_refused;
+        if arcs {
+            self.turns_refused = true;
+        }
+        arcs
     }
 
     /// No backing up (the person said it is not clear behind): from a
@@ -402,18 +430,20 @@ impl Passage {
                     // face it on the spot (or, no turn on the spot
                     // allowed, on a crawl's arc), then straight on,
                     // steering onto it
-                    return PassageCmd::Drive(if bearing.abs() > 0.12 && !self.turns_refused {
-                        VelocityCmd {
-                            v_mps: 0.0,
-                            omega_radps: s.turn_radps.copysign(bearing),
-                        }
-                    } else {
-                        VelocityCmd {
-                            v_mps: s.crawl_mps,
-                            omega_radps: (2.0 * bearing)
-                                .clamp(-s.omega_max_radps, s.omega_max_radps),
-                        }
-                    });
+                    return PassageCmd::Drive(
+                        if bearing.abs() > LINE_UP_TURNS_RAD && !self.turns_refused {
+                            VelocityCmd {
+                                v_mps: 0.0,
+                                omega_radps: s.turn_radps.copysign(bearing),
+                            }
+                        } else {
+                            VelocityCmd {
+                                v_mps: s.crawl_mps,
+                                omega_radps: (2.0 * bearing)
+                                    .clamp(-s.omega_max_radps, s.omega_max_radps),
+                            }
+                        },
+                    );
                 }
                 Phase::Align => {
                     if self.turns_refused && heading_err.abs() <= PASS_STEERS_WITHIN_RAD {

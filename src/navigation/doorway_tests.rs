@@ -487,3 +487,58 @@ fn with_turns_refused_the_chair_lines_up_on_arcs_and_gets_through() {
     assert!(along > 0.6, "{end:?}");
     assert!(left.abs() < 0.05, "{end:?}");
 }
+
+/// A turn on the spot held (lining up, or squaring): the passage goes on
+/// on arcs; held while it already drives on arcs, or while it drives
+/// straight onto the line, nothing changes.
+#[test]
+fn a_held_turn_on_the_spot_goes_on_on_arcs() {
+    let door = Doorway {
+        center: [2.0, 1.0],
+        axis_rad: 0.0,
+        width_m: 0.90,
+    };
+    // lining up, the point 60 degrees off the heading: a turn on the spot
+    let facing = |theta_rad: f64| Pose2 {
+        x_m: 0.7,
+        y_m: 1.3,
+        theta_rad,
+    };
+    let mut p = Passage::new(door, PassageSettings::default());
+    p.phase = Phase::LineUp { at_m: -1.1 };
+    let turn = |p: &mut Passage, pose: Pose2| match p.step(pose, [4.0, 1.0]) {
+        PassageCmd::Drive(c) => c,
+        other => panic!("{other:?}"),
+    };
+    assert_eq!(turn(&mut p, facing(-2.0)).v_mps, 0.0);
+    assert!(p.held_turning(facing(-2.0)));
+    assert!(p.turns_refused);
+    let arc = turn(&mut p, facing(-2.0));
+    assert!(arc.v_mps > 0.05 && arc.omega_radps > 0.0, "{arc:?}");
+    // held again: already on arcs
+    assert!(!p.held_turning(facing(-2.0)));
+    // facing the point, it drives straight at it: held there, it is no
+    // turn that is held
+    let mut p = Passage::new(door, PassageSettings::default());
+    p.phase = Phase::LineUp { at_m: -1.1 };
+    let towards = (-0.3f64).atan2(0.2);
+    assert!(turn(&mut p, facing(towards)).v_mps > 0.05);
+    assert!(!p.held_turning(facing(towards)));
+    assert!(!p.turns_refused);
+    // squaring to the axis at the line-up point: a turn on the spot, held
+    let mut p = Passage::new(door, PassageSettings::default());
+    p.phase = Phase::Align;
+    let at = Pose2 {
+        x_m: 0.9,
+        y_m: 1.0,
+        theta_rad: 0.5,
+    };
+    assert_eq!(turn(&mut p, at).v_mps, 0.0);
+    assert!(p.held_turning(at));
+    let arc = turn(&mut p, at);
+    assert!(arc.v_mps > 0.05, "{arc:?}");
+    // passing: nothing turns on the spot
+    let mut p = Passage::new(door, PassageSettings::default());
+    p.phase = Phase::Pass;
+    assert!(!p.held_turning(at));
+}

@@ -544,6 +544,17 @@ impl Supervisor {
         let rolling = |x: f64| if x.abs() >= MOVING_MPS { x } else { 0.0 };
         // the first output toward (v, w) at the acceleration limits
         let first = self.ramp(v, w, CONTROL_PERIOD_S);
+        // the motion now on its way from rest to the requested arc (the
+        // turn rate ramps up faster than the speed, so for a few steps it
+        // reads as a turn on the spot): judged as that arc, with the
+        // closing check on the first output, not by the whole circle a
+        // turn on the spot sweeps (which holds every crawl's arc beside a
+        // jamb before it starts)
+        let ramping_to_arc = v.abs() >= 0.05
+            && v_now * v >= 0.0
+            && w_now * w >= 0.0
+            && w_now.abs() <= w.abs() + l.a_angular_max_radps2 * CONTROL_PERIOD_S;
+        let turning_now = w_now.abs() > TURNING_RADPS && !ramping_to_arc;
         // the checks, each over the points of `pts`: the corridors, the
         // turn's circle, the arcs, a side closing on a point
         let check = |which: usize, pts: &[&[[f32; 2]]]| {
@@ -554,7 +565,7 @@ impl Supervisor {
                     .any(|d| self.corridor_hits(all(), d)),
                 1 => {
                     self.turn_hits(all(), v, w)
-                        || (w_now.abs() > TURNING_RADPS && self.turn_hits(all(), v_now, w_now))
+                        || (turning_now && self.turn_hits(all(), v_now, w_now))
                 }
                 2 => self.arc_hits(all(), v, w) || self.arc_hits(all(), v_now, w_now),
                 _ => {
@@ -567,11 +578,7 @@ impl Supervisor {
         let camera = inputs.camera.map(|c| &c.value);
         let no_points: &[[f32; 2]] = &[];
         let turns = [(v, w), (v_now, w_now)];
-        let turns = if w_now.abs() > TURNING_RADPS {
-            &turns[..]
-        } else {
-            &turns[..1]
-        };
+        let turns = if turning_now { &turns[..] } else { &turns[..1] };
         let turning_on_the_spot = turns.iter().any(|(v, w)| v.abs() < 0.05 && w.abs() > 0.05);
         let rear_seen = inputs.rear.is_some_and(|r| r.seen);
         let rear_seen_for_reverse = inputs.rear.is_some_and(|r| r.reverse_seen);

@@ -717,3 +717,36 @@ fn a_point_at_the_footprint_may_not_come_nearer_as_the_chair_starts_to_move() {
         assert!(c.cmd.v_mps * v > 0.0, "({v}, {w}): {:?}", c.cmd);
     }
 }
+
+/// Starting a crawl's arc from rest, the turn rate ramps up faster than
+/// the speed: the motion on its way to the arc is judged as that arc, not
+/// by the circle a turn on the spot sweeps; a spin faster than the arc
+/// asks for, or the other way, still is a turn.
+#[test]
+fn an_arc_starting_from_rest_is_not_held_as_a_turn_on_the_spot() {
+    let limits = crate::config::Settings::defaults().safety_limits();
+    let step = |odom_v: f64, odom_w: f64, cmd_w: f64| {
+        let mut s = Supervisor::new(limits);
+        s.goal_active();
+        // behind the right rear corner, 0.65 m from base_link: inside
+        // the corners' circle, out of the left arc's sweep
+        let mut w = World::new(0, 0.09, cmd_w);
+        w.obstacles.value.points_base = vec![[-0.2, -0.62]];
+        w.odom.value.v_mps = odom_v;
+        w.odom.value.omega_radps = odom_w;
+        s.step(ms(0), &w.inputs()).state
+    };
+    // on its way from rest to (0.09 m/s, 0.25 rad/s)
+    assert_eq!(step(0.03, 0.1, 0.25), SupervisorState::Navigating);
+    assert_eq!(step(0.0, 0.05 + 1e-3, 0.25), SupervisorState::Navigating);
+    // spinning faster than the arc turns, or the other way: a turn
+    let held = SupervisorState::Stopped(StopReason::Obstacle);
+    assert_eq!(step(0.0, 0.5, 0.25), held);
+    assert_eq!(step(0.03, -0.1, 0.25), held);
+    // a turn on the spot asked for: held
+    let mut s = Supervisor::new(limits);
+    s.goal_active();
+    let mut w = World::new(0, 0.0, 0.25);
+    w.obstacles.value.points_base = vec![[-0.2, -0.62]];
+    assert_eq!(s.step(ms(0), &w.inputs()).state, held);
+}
