@@ -21,6 +21,16 @@ fn map_with_door() -> GridMap {
     map
 }
 
+/// A doorway `width_m` wide in a wall along x = 2, its middle on y = 1,
+/// passed towards +x (that of [`map_with_door`], at any width).
+fn door_at_x2(width_m: f64) -> Doorway {
+    Doorway {
+        center: [2.0, 1.0],
+        axis_rad: 0.0,
+        width_m,
+    }
+}
+
 /// The gap between a cabinet 0.6 m wide and a floor lamp 0.1 m across,
 /// standing 0.85 m apart across the way as the doorway of
 /// [`map_with_door`] is: no wall runs on the lamp's side, so it is the
@@ -238,11 +248,7 @@ fn the_lasers_jambs_move_the_maps_doorway_to_its_true_middle() {
 
 #[test]
 fn a_chair_off_the_middle_line_lines_up_before_it_passes() {
-    let door = Doorway {
-        center: [2.0, 1.0],
-        axis_rad: 0.0,
-        width_m: 0.82,
-    };
+    let door = door_at_x2(0.82);
     // close before the doorway, 13 cm off its middle line, square to
     // it: too near to correct on the way through (held at the jamb
     // before the line-up)
@@ -278,11 +284,7 @@ fn a_chair_off_the_middle_line_lines_up_before_it_passes() {
 #[test]
 fn a_chair_too_near_to_line_up_backs_up_first() {
     // 0.89 m between the jambs: 6.5 cm a side for the chair and its margin
-    let door = Doorway {
-        center: [2.0, 1.0],
-        axis_rad: 0.0,
-        width_m: 0.89,
-    };
+    let door = door_at_x2(0.89);
     // 0.95 m before the middle, 11 cm off its line, square to it: no room
     // to line up (a turn there would sweep a corner into the wall)
     let start = Pose2 {
@@ -373,11 +375,7 @@ fn a_chair_too_near_to_line_up_backs_up_first() {
 
 #[test]
 fn the_chair_goes_through_on_the_middle_line_from_a_slant() {
-    let door = Doorway {
-        center: [2.0, 1.0],
-        axis_rad: 0.0,
-        width_m: 0.85,
-    };
+    let door = door_at_x2(0.85);
     let start = Pose2 {
         x_m: 0.3,
         y_m: -0.5,
@@ -406,11 +404,7 @@ fn the_chair_goes_through_on_the_middle_line_from_a_slant() {
 /// passage, and not from further back or further off.
 #[test]
 fn held_on_the_way_to_the_point_before_it_the_chair_lines_up_from_there() {
-    let door = Doorway {
-        center: [2.0, 1.0],
-        axis_rad: 0.0,
-        width_m: 0.85,
-    };
+    let door = door_at_x2(0.85);
     let at = |along: f64, left: f64| Pose2 {
         x_m: 2.0 + along,
         y_m: 1.0 + left,
@@ -445,11 +439,7 @@ fn held_on_the_way_to_the_point_before_it_the_chair_lines_up_from_there() {
 /// through near the middle line.
 #[test]
 fn with_turns_refused_the_chair_lines_up_on_arcs_and_gets_through() {
-    let door = Doorway {
-        center: [2.0, 1.0],
-        axis_rad: 0.0,
-        width_m: 0.90,
-    };
+    let door = door_at_x2(0.90);
     // before the doorway, off its middle line, facing 30 degrees off it
     let start = Pose2 {
         x_m: 0.4,
@@ -493,11 +483,7 @@ fn with_turns_refused_the_chair_lines_up_on_arcs_and_gets_through() {
 /// straight onto the line, nothing changes.
 #[test]
 fn a_held_turn_on_the_spot_goes_on_on_arcs() {
-    let door = Doorway {
-        center: [2.0, 1.0],
-        axis_rad: 0.0,
-        width_m: 0.90,
-    };
+    let door = door_at_x2(0.90);
     // lining up, the point 60 degrees off the heading: a turn on the spot
     let facing = |theta_rad: f64| Pose2 {
         x_m: 0.7,
