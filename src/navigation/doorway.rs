@@ -298,13 +298,8 @@ impl Passage {
     /// arcs instead ([`Passage::refuse_turns`]), each checked by the
     /// supervisor as any arc. Whether it does.
     pub fn held_turning(&mut self, pose: Pose2) -> bool {
-        let p = [pose.x_m, pose.y_m];
         let turning = match self.phase {
-            Phase::LineUp { at_m } => {
-                let to = self.door.on_axis(at_m);
-                let bearing = wrap_angle((to[1] - p[1]).atan2(to[0] - p[0]) - pose.theta_rad);
-                bearing.abs() > LINE_UP_TURNS_RAD
-            }
+            Phase::LineUp { at_m } => self.line_up_bearing(pose, at_m).abs() > LINE_UP_TURNS_RAD,
             Phase::Align => true,
             _ => false,
         };
@@ -313,6 +308,13 @@ impl Passage {
             self.turns_refused = true;
         }
         arcs
+    }
+
+    /// The bearing of the line-up point `at_m` along the axis from
+    /// `pose`'s heading, rad (positive: to the left).
+    fn line_up_bearing(&self, pose: Pose2, at_m: f64) -> f64 {
+        let to = self.door.on_axis(at_m);
+        wrap_angle((to[1] - pose.y_m).atan2(to[0] - pose.x_m) - pose.theta_rad)
     }
 
     /// No backing up (the person said it is not clear behind): from a
@@ -421,12 +423,11 @@ impl Passage {
                     };
                 }
                 Phase::LineUp { at_m } => {
-                    let to = self.door.on_axis(at_m);
                     if along >= at_m - 0.02 {
                         self.phase = Phase::Align;
                         continue;
                     }
-                    let bearing = wrap_angle((to[1] - p[1]).atan2(to[0] - p[0]) - pose.theta_rad);
+                    let bearing = self.line_up_bearing(pose, at_m);
                     // face it on the spot (or, no turn on the spot
                     // allowed, on a crawl's arc), then straight on,
                     // steering onto it
