@@ -99,13 +99,16 @@ impl Control {
     /// A turn on the spot refused for an unseen rear or unseen floor for
     /// a second: ask the person whether it is clear behind, or all around
     /// where `floor_unseen` (floor the camera never saw in the turn's
-    /// circle), once per wait.
+    /// circle), once per wait. All around is behind and low beside the
+    /// chair, and low before it where `before_unseen` (floor never seen
+    /// in the strip ahead: what the camera saw there, it remembers).
     pub(super) fn ask_about_rear(
         &mut self,
         now: Stamp,
         state: SupervisorState,
         pose: Option<crate::msg::Pose2>,
         floor_unseen: bool,
+        before_unseen: bool,
     ) {
         use crate::msg::StopReason::{FloorUnseen, RearUnseen};
         // where the person said no, not asked again
@@ -145,10 +148,15 @@ impl Control {
                     "I need to back up a little, and I cannot see behind me. \
                      Is it clear behind? Say yes to let me back up, or no."
                         .into()
-                } else if around {
+                } else if around && before_unseen {
                     "I need to turn on the spot, and I cannot see behind me or the floor near \
                      me. Is it clear around me? Nothing behind me, nothing low beside or \
                      before me. Say yes to let me turn, or no."
+                        .into()
+                } else if around {
+                    "I need to turn on the spot, and I cannot see behind me or the floor \
+                     beside me. Is it clear around me? Nothing behind me, nothing low beside \
+                     me. Say yes to let me turn, or no."
                         .into()
                 } else {
                     "I need to turn on the spot, and I cannot see behind me. \

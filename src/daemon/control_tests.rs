@@ -687,32 +687,39 @@ fn turns_refused_between_crawls_still_ask_about_the_rear_once() {
         } else {
             SupervisorState::Navigating
         };
-        c.ask_about_rear(at(50 * k), state, pose, false);
+        c.ask_about_rear(at(50 * k), state, pose, false, false);
     }
     assert_eq!(asked(&c), 1, "{:?}", c.said);
     assert!(c.asking(), "waits for the answer");
     // turns allowed for a second: that wait is over, a later one asks again
     for k in 40..62u64 {
-        c.ask_about_rear(at(50 * k), SupervisorState::Navigating, pose, false);
+        c.ask_about_rear(at(50 * k), SupervisorState::Navigating, pose, false, false);
     }
     assert!(!c.asking());
     for k in 62..90u64 {
-        c.ask_about_rear(at(50 * k), rear_unseen, pose, false);
+        c.ask_about_rear(at(50 * k), rear_unseen, pose, false, false);
     }
     assert_eq!(asked(&c), 2, "{:?}", c.said);
     // floor never seen in the turn's circle: asked about all around
     let floor_unseen = SupervisorState::Stopped(crate::msg::StopReason::FloorUnseen);
+    // (about what lies low before the chair only where the camera never
+    // saw the floor there)
     for (state, unseen) in [(rear_unseen, true), (floor_unseen, false)] {
-        let mut c = control(false);
-        for k in 0..30u64 {
-            c.ask_about_rear(at(50 * k), state, pose, unseen);
+        for before in [false, true] {
+            let mut c = control(false);
+            for k in 0..30u64 {
+                c.ask_about_rear(at(50 * k), state, pose, unseen, before);
+            }
+            let around: Vec<_> = c
+                .said
+                .iter()
+                .filter(|l| l.contains("Is it clear around me?"))
+                .collect();
+            assert_eq!(around.len(), 1, "{:?}", c.said);
+            assert_eq!(around[0].contains("before me"), before, "{:?}", c.said);
+            assert!(around[0].contains("nothing low beside"), "{:?}", c.said);
+            assert!(c.asked_around && c.asking());
         }
-        let around = c
-            .said
-            .iter()
-            .filter(|l| l.contains("Is it clear around me?"));
-        assert_eq!(around.count(), 1, "{:?}", c.said);
-        assert!(c.asked_around && c.asking());
     }
 }
 

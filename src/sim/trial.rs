@@ -108,6 +108,9 @@ enum Look {
     Behind,
     /// All around, for a turn on the spot.
     Around,
+    /// All around but straight ahead (the strip of the chair's width
+    /// before it, which its camera saw), for a turn on the spot.
+    AroundBeside,
     /// Behind, for backing up.
     Back,
 }
@@ -116,10 +119,17 @@ enum Look {
 /// 5 cm, steps down): for a turn, nothing within [`CLEAR_BEHIND_M`] of
 /// base_link on the rear half (`Behind`), or (`Around`) nothing there
 /// and nothing low (under the lasers' plane, `laser_plane_m` up) or
-/// stepping down on the front half: what the chair asks about is what it
-/// cannot see, and the lasers see the rest ahead and beside it; backing
-/// up, nothing in the strip the rear backs into ([`CLEAR_BACK_M`]).
-fn clear_behind(w: &super::world::SimWorld, look: Look, laser_plane_m: f64) -> bool {
+/// stepping down on the front half (`AroundBeside`: off the strip
+/// `half_width_m` either side of base_link straight ahead): what the
+/// chair asks about is what it cannot see, and the lasers see the rest
+/// ahead and beside it; backing up, nothing in the strip the rear backs
+/// into ([`CLEAR_BACK_M`]).
+fn clear_behind(
+    w: &super::world::SimWorld,
+    look: Look,
+    laser_plane_m: f64,
+    half_width_m: f64,
+) -> bool {
     let t = w.truth;
     let (c, s) = (t.theta_rad.cos(), t.theta_rad.sin());
     let [sx, sy, _] = w.room.size_m;
@@ -164,7 +174,7 @@ fn clear_behind(w: &super::world::SimWorld, look: Look, laser_plane_m: f64) -> b
     } else {
         // the rear half, or the whole circle
         let (from, span) = match look {
-            Look::Around => (0.0, std::f64::consts::TAU),
+            Look::Around | Look::AroundBeside => (0.0, std::f64::consts::TAU),
             _ => (std::f64::consts::FRAC_PI_2, std::f64::consts::PI),
         };
         let (bearings, radii) = (n(span * CLEAR_BEHIND_M), n(CLEAR_BEHIND_M));
@@ -181,8 +191,12 @@ fn clear_behind(w: &super::world::SimWorld, look: Look, laser_plane_m: f64) -> b
     {
         for [bx, by] in samples {
             let (x, y) = (t.x_m + c * bx - s * by, t.y_m + s * bx + c * by);
-            // ahead of base_link, looking all round: only what is low
-            let low_only = look == Look::Around && bx > 0.0;
+            // ahead of base_link, looking all round: only what is low,
+            // and only beside the chair when asked about that alone
+            if look == Look::AroundBeside && bx > 0.0 && by.abs() <= half_width_m {
+                continue;
+            }
+            let low_only = matches!(look, Look::Around | Look::AroundBeside) && bx > 0.0;
             if boxes.iter().any(|(lo, hi, low)| {
                 (*low || !low_only) && x >= lo[0] && x <= hi[0] && y >= lo[1] && y <= hi[1]
             }) {
@@ -198,6 +212,7 @@ fn clear_behind(w: &super::world::SimWorld, look: Look, laser_plane_m: f64) -> b
 async fn person(
     word: String,
     laser_plane_m: f64,
+    half_width_m: f64,
     world: Arc<Mutex<super::world::SimWorld>>,
     tx: tokio::sync::mpsc::Sender<UserInput>,
     mut heard: tokio::sync::mpsc::UnboundedReceiver<String>,
@@ -208,7 +223,11 @@ async fn person(
         }
         while let Some(sentence) = heard.recv().await {
             let look = if sentence.contains("Is it clear around me?") {
-                Some(Look::Around)
+                Some(if sentence.contains("low beside or before me") {
+                    Look::Around
+                } else {
+                    Look::AroundBeside
+                })
             } else if sentence.contains("Is it clear behind?") {
                 Some(if sentence.contains("back up") {
                     Look::Back
@@ -222,7 +241,7 @@ async fn person(
                 tokio::time::sleep(ANSWER_AFTER).await;
                 let clear = world
                     .lock()
-                    .map(|w| clear_behind(&w, look, laser_plane_m))
+                    .map(|w| clear_behind(&w, look, laser_plane_m, half_width_m))
                     .unwrap_or(false);
                 Some(if clear { UserInput::Yes } else { UserInput::No })
             } else if sentence.starts_with("Staying here.") {
@@ -270,6 +289,7 @@ pub async fn run(
     tokio::spawn(person(
         scene.prompt.clone(),
         laser_plane_m,
+        settings.safety.chair_width_m / 2.0,
         sim.world.clone(),
         tx,
         speech_rx,
@@ -415,13 +435,18 @@ mod tests {
     /// from the chair in the middle, ahead of it (`ahead`) or behind.
     fn world_with_box(height_m: f64, ahead: bool) -> super::super::world::SimWorld {
         let x = if ahead { [2.5, 2.8] } else { [1.2, 1.5] };
+        world_with_box_at(x, [1.9, 2.1], height_m)
+    }
+
+    /// The same room, the box over `x` × `y` (the chair at (2, 2) facing +x).
+    fn world_with_box_at(x: [f64; 2], y: [f64; 2], height_m: f64) -> super::super::world::SimWorld {
         let room = Room {
             size_m: [4.0, 4.0, 2.5],
             objects: vec![SimObject {
                 label_id: 1,
                 label: "box".into(),
-                min_m: [x[0], 1.9, 0.0],
-                max_m: [x[1], 2.1, height_m],
+                min_m: [x[0], y[0], 0.0],
+                max_m: [x[1], y[1], height_m],
                 color: [0, 0, 0],
             }],
             pits: Vec::new(),
@@ -443,8 +468,9 @@ mod tests {
     #[test]
     fn all_round_the_person_counts_only_low_things_ahead_and_anything_behind() {
         let plane = 0.66;
-        let clear =
-            |h: f64, ahead: bool, look: Look| clear_behind(&world_with_box(h, ahead), look, plane);
+        let clear = |h: f64, ahead: bool, look: Look| {
+            clear_behind(&world_with_box(h, ahead), look, plane, 0.35)
+        };
         // ahead: a low box is not clear, a tall cupboard the lasers see is
         assert!(!clear(0.3, true, Look::Around));
         assert!(clear(1.8, true, Look::Around));
@@ -454,5 +480,28 @@ mod tests {
         // asked about behind only, nothing ahead counts
         assert!(clear(0.3, true, Look::Behind));
         assert!(!clear(1.8, false, Look::Behind));
+    }
+
+    /// Asked about behind and beside only (the camera saw the strip
+    /// before the chair), the person leaves out a low box straight ahead
+    /// but counts one low beside the front and anything behind.
+    #[test]
+    fn asked_about_beside_the_person_leaves_out_the_strip_ahead() {
+        let plane = 0.66;
+        let half = 0.35;
+        let ahead = |h: f64, look: Look| clear_behind(&world_with_box(h, true), look, plane, half);
+        assert!(ahead(0.3, Look::AroundBeside));
+        assert!(!ahead(0.3, Look::Around));
+        assert!(!clear_behind(
+            &world_with_box(0.3, false),
+            Look::AroundBeside,
+            plane,
+            half
+        ));
+        // low, 0.45–0.6 m to the left of base_link beside the front
+        let beside = world_with_box_at([2.05, 2.3], [2.45, 2.6], 0.3);
+        assert!(!clear_behind(&beside, Look::AroundBeside, plane, half));
+        assert!(!clear_behind(&beside, Look::Around, plane, half));
+        assert!(clear_behind(&beside, Look::Behind, plane, half));
     }
 }
