@@ -163,6 +163,9 @@ pub struct Control {
     /// when the supervisor would hold the planner's command.
     aim_odom: Option<[f64; 2]>,
     detours: u64,
+    /// The detour being followed and since when (it is followed as it
+    /// was scored, not dropped the step the planner's command is free).
+    detour_since: Option<(Stamp, VelocityCmd)>,
     /// Since when the way to a goal has been held without a break, and
     /// whether the person has been told.
     held_since: Option<Stamp>,
@@ -244,6 +247,7 @@ impl Control {
             route: None,
             aim_odom: None,
             detours: 0,
+            detour_since: None,
             held_since: None,
             said_held: false,
             tried_other_side: false,

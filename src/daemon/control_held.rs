@@ -12,10 +12,57 @@ impl Control {
     /// there is one (searched every step: a search skipped for even 100 ms
     /// after one that found none loses trips, e.g. scene 8 of seed 1).
     pub(super) fn detour_if_held(&mut self, now: Stamp, inputs: &SupervisorInputs) {
+        if let Some(cmd) = self.detour_going_on(now, inputs) {
+            self.planner_cmd = Some(Stamped::new(now, cmd));
+            return;
+        }
         if let Some(detour) = self.detour(inputs) {
             self.detours += 1;
+            self.detour_since = Some((now, detour));
             self.planner_cmd = Some(Stamped::new(now, detour));
         }
+    }
+
+    /// A detour found is followed as it was scored, for the scoring's
+    /// horizon: an arc as it is; a turn on the spot for half of it, then a
+    /// crawl straight on. The planner's command, free again once the turn
+    /// has put the obstacle aside, would turn straight back into the same
+    /// hold (the two took turns for the whole trip, scene 113 of seed 1).
+    /// Only while there is a command to replace, the place beside the
+    /// object is not within reach, and the supervisor admits this step's
+    /// part; else None, and the detour is over.
+    fn detour_going_on(&mut self, now: Stamp, inputs: &SupervisorInputs) -> Option<VelocityCmd> {
+        let (since, detour) = self.detour_since.take()?;
+        let age_s = since.age_at(now).as_secs_f64();
+        let (obs, odo) = (inputs.obstacles?, inputs.odometry?);
+        inputs.command?;
+        self.aim_odom?;
+        let pose = odo.value.pose;
+        let near = self
+            .goal
+            .approach()
+            .is_some_and(|a| (a.x_m - pose.x_m).hypot(a.y_m - pose.y_m) <= NEAR_ENOUGH_M);
+        if age_s >= crate::navigation::detour::HORIZON_S || near {
+            return None;
+        }
+        let cmd =
+            if detour.v_mps.abs() < 0.05 && age_s >= crate::navigation::detour::HORIZON_S / 2.0 {
+                VelocityCmd {
+                    v_mps: self.supervisor.limits.v_forward_max_mps / 3.0,
+                    omega_radps: 0.0,
+                }
+            } else {
+                detour
+            };
+        if self
+            .supervisor
+            .hold_reason(inputs, obs, cmd.v_mps, cmd.omega_radps)
+            .is_some()
+        {
+            return None;
+        }
+        self.detour_since = Some((since, detour));
+        Some(cmd)
     }
 
     /// The planner's command would be held for something in the way (or

@@ -629,6 +629,44 @@ fn held_by_something_beside_the_way_it_drives_a_detour_the_supervisor_admits() {
     }
 }
 
+/// A detour is followed as it was scored — a turn on the spot for half
+/// the horizon, then a crawl straight on; an arc as it is — even once the
+/// planner's own command is free again (it would turn straight back into
+/// the hold), and then the planner's command is the chair's again.
+#[test]
+fn a_detour_is_followed_for_its_horizon_then_the_planner_drives_again() {
+    use crate::navigation::detour::HORIZON_S;
+    let (mut c, tracker) = searching_two_metres_ahead();
+    step_with_points(&mut c, 50, &tracker, vec![[0.68, 0.2], [4.0, 0.0]]);
+    let (since, detour) = c.detour_since.expect("held by the post: a detour");
+    assert_eq!(since, at(50));
+    let crawl = VelocityCmd {
+        v_mps: c.supervisor.limits.v_forward_max_mps / 3.0,
+        omega_radps: 0.0,
+    };
+    let horizon_ms = (HORIZON_S * 1000.0) as u64;
+    let mut planner_again = 0;
+    // the post gone (a person who walked on): the planner's way is free
+    for k in 2..=50u64 {
+        step_with_points(&mut c, 50 * k, &tracker, vec![[4.0, 0.0]]);
+        let sent = c.planner_cmd.map(|p| p.value);
+        let age_ms = 50 * k - 50;
+        if age_ms < horizon_ms {
+            let want = if detour.v_mps.abs() < 0.05 && age_ms >= horizon_ms / 2 {
+                crawl
+            } else {
+                detour
+            };
+            assert_eq!(sent, Some(want), "step {k}, {age_ms} ms into the detour");
+        } else {
+            assert!(c.detour_since.is_none(), "step {k}: over after the horizon");
+            assert!(sent.is_some_and(|s| s != detour && s != crawl), "step {k}");
+            planner_again += 1;
+        }
+    }
+    assert!(planner_again >= 15, "{planner_again}");
+}
+
 #[test]
 fn held_on_the_way_with_no_way_round_it_says_so_once_and_goes_on_when_clear() {
     let (mut c, tracker) = searching_two_metres_ahead();
