@@ -20,6 +20,7 @@ use crate::navigation::doorway::PassageCmd;
 use crate::navigation::map::MapSettings;
 use crate::navigation::mpc::UnicycleState;
 use crate::navigation::planner::Planner;
+use rear_question::before_unseen;
 
 use super::route::{Router, CRAWL_MPS, TURN_FIRST_RAD, TURN_FIRST_RADPS};
 use crate::safety::rear::{RearSettings, RearWatch};
@@ -380,28 +381,12 @@ impl Control {
                 let crawl = self.supervisor.crawl_turn_radps();
                 self.supervisor.turn_blocked(&unseen, 0.0, crawl)
             });
-        // floor never seen straight ahead in that circle (the strip the
-        // chair's width drives into): only then is the person asked about
-        // what lies low before it; seen, the camera's memory holds it
-        let before_unseen = camera.as_ref().is_some_and(|c| {
-            let half_m = self.supervisor.limits.chair_width_m / 2.0;
-            c.value
-                .floor_unseen_base
-                .iter()
-                .chain(&c.value.drop_offs_unseen_base)
-                .any(|q| {
-                    let (x, y) = (f64::from(q[0]), f64::from(q[1]));
-                    x > 0.0
-                        && y.abs() <= half_m
-                        && x.hypot(y) <= crate::safety::rear::AROUND_VOUCHED_M
-                })
-        });
         self.ask_about_rear(
             now,
             cmd.state,
             inputs.odometry.map(|o| o.value.pose),
             floor_unseen,
-            before_unseen,
+            before_unseen(camera.as_ref(), &self.supervisor.limits),
         );
         if self.done.is_some() {
             // the trip is over: the last command the chair gets is zero

@@ -167,3 +167,26 @@ impl Control {
         }
     }
 }
+
+/// Whether the camera never saw floor (or may miss a step down) straight
+/// ahead in the circle a turn on the spot sweeps — the strip of the
+/// chair's width before it, within
+/// [`crate::safety::rear::AROUND_VOUCHED_M`] of base_link (`camera`, in
+/// base_link): only then is the person asked about what lies low before
+/// it; seen, the camera's memory holds it.
+pub(super) fn before_unseen(
+    camera: Option<&Stamped<Obstacles>>,
+    limits: &crate::safety::SafetyLimits,
+) -> bool {
+    camera.is_some_and(|c| {
+        let half_m = limits.chair_width_m / 2.0;
+        c.value
+            .floor_unseen_base
+            .iter()
+            .chain(&c.value.drop_offs_unseen_base)
+            .any(|q| {
+                let (x, y) = (f64::from(q[0]), f64::from(q[1]));
+                x > 0.0 && y.abs() <= half_m && x.hypot(y) <= crate::safety::rear::AROUND_VOUCHED_M
+            })
+    })
+}
