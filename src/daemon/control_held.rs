@@ -37,23 +37,14 @@ impl Control {
         let (obs, odo) = (inputs.obstacles?, inputs.odometry?);
         inputs.command?;
         self.aim_odom?;
-        let pose = odo.value.pose;
-        let near = self
-            .goal
-            .approach()
-            .is_some_and(|a| (a.x_m - pose.x_m).hypot(a.y_m - pose.y_m) <= NEAR_ENOUGH_M);
-        if age_s >= crate::navigation::detour::HORIZON_S || near {
+        if age_s >= crate::navigation::detour::HORIZON_S || self.near_the_place(&odo.value.pose) {
             return None;
         }
-        let cmd =
-            if detour.v_mps.abs() < 0.05 && age_s >= crate::navigation::detour::HORIZON_S / 2.0 {
-                VelocityCmd {
-                    v_mps: self.supervisor.limits.v_forward_max_mps / 3.0,
-                    omega_radps: 0.0,
-                }
-            } else {
-                detour
-            };
+        let cmd = crate::navigation::detour::command_at(
+            &detour,
+            self.supervisor.limits.v_forward_max_mps,
+            age_s,
+        );
         if self
             .supervisor
             .hold_reason(inputs, obs, cmd.v_mps, cmd.omega_radps)
@@ -63,6 +54,14 @@ impl Control {
         }
         self.detour_since = Some((since, detour));
         Some(cmd)
+    }
+
+    /// Whether the chair at `pose` is within [`NEAR_ENOUGH_M`] of the
+    /// place beside the object.
+    fn near_the_place(&self, pose: &crate::msg::Pose2) -> bool {
+        self.goal
+            .approach()
+            .is_some_and(|a| (a.x_m - pose.x_m).hypot(a.y_m - pose.y_m) <= NEAR_ENOUGH_M)
     }
 
     /// The planner's command would be held for something in the way (or
@@ -94,11 +93,7 @@ impl Control {
         }
         // within reach of the place beside the object: held there, the
         // trip ends as near as it safely goes (no manoeuvre for the rest)
-        if self
-            .goal
-            .approach()
-            .is_some_and(|a| (a.x_m - pose.x_m).hypot(a.y_m - pose.y_m) <= NEAR_ENOUGH_M)
-        {
+        if self.near_the_place(&pose) {
             return None;
         }
         let (dx, dy) = (aim[0] - pose.x_m, aim[1] - pose.y_m);

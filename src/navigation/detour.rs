@@ -35,6 +35,21 @@ pub struct DetourLimits {
     pub crawl_turn_radps: f64,
 }
 
+/// The command of candidate `c`, `t_s` into it, as [`predicted`] follows
+/// it: an arc throughout; a turn on the spot for half the horizon, then
+/// a crawl straight on at a third of `v_forward_max_mps` (what the control
+/// step drives while it follows a detour it found).
+pub fn command_at(c: &VelocityCmd, v_forward_max_mps: f64, t_s: f64) -> VelocityCmd {
+    if c.v_mps.abs() < 0.05 && t_s >= HORIZON_S / 2.0 {
+        VelocityCmd {
+            v_mps: v_forward_max_mps / 3.0,
+            omega_radps: 0.0,
+        }
+    } else {
+        *c
+    }
+}
+
 /// The pose a candidate is followed to after `t_s` of the horizon: the
 /// arc itself, or for a turn on the spot, the turn for half the time and
 /// then a crawl straight on (a turn is the first move of a way round).
@@ -195,6 +210,30 @@ mod tests {
         omega_max_radps: 0.6,
         crawl_turn_radps: 0.15,
     };
+
+    /// Followed as scored: a turn on the spot for half the horizon, then
+    /// a crawl straight on; an arc throughout.
+    #[test]
+    fn a_detour_is_driven_as_it_was_scored() {
+        let turn = VelocityCmd {
+            v_mps: 0.0,
+            omega_radps: 0.15,
+        };
+        let arc = VelocityCmd {
+            v_mps: 0.1,
+            omega_radps: -0.3,
+        };
+        let crawl = VelocityCmd {
+            v_mps: 0.3 / 3.0,
+            omega_radps: 0.0,
+        };
+        assert_eq!(command_at(&turn, 0.3, 0.0), turn);
+        assert_eq!(command_at(&turn, 0.3, HORIZON_S / 2.0 - 0.05), turn);
+        assert_eq!(command_at(&turn, 0.3, HORIZON_S / 2.0), crawl);
+        for t in [0.0, HORIZON_S / 2.0, HORIZON_S - 0.05] {
+            assert_eq!(command_at(&arc, 0.3, t), arc);
+        }
+    }
 
     #[test]
     fn straight_ahead_when_free() {
