@@ -359,7 +359,7 @@ impl Router {
                 along_m,
                 left_m,
                 phase = ?passage.phase,
-                "doorway: turn on the spot held, lining up on arcs"
+                "doorway: turn on the spot held, backing up to turn or lining up on arcs"
             );
             *blocked = None;
         }

@@ -68,7 +68,13 @@ pub enum Phase {
     /// Too near the doorway to line up, and off the middle line by more
     /// than the gap leaves a side: straight back, the heading held, until
     /// there is room to line up (`to_m` along the axis), m.
-    BackUp { to_m: f64 },
+    BackUp {
+        to_m: f64,
+        /// Squaring to the axis as it backs (off the line, square enough
+        /// already), or holding the heading (turned too far off the axis
+        /// near the doorway: a corner turned there would reach a jamb).
+        squaring: bool,
+    },
 }
 
 /// What to do now.
@@ -294,15 +300,26 @@ impl Passage {
 
     /// Held lining up or squaring to the doorway with `pose`, where the
     /// manoeuvre turns on the spot (turns still allowed, a line-up's point
-    /// off the heading, or squaring): from now on it turns on a crawl's
-    /// arcs instead ([`Passage::refuse_turns`]), each checked by the
-    /// supervisor as any arc. Whether it does.
+    /// off the heading, or squaring): squaring too near the doorway and
+    /// turned well off its axis, it first backs up straight to where a
+    /// turn on the spot fits ([`Phase::BackUp`], not squaring); otherwise,
+    /// from now on it turns on a crawl's arcs instead
+    /// ([`Passage::refuse_turns`]), each checked by the supervisor as any
+    /// arc. Whether it does either.
     pub fn held_turning(&mut self, pose: Pose2) -> bool {
         let turning = match self.phase {
             Phase::LineUp { at_m } => self.line_up_bearing(pose, at_m).abs() > LINE_UP_TURNS_RAD,
             Phase::Align => true,
             _ => false,
         };
+        if turning && self.phase == Phase::Align && !self.turns_refused {
+            let (along, _) = self.door.local([pose.x_m, pose.y_m]);
+            let heading_err = wrap_angle(pose.theta_rad - self.door.axis_rad);
+            if let Some(back) = self.back_up_to_turn(along, heading_err) {
+                self.phase = back;
+                return true;
+            }
+        }
         let arcs = turning && !self.turns_refused;
         if arcs {
             self.turns_refused = true;
@@ -354,6 +371,27 @@ impl Passage {
                     // than 45 degrees
                     to_m: (-s.line_up_nearest_m - s.line_up_ahead_m - left.abs().max(0.05))
                         .max(along - s.back_up_m),
+                    squaring: true,
+                }
+            })
+    }
+
+    /// Near the middle line but too near the doorway to turn on the spot
+    /// (a corner's circle would reach a jamb), and turned off the axis by
+    /// more than passing steers out: the phase that backs up straight, its
+    /// heading held, to where there is room to turn
+    /// (`line_up_nearest_m` before the middle, at most `back_up_m` back).
+    fn back_up_to_turn(&mut self, along: f64, heading_err: f64) -> Option<Phase> {
+        let s = self.settings;
+        (along > -s.line_up_nearest_m
+            && heading_err.abs() > PASS_STEERS_WITHIN_RAD
+            && !self.turns_refused
+            && self.backed_up < s.back_ups)
+            .then(|| {
+                self.backed_up += 1;
+                Phase::BackUp {
+                    to_m: (-s.line_up_nearest_m - 0.05).max(along - s.back_up_m),
+                    squaring: false,
                 }
             })
     }
@@ -496,15 +534,19 @@ impl Passage {
                         omega_radps: omega,
                     });
                 }
-                Phase::BackUp { to_m } => {
+                Phase::BackUp { to_m, squaring } => {
                     if along <= to_m {
                         self.phase = Phase::Approach;
                         continue;
                     }
+                    let omega_radps = if squaring {
+                        (-s.k_heading * heading_err).clamp(-s.omega_max_radps, s.omega_max_radps)
+                    } else {
+                        0.0
+                    };
                     return PassageCmd::Drive(VelocityCmd {
                         v_mps: -s.crawl_mps,
-                        omega_radps: (-s.k_heading * heading_err)
-                            .clamp(-s.omega_max_radps, s.omega_max_radps),
+                        omega_radps,
                     });
                 }
             }

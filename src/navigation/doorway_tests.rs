@@ -373,6 +373,73 @@ fn a_chair_too_near_to_line_up_backs_up_first() {
     assert_eq!(p.phase, Phase::Align);
 }
 
+/// A passage begun with the chair already near the doorway, near the
+/// middle line but turned well off the axis (it came there on the
+/// planner's way, at a slant): it squares on the spot; where that turn is
+/// held (a corner's circle reaches a jamb), it backs up straight, its
+/// heading held, to where there is room to turn, then squares and goes
+/// through. Square enough to steer out while passing, or nearer than
+/// that room allows back, it turns on arcs instead, as before.
+#[test]
+fn a_turn_held_near_the_doorway_at_a_slant_backs_up_straight_first() {
+    let door = door_at_x2(0.85);
+    let s = PassageSettings::default();
+    let near = Pose2 {
+        x_m: 2.0 - 0.47,
+        y_m: 1.0 + 0.13,
+        theta_rad: -0.53,
+    };
+    let mut p = Passage::new(door, s);
+    assert!(matches!(
+        p.step(near, [4.0, 1.0]),
+        PassageCmd::Drive(c) if c.v_mps == 0.0 && c.omega_radps > 0.0
+    ));
+    assert_eq!(p.phase, Phase::Align);
+    // the turn held there
+    assert!(p.held_turning(near));
+    assert!(!p.turns_refused);
+    assert!(
+        matches!(p.phase, Phase::BackUp { to_m, squaring: false } if (to_m + s.line_up_nearest_m + 0.05).abs() < 1e-9),
+        "{:?}",
+        p.phase
+    );
+    // straight back to where a turn on the spot fits, then through
+    let mut backed_to = f64::INFINITY;
+    let mut pose = near;
+    while let PassageCmd::Drive(c) = p.step(pose, [4.0, 1.0]) {
+        if c.v_mps >= 0.0 {
+            break;
+        }
+        assert_eq!(c.omega_radps, 0.0, "{c:?}");
+        pose = pose.advanced(c.v_mps * 0.05, c.omega_radps * 0.05);
+        backed_to = backed_to.min(door.local([pose.x_m, pose.y_m]).0);
+    }
+    assert!(backed_to <= -s.line_up_nearest_m, "{backed_to}");
+    assert!(backed_to > -0.47 - s.back_up_m - 0.01, "{backed_to}");
+    assert_eq!(p.backed_up, 1);
+    let (end, _, done) = drive(&mut p, pose, [4.0, 1.0]);
+    assert!(done, "did not get through: {end:?}");
+    // square enough to steer out while passing, or held again from where
+    // it backed to: on arcs
+    for (at, backed_up) in [
+        (
+            Pose2 {
+                theta_rad: -0.2,
+                ..near
+            },
+            0,
+        ),
+        (pose, 1),
+    ] {
+        let mut p = Passage::new(door, s);
+        p.phase = Phase::Align;
+        p.backed_up = backed_up;
+        assert!(p.held_turning(at));
+        assert!(p.turns_refused, "from {at:?}");
+        assert_eq!(p.phase, Phase::Align);
+    }
+}
+
 #[test]
 fn the_chair_goes_through_on_the_middle_line_from_a_slant() {
     let door = door_at_x2(0.85);
