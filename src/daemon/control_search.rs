@@ -9,6 +9,10 @@ use crate::estimation::goal::{GoalEvent, GoalState};
 use crate::estimation::view::CameraView;
 use crate::msg::{Pose2, Stamp, SupervisorState};
 
+/// A search turn held: the place to turn elsewhere is sought first within
+/// this of the chair's heading, rad.
+const TURN_ELSEWHERE_AHEAD_RAD: f64 = std::f64::consts::FRAC_PI_3;
+
 impl Control {
     /// Before the goal's update: what is left for the camera to look at
     /// around the chair, while searching (the turn's end and its way).
@@ -54,11 +58,19 @@ impl Control {
                 self.turn_held_since = None;
                 let from = [pose.x_m, pose.y_m];
                 let place = self.route.as_mut().and_then(|r| {
+                    // ahead of the chair where there is such a place (one
+                    // behind it needs the turn that was just held), with
                     // room to spare where it can (it stops within 0.3 m
                     // of the place)
                     let map = r.map.as_mut()?;
-                    map.room_to_turn(from, ROOM_TO_TURN_MIN_M, EXPLORE_ROOM_M + 0.15)
-                        .or_else(|| map.room_to_turn(from, ROOM_TO_TURN_MIN_M, EXPLORE_ROOM_M))
+                    let ahead = Some((pose.theta_rad, TURN_ELSEWHERE_AHEAD_RAD));
+                    [ahead, None].into_iter().find_map(|cone| {
+                        [EXPLORE_ROOM_M + 0.15, EXPLORE_ROOM_M]
+                            .into_iter()
+                            .find_map(|room_m| {
+                                map.room_to_turn_within(from, ROOM_TO_TURN_MIN_M, room_m, cone)
+                            })
+                    })
                 });
                 tracing::info!(
                     ?pose,

@@ -150,12 +150,30 @@ impl GridMap {
     /// `room_m` to everything (room to turn on the spot), through seen
     /// free space.
     pub fn room_to_turn(&mut self, from: [f64; 2], min_m: f64, room_m: f64) -> Option<[f64; 2]> {
+        self.room_to_turn_within(from, min_m, room_m, None)
+    }
+
+    /// [`GridMap::room_to_turn`] among the places whose bearing from
+    /// `from` lies within `half_angle_rad` of `yaw_rad` (odom) when
+    /// `ahead` is `Some((yaw_rad, half_angle_rad))`: a place the chair
+    /// reaches without first turning round.
+    pub fn room_to_turn_within(
+        &mut self,
+        from: [f64; 2],
+        min_m: f64,
+        room_m: f64,
+        ahead: Option<(f64, f64)>,
+    ) -> Option<[f64; 2]> {
         self.update_distances();
         let is_goal = |i: usize| {
             let p = self.center(i);
+            let (dx, dy) = (p[0] - from[0], p[1] - from[1]);
             self.dist[i] as f64 >= room_m
                 && self.is_known(i)
-                && (p[0] - from[0]).hypot(p[1] - from[1]) >= min_m
+                && dx.hypot(dy) >= min_m
+                && ahead.is_none_or(|(yaw_rad, half_rad)| {
+                    crate::msg::wrap_angle(dy.atan2(dx) - yaw_rad).abs() <= half_rad
+                })
         };
         let (end, _) = self.search(from, &is_goal, &|_| 0.0, false)?;
         Some(self.center(end))

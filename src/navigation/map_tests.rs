@@ -298,6 +298,23 @@ fn room_to_turn_is_the_nearest_place_clear_all_round() {
     // 0.8 m from the wall (and no farther than it needs)
     assert!(p[1] <= -0.25 && p[1] >= -0.45, "{p:?}");
     assert!(map.room_to_turn([0.0, 0.0], 0.3, 3.0).is_none());
+    // ahead first: the nearest such place within 60 degrees of the
+    // heading, whichever way the chair faces along the wall
+    for yaw_rad in [0.0, std::f64::consts::PI] {
+        let half_rad = std::f64::consts::FRAC_PI_3;
+        let q = map
+            .room_to_turn_within([0.0, 0.0], 0.3, 0.8, Some((yaw_rad, half_rad)))
+            .expect("a place ahead");
+        let bearing = crate::msg::wrap_angle(q[1].atan2(q[0]) - yaw_rad);
+        assert!(bearing.abs() <= half_rad, "{q:?} facing {yaw_rad}");
+        assert!(q[0] * yaw_rad.cos() > 0.1, "{q:?} facing {yaw_rad}");
+        assert!(q[1] <= -0.25, "{q:?}");
+    }
+    // facing the wall, no place with room lies within 60 degrees ahead
+    let facing_wall = Some((std::f64::consts::FRAC_PI_2, std::f64::consts::FRAC_PI_3));
+    assert!(map
+        .room_to_turn_within([0.0, 0.0], 0.3, 0.8, facing_wall)
+        .is_none());
 }
 
 #[test]
