@@ -66,8 +66,10 @@ pub enum Phase {
     /// Straight through at a crawl.
     Pass,
     /// Too near the doorway to line up, and off the middle line by more
-    /// than the gap leaves a side: straight back, the heading held, until
-    /// there is room to line up (`to_m` along the axis), m.
+    /// than the gap leaves a side (`squaring`); or held turning square to
+    /// it on the spot, too near it and turned well off its axis (not
+    /// `squaring`): back, until there is room to line up or to turn
+    /// (`to_m` along the axis), m.
     BackUp {
         to_m: f64,
         /// Squaring to the axis as it backs (off the line, square enough
