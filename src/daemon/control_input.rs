@@ -95,9 +95,12 @@ impl Control {
             }
             UserInput::No if self.asked_back_up && self.asked_rear.is_some() => {
                 // backing up only made room to line up with a doorway:
-                // the passage goes on without it
-                self.asked_rear = None;
-                if self.route.as_mut().is_some_and(|r| r.refuse_back_up()) {
+                // the passage goes on without it (and one begun again
+                // from here does not ask again)
+                let at = self.asked_rear.take().map(|p| [p.x_m, p.y_m]);
+                let refused =
+                    at.is_some_and(|at| self.route.as_mut().is_some_and(|r| r.refuse_back_up(at)));
+                if refused {
                     self.say("I will not back up.".into());
                 } else {
                     self.goal.clear();

@@ -43,6 +43,10 @@ pub struct Router {
     passage: Option<(Passage, Stamp, Option<Stamp>)>,
     /// A doorway given up, not tried again until then.
     skip: Option<([f64; 2], Stamp)>,
+    /// Where the chair stood (odom) when the person said it is not clear
+    /// behind for a doorway's back-up: a passage begun again within
+    /// [`BACK_UP_REFUSED_WITHIN_M`] of it does not back up, nor ask again.
+    back_up_refused_at: Option<[f64; 2]>,
     pub doorways: u64,
     pub doorways_given_up: u64,
 }
@@ -55,6 +59,9 @@ pub(super) const PASSAGE_BLOCKED_FOR: std::time::Duration = std::time::Duration:
 pub(super) const LINE_UP_HELD_AFTER: std::time::Duration = std::time::Duration::from_secs(2);
 pub(super) const PASSAGE_AT_MOST: std::time::Duration = std::time::Duration::from_secs(60);
 pub(super) const PASSAGE_SKIP_FOR: std::time::Duration = std::time::Duration::from_secs(20);
+/// A back-up the person said no to holds for passages begun within this
+/// of where the chair stood then, m.
+pub(super) const BACK_UP_REFUSED_WITHIN_M: f64 = 0.15;
 /// A gap measured narrower than this is no doorway for the chair: its
 /// 0.70 m (the measurement is to a cell and measures short: an 0.81 m
 /// doorway measured 0.725 m in scene 60 of `opennav sim --seed 1`, and the
@@ -112,6 +119,7 @@ impl Router {
             no_way: 0,
             passage: None,
             skip: None,
+            back_up_refused_at: None,
             doorways: 0,
             doorways_given_up: 0,
         }
@@ -193,13 +201,19 @@ impl Router {
         Some(left)
     }
 
-    /// The person said it is not clear behind while the chair backed up
-    /// before a doorway: the passage goes on without backing up. Whether
-    /// a passage was backing up.
-    pub(super) fn refuse_back_up(&mut self) -> bool {
-        self.passage
+    /// The person said it is not clear behind while the chair, at `at`
+    /// (odom), backed up before a doorway: the passage goes on without
+    /// backing up, and so does one begun again from there. Whether a
+    /// passage was backing up.
+    pub(super) fn refuse_back_up(&mut self, at: [f64; 2]) -> bool {
+        let backing = self
+            .passage
             .as_mut()
-            .is_some_and(|(p, _, _)| p.refuse_back_up())
+            .is_some_and(|(p, _, _)| p.refuse_back_up());
+        if backing {
+            self.back_up_refused_at = Some(at);
+        }
+        backing
     }
 
     /// The person said no to a turn on the spot: a passage under way
@@ -312,7 +326,16 @@ impl Router {
             }
             self.doorways += 1;
             tracing::info!(center = ?door.center, axis_rad = door.axis_rad, width_m = door.width_m, "doorway: passing");
-            self.passage = Some((Passage::new(door, PassageSettings::default()), now, None));
+            let mut passage = Passage::new(door, PassageSettings::default());
+            if self
+                .back_up_refused_at
+                .is_some_and(|p| (p[0] - from[0]).hypot(p[1] - from[1]) <= BACK_UP_REFUSED_WITHIN_M)
+            {
+                // the person said it is not clear behind, here
+                passage.refuse_back_up();
+                tracing::info!(center = ?door.center, "doorway: backing up refused here before; passing without");
+            }
+            self.passage = Some((passage, now, None));
         }
         let (passage, since, blocked) = self.passage.as_mut()?;
         let odom_from_base = pose.to_isometry3();
@@ -491,5 +514,57 @@ mod tests {
         );
         assert!(r.passage.is_none());
         assert_eq!(r.doorways_given_up, 0);
+    }
+
+    /// The person said it is not clear behind for a doorway's back-up: a
+    /// passage begun again from where the chair stood then does not back
+    /// up (nor ask again); one begun from elsewhere may.
+    #[test]
+    fn a_back_up_the_person_refused_is_not_asked_again_from_the_same_place() {
+        let wall: Vec<[f64; 2]> = (0..=600)
+            .map(|k| -6.0 + k as f64 * 0.02)
+            .filter(|y| (y - 1.0).abs() > 0.45)
+            .flat_map(|y| [[2.0, y], [2.05, y]])
+            .collect();
+        let mut r = Router::new(MapSettings::default());
+        let mut map = GridMap::new(r.settings, [0.0, 0.0]);
+        map.set_camera(&wall, &[]);
+        r.map = Some(map);
+        let pose = |y_m: f64| crate::msg::Pose2 {
+            x_m: 0.6,
+            y_m,
+            theta_rad: 0.0,
+        };
+        let begin = |r: &mut Router, y_m: f64, ms: u64| {
+            r.passage = None;
+            r.skip = None;
+            let cmd = r.through_doorway(
+                at(ms),
+                pose(y_m),
+                [4.0, 1.0],
+                0.1,
+                SupervisorState::Navigating,
+                &[],
+            );
+            assert!(cmd.is_some(), "passing the doorway");
+            r.passage.as_ref().map(|(p, _, _)| p.backed_up)
+        };
+        let back_ups = PassageSettings::default().back_ups;
+        assert_eq!(begin(&mut r, 1.0, 0), Some(0));
+        // not backing up: nothing to refuse, nothing remembered
+        assert!(!r.refuse_back_up([0.6, 1.0]));
+        assert_eq!(begin(&mut r, 1.0, 50), Some(0));
+        // backing up, refused
+        if let Some((p, _, _)) = r.passage.as_mut() {
+            p.phase = crate::navigation::doorway::Phase::BackUp {
+                to_m: -1.6,
+                squaring: true,
+            };
+        }
+        assert!(r.refuse_back_up([0.6, 1.0]));
+        assert_eq!(begin(&mut r, 1.0, 100), Some(back_ups));
+        assert_eq!(begin(&mut r, 1.1, 150), Some(back_ups));
+        // from 0.3 m away: backing up allowed again
+        assert_eq!(begin(&mut r, 1.3, 200), Some(0));
     }
 }
