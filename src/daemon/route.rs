@@ -462,18 +462,22 @@ mod tests {
         assert!(r.path.is_some());
     }
 
-    #[test]
-    fn held_past_a_doorway_with_its_rear_out_the_planner_takes_over() {
-        // a wall along x = 2 with a 0.9 m doorway centred on y = 1
+    /// A map of a wall along x = 2 with a 0.9 m doorway centred on y = 1.
+    fn map_with_door(settings: MapSettings) -> GridMap {
         let wall: Vec<[f64; 2]> = (0..=600)
             .map(|k| -6.0 + k as f64 * 0.02)
             .filter(|y| (y - 1.0).abs() > 0.45)
             .flat_map(|y| [[2.0, y], [2.05, y]])
             .collect();
+        let mut map = GridMap::new(settings, [0.0, 0.0]);
+        map.set_camera(&wall, &[]);
+        map
+    }
+
+    #[test]
+    fn held_past_a_doorway_with_its_rear_out_the_planner_takes_over() {
         let start = |r: &mut Router| {
-            let mut map = GridMap::new(r.settings, [0.0, 0.0]);
-            map.set_camera(&wall, &[]);
-            r.map = Some(map);
+            r.map = Some(map_with_door(r.settings));
             let pose = crate::msg::Pose2 {
                 x_m: 0.6,
                 y_m: 1.0,
@@ -521,15 +525,8 @@ mod tests {
     /// up (nor ask again); one begun from elsewhere may.
     #[test]
     fn a_back_up_the_person_refused_is_not_asked_again_from_the_same_place() {
-        let wall: Vec<[f64; 2]> = (0..=600)
-            .map(|k| -6.0 + k as f64 * 0.02)
-            .filter(|y| (y - 1.0).abs() > 0.45)
-            .flat_map(|y| [[2.0, y], [2.05, y]])
-            .collect();
         let mut r = Router::new(MapSettings::default());
-        let mut map = GridMap::new(r.settings, [0.0, 0.0]);
-        map.set_camera(&wall, &[]);
-        r.map = Some(map);
+        r.map = Some(map_with_door(r.settings));
         let pose = |y_m: f64| crate::msg::Pose2 {
             x_m: 0.6,
             y_m,
