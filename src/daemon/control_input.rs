@@ -36,6 +36,9 @@ impl Control {
                 self.asked_goal = None;
                 self.turn_refused_at = None;
                 self.floor_refused_at = None;
+                if let Some(r) = self.route.as_mut() {
+                    r.new_trip();
+                }
                 self.goal.set_prompt(&word);
                 self.say(format!("Looking for a {word}."));
             }

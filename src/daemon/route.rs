@@ -216,6 +216,12 @@ impl Router {
         backing
     }
 
+    /// A new trip: the person's earlier "no" to a back-up no longer holds
+    /// (asked afresh, as turns are).
+    pub(super) fn new_trip(&mut self) {
+        self.back_up_refused_at = None;
+    }
+
     /// The person said no to a turn on the spot: a passage under way
     /// lines up and squares by arcs from now on.
     pub(super) fn refuse_turns(&mut self) {
@@ -522,7 +528,8 @@ mod tests {
 
     /// The person said it is not clear behind for a doorway's back-up: a
     /// passage begun again from where the chair stood then does not back
-    /// up (nor ask again); one begun from elsewhere may.
+    /// up (nor ask again); one begun from elsewhere, or on a new trip,
+    /// may.
     #[test]
     fn a_back_up_the_person_refused_is_not_asked_again_from_the_same_place() {
         let mut r = Router::new(MapSettings::default());
@@ -563,5 +570,8 @@ mod tests {
         assert_eq!(begin(&mut r, 1.1, 150), Some(back_ups));
         // from 0.3 m away: backing up allowed again
         assert_eq!(begin(&mut r, 1.3, 200), Some(0));
+        // a new trip asks afresh, from the same place too
+        r.new_trip();
+        assert_eq!(begin(&mut r, 1.0, 250), Some(0));
     }
 }
