@@ -18,3 +18,6 @@ mod still;
 pub mod topdown;
 pub mod trial;
 pub mod world;
+
+#[cfg(test)]
+mod segment_tests;

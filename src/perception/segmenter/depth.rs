@@ -9,6 +9,13 @@
 //! 3. Grow 4-connected from the seeds while neighbouring depths differ by at
 //!    most `step_m + step_per_m · z` (a relative step, for depth noise that
 //!    grows with range), staying inside the box.
+//! 4. A detector's box hugs its object: the region spans the box and stops
+//!    at its edges. A region that spans little of the box or runs on past
+//!    its edges (a chair before the boxed bookshelf, a table before the
+//!    boxed chair, the wall behind a thin object) fits it poorly; then the
+//!    fullest depth modes of the box's other pixels are grown too (from
+//!    all their pixels in the box), and one that fits the box clearly
+//!    better replaces it.
 //!
 //! With the floor known ([`Segmenter::set_floor`]), pixels within
 //! `floor_band_m` of it or below it neither vote, seed nor join: the floor
@@ -66,50 +73,159 @@ impl DepthBoxSegmenter {
         }
     }
 
-    /// The mask of one box.
+    /// The mask of one box: the region grown from the central depth
+    /// mode ([`Self::central_region`]), unless it fits the box poorly (it
+    /// spans little of the box, or runs on past the box's edges, as what
+    /// stands in front or the wall behind does) and the region of another
+    /// of the box's depth modes fits it clearly better (a detector's box
+    /// hugs its object).
     pub fn segment_box(&self, depth: &DepthImage, xyxy: [f32; 4]) -> Mask {
+        let Some(primary) = self.central_region(depth, xyxy) else {
+            return Mask::for_box(depth.width(), depth.height(), xyxy);
+        };
+        let primary_fit = self.box_fit(depth, &primary);
+        if primary_fit >= GOOD_BOX_FIT {
+            return primary;
+        }
+        let mask = Mask::for_box(depth.width(), depth.height(), xyxy);
+        let (x0, y0, bw, bh) = mask.region();
+        // the fullest depth mode of the box's pixels in no region grown
+        // so far, grown from those pixels, a few times
+        let whole = [x0, y0, x0 + bw, y0 + bh];
+        let mut taken = primary.clone();
+        let total = self.depths_in(depth, whole).count();
+        let mut best = (primary_fit, primary);
+        for _ in 0..OTHER_MODES {
+            let free = self
+                .depths_in_where(depth, whole, |u, v| !taken.get(u, v))
+                .map(|z| self.bin_of(z));
+            let n = free.clone().count();
+            if (n as f64) < OTHER_MODE_SHARE * total as f64 {
+                break;
+            }
+            let Some(bin) = fullest_bin(free) else {
+                break;
+            };
+            let other = self.mode_of(bin);
+            let grown = self.grow_where(depth, mask.clone(), whole, other, |u, v| !taken.get(u, v));
+            let fit = self.box_fit(depth, &grown);
+            for (u, v) in grown.pixels() {
+                taken.set(u, v, true);
+            }
+            if fit > best.0 + BETTER_BOX_FIT {
+                best = (fit, grown);
+            }
+        }
+        best.1
+    }
+
+    /// Steps 1–3 as the module says: the region grown from the central
+    /// depth mode (None when the box is empty or holds no depth above the
+    /// floor).
+    pub fn central_region(&self, depth: &DepthImage, xyxy: [f32; 4]) -> Option<Mask> {
         let (w, h) = (depth.width(), depth.height());
-        let mut mask = Mask::for_box(w, h, xyxy);
+        let mask = Mask::for_box(w, h, xyxy);
         let (x0, y0, bw, bh) = mask.region();
         if bw == 0 || bh == 0 {
-            return mask;
+            return None;
         }
         let s = &self.settings;
-        // above the floor's band (everything when the floor is not known)
-        let floor = self.floor.map(|f| (f, s.floor_band_m));
-        let above =
-            |u: usize, v: usize, z: f32| floor.is_none_or(|(f, band)| f.height_m(u, v, z) > band);
         let cf = s.center_fraction.clamp(0.05, 1.0);
         let cx0 = x0 + ((bw as f32 * (1.0 - cf) / 2.0) as usize);
         let cy0 = y0 + ((bh as f32 * (1.0 - cf) / 2.0) as usize);
-        let cx1 = (x0 + bw - ((bw as f32 * (1.0 - cf) / 2.0) as usize)).max(cx0 + 1);
-        let cy1 = (y0 + bh - ((bh as f32 * (1.0 - cf) / 2.0) as usize)).max(cy0 + 1);
+        let cx1 = (x0 + bw - ((bw as f32 * (1.0 - cf) / 2.0) as usize))
+            .max(cx0 + 1)
+            .min(w);
+        let cy1 = (y0 + bh - ((bh as f32 * (1.0 - cf) / 2.0) as usize))
+            .max(cy0 + 1)
+            .min(h);
 
         // 1. mode of the central depths: bins counted in a flat table
         // (nearest first; a bin width so small that the table would be
         // huge counts in an ordered map instead)
-        let central = || {
-            (cy0..cy1.min(h))
-                .flat_map(move |v| (cx0..cx1.min(w)).map(move |u| (u, v)))
-                .filter_map(|(u, v)| depth.at(u, v).filter(|&z| above(u, v, z)))
-        };
-        let bin_of = |z: f32| (z / s.bin_m) as u32;
-        let Some(bin) = fullest_bin(central().map(bin_of)) else {
-            return mask;
-        };
-        let mode = (bin as f32 + 0.5) * s.bin_m;
+        let bin = fullest_bin(
+            self.depths_in(depth, [cx0, cy0, cx1, cy1])
+                .map(|z| self.bin_of(z)),
+        )?;
+        let mode = self.mode_of(bin);
+        Some(self.grow(depth, mask, [cx0, cy0, cx1, cy1], mode))
+    }
 
-        // 2. seeds, 3. growth over region indices; a pixel joins once and
-        // is grown from once, so the mask is every pixel reachable from the
-        // seeds whatever the order (a stack here)
+    fn bin_of(&self, z: f32) -> u32 {
+        (z / self.settings.bin_m) as u32
+    }
+
+    fn mode_of(&self, bin: u32) -> f32 {
+        (bin as f32 + 0.5) * self.settings.bin_m
+    }
+
+    fn tolerance(&self) -> f32 {
+        let s = &self.settings;
+        s.mode_tolerance_m.max(s.bin_m / 2.0)
+    }
+
+    /// Above the floor's band (everything when the floor is not known).
+    #[inline]
+    fn above(&self, u: usize, v: usize, z: f32) -> bool {
+        self.floor
+            .is_none_or(|f| f.height_m(u, v, z) > self.settings.floor_band_m)
+    }
+
+    /// The valid depths above the floor in `[x0, y0, x1, y1)` (clipped).
+    fn depths_in<'a>(
+        &'a self,
+        depth: &'a DepthImage,
+        area: [usize; 4],
+    ) -> impl Iterator<Item = f32> + Clone + 'a {
+        self.depths_in_where(depth, area, |_, _| true)
+    }
+
+    /// [`Self::depths_in`] at the pixels where `keep` holds.
+    fn depths_in_where<'a>(
+        &'a self,
+        depth: &'a DepthImage,
+        [x0, y0, x1, y1]: [usize; 4],
+        keep: impl Fn(usize, usize) -> bool + Clone + 'a,
+    ) -> impl Iterator<Item = f32> + Clone + 'a {
+        let (w, h) = (depth.width(), depth.height());
+        (y0..y1.min(h))
+            .flat_map(move |v| (x0..x1.min(w)).map(move |u| (u, v)))
+            .filter(move |&(u, v)| keep(u, v))
+            .filter_map(move |(u, v)| depth.at(u, v).filter(|&z| self.above(u, v, z)))
+    }
+
+    /// Steps 2 and 3: the seeds are the pixels of `seeds` (image
+    /// coordinates, clipped to the mask's region) within the tolerance of
+    /// `mode`, grown over region indices. A pixel joins once and is grown
+    /// from once, so the mask is every pixel reachable from the seeds
+    /// whatever the order (a stack here).
+    fn grow(&self, depth: &DepthImage, mask: Mask, seeds: [usize; 4], mode: f32) -> Mask {
+        self.grow_where(depth, mask, seeds, mode, |_, _| true)
+    }
+
+    /// [`Self::grow`] seeded only where `seed` holds.
+    fn grow_where(
+        &self,
+        depth: &DepthImage,
+        mut mask: Mask,
+        seeds: [usize; 4],
+        mode: f32,
+        seed: impl Fn(usize, usize) -> bool,
+    ) -> Mask {
+        let (x0, y0, bw, bh) = mask.region();
+        let s = &self.settings;
         let stride = depth.width();
         let data = depth.data();
         let mut stack: Vec<(u32, u32, f32)> = Vec::new();
-        let tolerance = s.mode_tolerance_m.max(s.bin_m / 2.0);
-        for v in cy0..cy1.min(h) {
-            for u in cx0..cx1.min(w) {
+        let tolerance = self.tolerance();
+        for v in seeds[1].max(y0)..seeds[3].min(y0 + bh) {
+            for u in seeds[0].max(x0)..seeds[2].min(x0 + bw) {
                 if let Some(z) = depth.at(u, v) {
-                    if (z - mode).abs() <= tolerance && above(u, v, z) && mask.set(u, v, true) {
+                    if (z - mode).abs() <= tolerance
+                        && self.above(u, v, z)
+                        && seed(u, v)
+                        && mask.set(u, v, true)
+                    {
                         stack.push(((u - x0) as u32, (v - y0) as u32, z));
                     }
                 }
@@ -127,7 +243,7 @@ impl DepthBoxSegmenter {
                 let nz = data[(y0 + ny) * stride + x0 + nx];
                 if crate::msg::is_valid_depth(nz)
                     && (nz - z).abs() <= step
-                    && above(x0 + nx, y0 + ny, nz)
+                    && self.above(x0 + nx, y0 + ny, nz)
                 {
                     bits[j] = true;
                     stack.push((nx as u32, ny as u32, nz));
@@ -148,7 +264,96 @@ impl DepthBoxSegmenter {
         }
         mask
     }
+
+    /// How well a grown mask fits its box, 0–1: the share of the box its
+    /// set pixels' bounds span, times the share of a ring around the box
+    /// ([`RING_FRACTION`] of the box's smaller side wide) that the same
+    /// growth would reach past the box's edges, taken from one. An object
+    /// its box hugs spans the box and stops at its edges; what stands in
+    /// front spans part of it or runs on past it, and a wall behind runs
+    /// on all round.
+    fn box_fit(&self, depth: &DepthImage, mask: &Mask) -> f64 {
+        let (x0, y0, bw, bh) = mask.region();
+        let (mut lo, mut hi) = ([usize::MAX; 2], [0usize; 2]);
+        for y in 0..bh {
+            let row = mask.region_row(y);
+            if let (Some(a), Some(b)) = (row.iter().position(|&b| b), row.iter().rposition(|&b| b))
+            {
+                lo = [lo[0].min(a), lo[1].min(y)];
+                hi = [hi[0].max(b + 1), hi[1].max(y + 1)];
+            }
+        }
+        if lo[0] == usize::MAX {
+            return 0.0;
+        }
+        let spans = ((hi[0] - lo[0]) * (hi[1] - lo[1])) as f64 / (bw * bh) as f64;
+        // the ring, clipped to the image
+        let (w, h) = (depth.width(), depth.height());
+        let m = ((RING_FRACTION * bw.min(bh) as f64).ceil() as usize).max(2);
+        let (rx0, ry0) = (x0.saturating_sub(m), y0.saturating_sub(m));
+        let (rx1, ry1) = ((x0 + bw + m).min(w), (y0 + bh + m).min(h));
+        let (rw, rh) = (rx1 - rx0, ry1 - ry0);
+        let ring_px = rw * rh - bw * bh;
+        if ring_px == 0 {
+            return spans;
+        }
+        let inside = |u: usize, v: usize| u >= x0 && u < x0 + bw && v >= y0 && v < y0 + bh;
+        let s = &self.settings;
+        let data = depth.data();
+        let mut reached = vec![false; rw * rh];
+        let mut stack: Vec<(usize, usize, f32)> = Vec::new();
+        // from the mask's pixels on the box's edges
+        for (u, v) in mask.pixels() {
+            if u == x0 || v == y0 || u + 1 == x0 + bw || v + 1 == y0 + bh {
+                if let Some(z) = depth.at(u, v) {
+                    stack.push((u, v, z));
+                }
+            }
+        }
+        let mut count = 0usize;
+        while let Some((u, v, z)) = stack.pop() {
+            let step = s.step_m + s.step_per_m * z;
+            let neighbours = [
+                (u.wrapping_sub(1), v),
+                (u + 1, v),
+                (u, v.wrapping_sub(1)),
+                (u, v + 1),
+            ];
+            for (nu, nv) in neighbours {
+                if nu < rx0 || nu >= rx1 || nv < ry0 || nv >= ry1 || inside(nu, nv) {
+                    continue;
+                }
+                let j = (nv - ry0) * rw + (nu - rx0);
+                if reached[j] {
+                    continue;
+                }
+                let nz = data[nv * w + nu];
+                if crate::msg::is_valid_depth(nz)
+                    && (nz - z).abs() <= step
+                    && self.above(nu, nv, nz)
+                {
+                    reached[j] = true;
+                    count += 1;
+                    stack.push((nu, nv, nz));
+                }
+            }
+        }
+        spans * (1.0 - count as f64 / ring_px as f64)
+    }
 }
+
+/// A region fitting its box this well is kept without looking further.
+const GOOD_BOX_FIT: f64 = 0.6;
+/// Another depth mode's region replaces the central one's when it fits
+/// the box better by this much.
+const BETTER_BOX_FIT: f64 = 0.2;
+/// Other depth modes tried, at most.
+const OTHER_MODES: usize = 3;
+/// The least share of the box's depths another mode holds to be tried.
+const OTHER_MODE_SHARE: f64 = 0.05;
+/// The ring around a box whose reach measures a region running on past
+/// it: this share of the box's smaller side.
+const RING_FRACTION: f64 = 0.2;
 
 /// The fullest bin of these (ties: the lowest, the nearer depth); None
 /// when there are none.
@@ -407,6 +612,54 @@ mod tests {
         }
     }
 
+    /// 80×60: a wall at 4 m; a bookshelf at 2.8 m over (20..60, 5..50);
+    /// before it a chair at 1.2 m over (30..50, 15..58), reaching below
+    /// the bookshelf to the floor. The detector boxes the bookshelf's
+    /// visible pixels: the chair fills the box's middle.
+    fn chair_before_a_bookshelf() -> DepthImage {
+        let (w, h) = (80, 60);
+        let mut d = vec![4.0f32; w * h];
+        for v in 0..h {
+            for u in 0..w {
+                if (30..50).contains(&u) && (15..58).contains(&v) {
+                    d[v * w + u] = 1.2;
+                } else if (20..60).contains(&u) && (5..50).contains(&v) {
+                    d[v * w + u] = 2.8 + 0.001 * (u as f32 - 20.0);
+                }
+            }
+        }
+        DepthImage::new(w, h, d).unwrap()
+    }
+
+    #[test]
+    fn what_stands_before_the_boxed_object_is_not_its_mask() {
+        let s = DepthBoxSegmenter::default();
+        let d = chair_before_a_bookshelf();
+        let bookshelf = [20.0, 5.0, 60.0, 50.0];
+        // the central mode is the chair's
+        let central = s.central_region(&d, bookshelf).expect("depth in the box");
+        assert!(central.pixels().all(|(u, v)| d.at(u, v) == Some(1.2)));
+        // the mask is the bookshelf's visible pixels, all of them
+        let m = s.segment_box(&d, bookshelf);
+        let visible = (20..60)
+            .flat_map(|u| (5..50).map(move |v| (u, v)))
+            .filter(|&(u, v)| !((30..50).contains(&u) && v >= 15))
+            .count();
+        assert_eq!(m.count(), visible);
+        assert!(m
+            .pixels()
+            .all(|(u, v)| d.at(u, v).is_some_and(|z| (2.79..2.9).contains(&z))));
+        // the chair's own box still gives the chair, within the box
+        let m = s.segment_box(&d, [30.0, 15.0, 50.0, 58.0]);
+        assert_eq!(m.count(), 20 * 43);
+        // a box loose about the chair, into the bookshelf and the wall
+        // around it, still gives the chair: the bookshelf runs on past
+        // the box's edges
+        let m = s.segment_box(&d, [26.0, 10.0, 54.0, 60.0]);
+        assert!(m.pixels().all(|(u, v)| d.at(u, v) == Some(1.2)));
+        assert_eq!(m.count(), 20 * 43);
+    }
+
     #[test]
     fn growth_stays_inside_the_box() {
         let s = DepthBoxSegmenter::default();
@@ -537,7 +790,9 @@ mod tests {
                 y0 + rng.range(0.0, h as f64) as f32,
             ];
             let s = DepthBoxSegmenter::new(settings.clone());
-            let got = s.segment_box(&depth, b);
+            let got = s
+                .central_region(&depth, b)
+                .unwrap_or_else(|| Mask::for_box(w, h, b));
             let want = reference_mask(&settings, &depth, b);
             assert_eq!(got.region(), want.region(), "case {case}");
             let (got, want): (Vec<_>, Vec<_>) = (got.pixels().collect(), want.pixels().collect());
