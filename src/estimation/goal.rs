@@ -9,6 +9,7 @@ use serde::Serialize;
 
 use super::tracker::{approach_pose, ApproachPose, Track, Tracker};
 use crate::msg::{wrap_angle, Pose2, Stamp, VelocityCmd};
+use crate::perception::boxes::OrientedBox;
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GoalSettings {
@@ -106,6 +107,47 @@ impl GoalState {
 mod events;
 pub use events::GoalEvent;
 
+/// A track's box as the goal keeper last saw it (odom).
+#[derive(Debug, Clone, Copy)]
+struct SeenBox {
+    center_m: [f64; 3],
+    size_m: [f64; 3],
+    footprint: OrientedBox,
+}
+
+impl SeenBox {
+    fn of(t: &Track) -> SeenBox {
+        SeenBox {
+            center_m: t.center_m,
+            size_m: t.size_m,
+            footprint: t.footprint,
+        }
+    }
+
+    /// From a point on the ground to the object's outline, m: its ground
+    /// outline (oriented) where the track's centre lies in it, as
+    /// [`approach_pose`] measures the place beside it; else its upright
+    /// box, larger than a turned object (most at the corners).
+    fn distance_m(&self, p: [f64; 2]) -> f64 {
+        let gap = |d: f64, half: f64| (d.abs() - half).max(0.0);
+        let f = &self.footprint;
+        let (c, s) = (f.yaw_rad.cos(), f.yaw_rad.sin());
+        // in the footprint's own axes
+        let local = |q: [f64; 2]| {
+            let (x, y) = (q[0] - f.center_m[0], q[1] - f.center_m[1]);
+            (x * c + y * s, -x * s + y * c)
+        };
+        let (hl, hw) = (f.size_m[0] / 2.0, f.size_m[1] / 2.0);
+        let (cx, cy) = local([self.center_m[0], self.center_m[1]]);
+        if cx.abs() <= hl && cy.abs() <= hw {
+            let (x, y) = local(p);
+            return gap(x, hl).hypot(gap(y, hw));
+        }
+        gap(p[0] - self.center_m[0], self.size_m[0] / 2.0)
+            .hypot(gap(p[1] - self.center_m[1], self.size_m[1] / 2.0))
+    }
+}
+
 #[derive(Debug, Clone)]
 pub struct GoalKeeper {
     pub settings: GoalSettings,
@@ -113,8 +155,8 @@ pub struct GoalKeeper {
     /// Where the goal's object was last seen (odom), to pick up its track
     /// again when the tracker re-identifies it.
     last_center: Option<[f64; 3]>,
-    /// The goal's object's box when last seen (odom: centre, size), m.
-    last_box: Option<([f64; 3], [f64; 3])>,
+    /// The goal's object's box when last seen.
+    last_box: Option<SeenBox>,
     /// The goal's track's confidence at the last update (for
     /// [`GoalKeeper::arrive_near`]).
     last_confidence: f64,
@@ -322,10 +364,9 @@ impl GoalKeeper {
             return None;
         };
         let off_m = (approach.x_m - chair.x_m).hypot(approach.y_m - chair.y_m);
-        let at_standoff = self.last_box.is_some_and(|(c, size)| {
-            let gap = |d: f64, half: f64| (d.abs() - half).max(0.0);
-            let to_box =
-                gap(chair.x_m - c[0], size[0] / 2.0).hypot(gap(chair.y_m - c[1], size[1] / 2.0));
+        let at_standoff = self.last_box.is_some_and(|b| {
+            let c = b.center_m;
+            let to_box = b.distance_m([chair.x_m, chair.y_m]);
             let standoff = self.settings.standoff_m + self.settings.front_offset_m;
             let bearing = (c[1] - chair.y_m).atan2(c[0] - chair.x_m);
             (to_box - standoff).abs() <= within_m.min(AT_STANDOFF_WITHIN_M)
@@ -563,7 +604,7 @@ impl GoalKeeper {
                 };
                 let id = t.id;
                 self.last_center = Some(t.center_m);
-                self.last_box = Some((t.center_m, t.size_m));
+                self.last_box = Some(SeenBox::of(t));
                 self.last_confidence = t.confidence;
                 match place_beside(
                     t,
@@ -640,7 +681,7 @@ impl GoalKeeper {
                         })
                     {
                         self.last_center = Some(nearer.center_m);
-                        self.last_box = Some((nearer.center_m, nearer.size_m));
+                        self.last_box = Some(SeenBox::of(nearer));
                         self.last_confidence = nearer.confidence;
                         self.state = GoalState::Tracking {
                             label: label.clone(),
@@ -651,7 +692,7 @@ impl GoalKeeper {
                     }
                     let track = t.id;
                     self.last_center = Some(t.center_m);
-                    self.last_box = Some((t.center_m, t.size_m));
+                    self.last_box = Some(SeenBox::of(t));
                     // re-planned as the track updates
                     let beside = place_beside(
                         t,
@@ -716,7 +757,7 @@ impl GoalKeeper {
                 if let Some(t) = in_view(track, &label) {
                     let track = t.id;
                     self.last_center = Some(t.center_m);
-                    self.last_box = Some((t.center_m, t.size_m));
+                    self.last_box = Some(SeenBox::of(t));
                     if let Some(approach) = place_beside(
                         t,
                         from,

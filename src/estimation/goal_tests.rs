@@ -682,3 +682,65 @@ fn a_nearer_object_of_the_word_becomes_the_goal() {
     }
     assert!(matches!(g.state(), GoalState::Tracking { track, .. } if *track == near_id));
 }
+
+/// An object turned to odom's axes (a 2 × 1.6 m bed at 45°), held
+/// facing it at the place's distance from its side: as near as it goes.
+/// Its upright box reaches 1 m nearer there, at its corner; the distance
+/// is taken to its outline, as the place beside it is.
+#[test]
+fn held_at_the_standoff_of_a_turned_object_ends_as_near_as_it_goes() {
+    let defaults = crate::config::Settings::defaults();
+    let settings = defaults.goal_settings();
+    let standoff = settings.standoff_m + settings.front_offset_m;
+    let mut tracker = Tracker::new(defaults.tracker);
+    let mut g = GoalKeeper::new(settings);
+    g.set_prompt("bed");
+    let yaw = std::f64::consts::FRAC_PI_4;
+    let (c, s) = (yaw.cos(), yaw.sin());
+    let mut pts = Vec::new();
+    for (x, y) in [(1.0, 0.8), (-1.0, 0.8), (-1.0, -0.8), (1.0, -0.8)] {
+        for z in [0.0, 0.5] {
+            pts.push(Point3::new(
+                (4.0 + x * c - y * s) as f32,
+                (x * s + y * c) as f32,
+                z,
+            ));
+        }
+    }
+    let bed = Object3D::from_points("bed".into(), 0.9, Frame::Odom, pts, None).expect("object");
+    let mut events = Vec::new();
+    for k in 0..3 {
+        tracker.update(t(k as f64 * 0.1), std::slice::from_ref(&bed), |_| true);
+        events.extend(g.update(
+            t(k as f64 * 0.1),
+            &tracker,
+            Pose2::default(),
+            &[],
+            &|_| true,
+            &|_| true,
+        ));
+    }
+    assert!(
+        matches!(&events[..], [GoalEvent::Acquired { .. }]),
+        "{events:?}"
+    );
+    // beside its long side (outward normal at 135°), facing it; the place
+    // is on the side towards the chair's start
+    let normal = yaw + std::f64::consts::FRAC_PI_2;
+    let beside = |gap_m: f64| Pose2 {
+        x_m: 4.0 + (0.8 + gap_m) * normal.cos(),
+        y_m: (0.8 + gap_m) * normal.sin(),
+        theta_rad: normal - std::f64::consts::PI,
+    };
+    let a = g.approach().expect("an approach");
+    assert!((a.x_m - beside(standoff).x_m).hypot(a.y_m - beside(standoff).y_m) > 1.0);
+    assert_eq!(
+        g.arrive_near(beside(standoff + 0.5), 0.3),
+        None,
+        "0.5 m short"
+    );
+    assert!(matches!(
+        g.arrive_near(beside(standoff + 0.1), 0.3),
+        Some(GoalEvent::ReachedNear { .. })
+    ));
+}
