@@ -523,8 +523,16 @@ impl Passage {
                     }
                     // onto the middle line while far; square to the
                     // doorway once the front nears it (the stop corridor
-                    // ahead is a few centimetres narrower than the gap)
-                    let k_lateral = if along < -s.square_within_m {
+                    // ahead is a few centimetres narrower than the gap) —
+                    // unless still off the line by more than the gap
+                    // holds with no back-up left to line up again: then
+                    // onto the line until the front is at the wall, or
+                    // the jamb holds it there for good
+                    let off_line = left.abs() > self.passes_off_m();
+                    let no_back_up = self.backed_up >= s.back_ups;
+                    let k_lateral = if along < -s.square_within_m
+                        || (off_line && no_back_up && along < -s.enter_m)
+                    {
                         s.k_lateral
                     } else {
                         0.0

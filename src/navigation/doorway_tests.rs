@@ -313,7 +313,11 @@ fn a_chair_too_near_to_line_up_backs_up_first() {
     let (end, worst_left, done) = drive(&mut p, start, [4.0, 1.0]);
     assert!(done, "did not get through: {end:?}");
     assert!(worst_left < 0.03, "{worst_left}");
-    // without backing up it passes the jamb 10 cm off the line
+    // without backing up (none left, or the person said no) it steers
+    // onto the line until its front is at the wall, and passes the jambs
+    // within the 6.5 cm the gap leaves a side, though further off the
+    // line than backing up gets it (squared from 0.85 m on, as before,
+    // it passed them 10 cm off: the jamb held it)
     let mut p = Passage::new(
         door,
         PassageSettings {
@@ -321,8 +325,9 @@ fn a_chair_too_near_to_line_up_backs_up_first() {
             ..PassageSettings::default()
         },
     );
-    let (_, worst_left, _) = drive(&mut p, start, [4.0, 1.0]);
-    assert!(worst_left > 0.08, "{worst_left}");
+    let (end, worst_left, done) = drive(&mut p, start, [4.0, 1.0]);
+    assert!(done, "did not get through: {end:?}");
+    assert!(worst_left > 0.04 && worst_left < 0.065, "{worst_left}");
     // on the line, or off it by less than the gap leaves, no backing up
     for y_m in [1.0, 1.05] {
         let mut p = Passage::new(door, PassageSettings::default());
