@@ -95,15 +95,19 @@ impl DepthBoxSegmenter {
         let mut taken = primary.clone();
         let total = self.depths_in(depth, whole).count();
         let mut best = (primary_fit, primary);
+        // (the free pixels' bins gathered once a round: one pass over the
+        // box, not one for the count, the largest and the histogram each)
+        let mut free: Vec<u32> = Vec::new();
         for _ in 0..OTHER_MODES {
-            let free = self
-                .depths_in_where(depth, whole, |u, v| !taken.get(u, v))
-                .map(|z| self.bin_of(z));
-            let n = free.clone().count();
-            if (n as f64) < OTHER_MODE_SHARE * total as f64 {
+            free.clear();
+            free.extend(
+                self.depths_in_where(depth, whole, |u, v| !taken.get(u, v))
+                    .map(|z| self.bin_of(z)),
+            );
+            if (free.len() as f64) < OTHER_MODE_SHARE * total as f64 {
                 break;
             }
-            let Some(bin) = fullest_bin(free) else {
+            let Some(bin) = fullest_bin(free.iter().copied()) else {
                 break;
             };
             let other = self.mode_of(bin);
