@@ -129,20 +129,11 @@ impl SeenBox {
     /// [`approach_pose`] measures the place beside it; else its upright
     /// box, larger than a turned object (most at the corners).
     fn distance_m(&self, p: [f64; 2]) -> f64 {
-        let gap = |d: f64, half: f64| (d.abs() - half).max(0.0);
         let f = &self.footprint;
-        let (c, s) = (f.yaw_rad.cos(), f.yaw_rad.sin());
-        // in the footprint's own axes
-        let local = |q: [f64; 2]| {
-            let (x, y) = (q[0] - f.center_m[0], q[1] - f.center_m[1]);
-            (x * c + y * s, -x * s + y * c)
-        };
-        let (hl, hw) = (f.size_m[0] / 2.0, f.size_m[1] / 2.0);
-        let (cx, cy) = local([self.center_m[0], self.center_m[1]]);
-        if cx.abs() <= hl && cy.abs() <= hw {
-            let (x, y) = local(p);
-            return gap(x, hl).hypot(gap(y, hw));
+        if f.ground_contains([self.center_m[0], self.center_m[1]]) {
+            return f.ground_distance_m(p);
         }
+        let gap = |d: f64, half: f64| (d.abs() - half).max(0.0);
         gap(p[0] - self.center_m[0], self.size_m[0] / 2.0)
             .hypot(gap(p[1] - self.center_m[1], self.size_m[1] / 2.0))
     }

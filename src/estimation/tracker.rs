@@ -307,15 +307,14 @@ pub fn approach_pose(
     // is not inside it)
     let footprint_reach = |a: f64| -> Option<f64> {
         let f = &track.footprint;
-        let (c, s) = (f.yaw_rad.cos(), f.yaw_rad.sin());
-        let (px, py) = (cx - f.center_m[0], cy - f.center_m[1]);
-        // the centre and the direction in the footprint's own axes
-        let (x, y) = (px * c + py * s, -px * s + py * c);
-        let (dx, dy) = (a.cos() * c + a.sin() * s, -a.cos() * s + a.sin() * c);
-        let (hl, hw) = (f.size_m[0] / 2.0, f.size_m[1] / 2.0);
-        if x.abs() > hl || y.abs() > hw {
+        if !f.ground_contains([cx, cy]) {
             return None;
         }
+        // the centre and the direction in the footprint's own axes
+        let [x, y] = f.ground_local([cx, cy]);
+        let (c, s) = (f.yaw_rad.cos(), f.yaw_rad.sin());
+        let (dx, dy) = (a.cos() * c + a.sin() * s, -a.cos() * s + a.sin() * c);
+        let (hl, hw) = (f.size_m[0] / 2.0, f.size_m[1] / 2.0);
         let exit = |p: f64, d: f64, half: f64| {
             if d > 1e-9 {
                 (half - p) / d

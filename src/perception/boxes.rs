@@ -95,6 +95,27 @@ pub struct OrientedBox {
 }
 
 impl OrientedBox {
+    /// A ground point (x, y in the box's frame) in the box's own axes:
+    /// along its length, across it, from its centre.
+    pub fn ground_local(&self, p: [f64; 2]) -> [f64; 2] {
+        let (c, s) = (self.yaw_rad.cos(), self.yaw_rad.sin());
+        let (x, y) = (p[0] - self.center_m[0], p[1] - self.center_m[1]);
+        [x * c + y * s, -x * s + y * c]
+    }
+
+    /// Whether a ground point lies within the box's outline.
+    pub fn ground_contains(&self, p: [f64; 2]) -> bool {
+        let [x, y] = self.ground_local(p);
+        x.abs() <= self.size_m[0] / 2.0 && y.abs() <= self.size_m[1] / 2.0
+    }
+
+    /// From a ground point to the box's outline (0 within it), m.
+    pub fn ground_distance_m(&self, p: [f64; 2]) -> f64 {
+        let gap = |d: f64, half: f64| (d.abs() - half).max(0.0);
+        let [x, y] = self.ground_local(p);
+        gap(x, self.size_m[0] / 2.0).hypot(gap(y, self.size_m[1] / 2.0))
+    }
+
     /// The minimum-area rectangle of the points' ground projection (rotating
     /// calipers over the convex hull), extruded from min z to max z. The yaw
     /// is the direction of the longer side, in (−π/2, π/2].
