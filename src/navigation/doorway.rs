@@ -77,6 +77,16 @@ pub enum Phase {
         /// near the doorway: a corner turned there would reach a jamb).
         squaring: bool,
     },
+    /// A turn on the spot to line up held further from the doorway, by
+    /// something in the corners' circle: straight back, the heading held,
+    /// `back_m` from `from_odom`, then the turn to the line-up's point
+    /// (`at_m` along the axis) is tried again from there. Backing stops
+    /// short of where the rear would near the doorway's wall.
+    BackOut {
+        from_odom: [f64; 2],
+        back_m: f64,
+        at_m: f64,
+    },
 }
 
 /// What to do now.
@@ -191,6 +201,9 @@ const LINE_UP_TURNS_RAD: f64 = 0.12;
 /// Backing up only this square to the doorway, rad.
 const BACK_UP_SQUARE_RAD: f64 = 0.2;
 
+/// Backing out to turn: worth it only this far back at least, m.
+const BACK_OUT_MIN_M: f64 = 0.1;
+
 /// One doorway being passed.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Passage {
@@ -304,7 +317,11 @@ impl Passage {
     /// manoeuvre turns on the spot (turns still allowed, a line-up's point
     /// off the heading, or squaring): squaring too near the doorway and
     /// turned well off its axis, it first backs up straight to where a
-    /// turn on the spot fits ([`Phase::BackUp`], not squaring); otherwise,
+    /// turn on the spot fits ([`Phase::BackUp`], not squaring); lining up
+    /// with the point well off the heading, it first backs out straight,
+    /// away from what holds the turn, and turns again from there
+    /// ([`Phase::BackOut`]; not squaring: backing across the axis would
+    /// take the chair off the line it is on); otherwise,
     /// from now on it turns on a crawl's arcs instead
     /// ([`Passage::refuse_turns`]), each checked by the supervisor as any
     /// arc. Whether it does either.
@@ -314,10 +331,15 @@ impl Passage {
             Phase::Align => true,
             _ => false,
         };
-        if turning && self.phase == Phase::Align && !self.turns_refused {
+        if turning && !self.turns_refused {
             let (along, _) = self.door.local([pose.x_m, pose.y_m]);
             let heading_err = wrap_angle(pose.theta_rad - self.door.axis_rad);
-            if let Some(back) = self.back_up_to_turn(along, heading_err) {
+            let back = match self.phase {
+                Phase::Align => self.back_up_to_turn(along, heading_err),
+                Phase::LineUp { at_m } => self.back_out_to_turn(pose, at_m),
+                _ => None,
+            };
+            if let Some(back) = back {
                 self.phase = back;
                 return true;
             }
@@ -341,8 +363,11 @@ impl Passage {
     /// backing up.
     pub fn refuse_back_up(&mut self) -> bool {
         self.backed_up = self.settings.back_ups;
-        let backing = matches!(self.phase, Phase::BackUp { .. });
-        if backing {
+        let backing = matches!(self.phase, Phase::BackUp { .. } | Phase::BackOut { .. });
+        if let Phase::BackOut { at_m, .. } = self.phase {
+            // the same turn from here, on arcs if held again
+            self.phase = Phase::LineUp { at_m };
+        } else if backing {
             self.phase = Phase::Align;
         }
         backing
@@ -396,6 +421,42 @@ impl Passage {
                     squaring: false,
                 }
             })
+    }
+
+    /// A turn on the spot to face the line-up's point `at_m` held at
+    /// `pose`, with the doorway not near (see [`Self::back_up_to_turn`]):
+    /// the phase that backs out straight, its heading held, away from
+    /// what holds the turn — [`PassageSettings::back_up_m`] at most, less
+    /// where backing nears the doorway (base_link no nearer than
+    /// `line_up_nearest_m` before the middle), none where that leaves
+    /// less than [`BACK_OUT_MIN_M`]; then the same turn from there. Only
+    /// for a turn larger than passing steers out, and while back-ups are
+    /// left.
+    fn back_out_to_turn(&mut self, pose: Pose2, at_m: f64) -> Option<Phase> {
+        let s = self.settings;
+        if self.line_up_bearing(pose, at_m).abs() <= PASS_STEERS_WITHIN_RAD
+            || self.turns_refused
+            || self.backed_up >= s.back_ups
+        {
+            return None;
+        }
+        let (along, _) = self.door.local([pose.x_m, pose.y_m]);
+        // along the axis per metre backed (positive: towards the doorway)
+        let towards = -wrap_angle(pose.theta_rad - self.door.axis_rad).cos();
+        let room_m = -s.line_up_nearest_m - along;
+        let back_m = if towards > 1e-6 {
+            s.back_up_m.min(room_m / towards)
+        } else {
+            s.back_up_m
+        };
+        (back_m >= BACK_OUT_MIN_M).then(|| {
+            self.backed_up += 1;
+            Phase::BackOut {
+                from_odom: [pose.x_m, pose.y_m],
+                back_m,
+                at_m,
+            }
+        })
     }
 
     /// The doorway's middle and width from the jambs in `points_odom`
@@ -542,6 +603,21 @@ impl Passage {
                     return PassageCmd::Drive(VelocityCmd {
                         v_mps: s.crawl_mps,
                         omega_radps: omega,
+                    });
+                }
+                Phase::BackOut {
+                    from_odom,
+                    back_m,
+                    at_m,
+                } => {
+                    if (p[0] - from_odom[0]).hypot(p[1] - from_odom[1]) >= back_m {
+                        // the line-up's turn again, from here
+                        self.phase = Phase::LineUp { at_m };
+                        continue;
+                    }
+                    return PassageCmd::Drive(VelocityCmd {
+                        v_mps: -s.crawl_mps,
+                        omega_radps: 0.0,
                     });
                 }
                 Phase::BackUp { to_m, squaring } => {

@@ -425,7 +425,7 @@ fn a_turn_held_near_the_doorway_at_a_slant_backs_up_straight_first() {
     let (end, _, done) = drive(&mut p, pose, [4.0, 1.0]);
     assert!(done, "did not get through: {end:?}");
     // square enough to steer out while passing, or held again from where
-    // it backed to: on arcs
+    // it backed to with no back-up left: on arcs
     for (at, backed_up) in [
         (
             Pose2 {
@@ -434,7 +434,7 @@ fn a_turn_held_near_the_doorway_at_a_slant_backs_up_straight_first() {
             },
             0,
         ),
-        (pose, 1),
+        (pose, s.back_ups),
     ] {
         let mut p = Passage::new(door, s);
         p.phase = Phase::Align;
@@ -562,7 +562,10 @@ fn a_held_turn_on_the_spot_goes_on_on_arcs() {
         y_m: 1.3,
         theta_rad,
     };
-    let mut p = Passage::new(door, PassageSettings::default());
+    let s = PassageSettings::default();
+    let mut p = Passage::new(door, s);
+    // (no back-up left: see the next test)
+    p.backed_up = s.back_ups;
     p.phase = Phase::LineUp { at_m: -1.1 };
     let turn = |p: &mut Passage, pose: Pose2| match p.step(pose, [4.0, 1.0]) {
         PassageCmd::Drive(c) => c,
@@ -585,6 +588,7 @@ fn a_held_turn_on_the_spot_goes_on_on_arcs() {
     assert!(!p.turns_refused);
     // squaring to the axis at the line-up point: a turn on the spot, held
     let mut p = Passage::new(door, PassageSettings::default());
+    p.backed_up = s.back_ups;
     p.phase = Phase::Align;
     let at = Pose2 {
         x_m: 0.9,
@@ -599,4 +603,115 @@ fn a_held_turn_on_the_spot_goes_on_on_arcs() {
     let mut p = Passage::new(door, PassageSettings::default());
     p.phase = Phase::Pass;
     assert!(!p.held_turning(at));
+}
+
+/// A turn on the spot to line up held further from the doorway
+/// (something low in the corners' circle, a piece of furniture beside the
+/// way): the chair backs out straight, its heading held, away from it,
+/// and tries the same turn from there; held again with no back-up left,
+/// or the person saying it is not clear behind, on arcs. Backing that
+/// would take the chair towards the doorway stops where a turn still
+/// fits before it, and none is tried where that leaves too little.
+/// Squaring is not backed out of.
+#[test]
+fn a_turn_held_away_from_the_doorway_backs_out_and_turns_again() {
+    let door = door_at_x2(0.90);
+    let s = PassageSettings::default();
+    // lining up from beside the line, turned away from it (the point
+    // 150 degrees to the right)
+    let beside = Pose2 {
+        x_m: 1.0,
+        y_m: 1.5,
+        theta_rad: 1.4,
+    };
+    let mut p = Passage::new(door, s);
+    p.phase = Phase::LineUp { at_m: -0.8 };
+    assert!(matches!(
+        p.step(beside, [4.0, 1.0]),
+        PassageCmd::Drive(c) if c.v_mps == 0.0 && c.omega_radps < 0.0
+    ));
+    assert!(p.held_turning(beside));
+    assert!(!p.turns_refused);
+    assert_eq!(p.backed_up, 1);
+    let mut pose = beside;
+    let mut backed_m = 0.0;
+    loop {
+        match p.step(pose, [4.0, 1.0]) {
+            PassageCmd::Drive(c) if c.v_mps < 0.0 => {
+                assert_eq!(c.omega_radps, 0.0, "{c:?}");
+                pose = pose.advanced(c.v_mps * 0.05, 0.0);
+                backed_m -= c.v_mps * 0.05;
+            }
+            PassageCmd::Drive(c) => {
+                // the same turn on the spot, from further back
+                assert!(c.v_mps == 0.0 && c.omega_radps < 0.0, "{c:?}");
+                break;
+            }
+            other => panic!("{other:?}"),
+        }
+        assert!(backed_m < 1.0, "never stopped backing");
+    }
+    assert!((backed_m - s.back_up_m).abs() < 0.01, "{backed_m}");
+    assert_eq!(p.phase, Phase::LineUp { at_m: -0.8 });
+    // and from there it gets through
+    let (end, _, done) = drive(&mut p, pose, [4.0, 1.0]);
+    assert!(done, "did not get through: {end:?}");
+    // held again there, and again: the last back-up, then arcs
+    let mut p = Passage::new(door, s);
+    p.phase = Phase::LineUp { at_m: -0.8 };
+    p.backed_up = s.back_ups - 1;
+    assert!(p.held_turning(beside));
+    assert!(matches!(p.phase, Phase::BackOut { .. }));
+    p.phase = Phase::LineUp { at_m: -0.8 };
+    assert!(p.held_turning(beside));
+    assert!(p.turns_refused);
+    // the person said no to backing: the same turn, on arcs
+    let mut p = Passage::new(door, s);
+    p.phase = Phase::LineUp { at_m: -0.8 };
+    assert!(p.held_turning(beside));
+    assert!(p.refuse_back_up());
+    assert_eq!(p.phase, Phase::LineUp { at_m: -0.8 });
+    assert!(p.held_turning(beside));
+    assert!(p.turns_refused);
+    // turned away from the doorway 0.95 m before it: backing nears it,
+    // so only as far as leaves room to turn before it
+    let away = Pose2 {
+        x_m: 2.0 - 0.95,
+        y_m: 1.3,
+        theta_rad: 2.6,
+    };
+    let mut p = Passage::new(door, s);
+    p.phase = Phase::LineUp { at_m: -0.8 };
+    assert!(p.held_turning(away));
+    let Phase::BackOut { back_m, at_m, .. } = p.phase else {
+        panic!("{:?}", p.phase);
+    };
+    assert_eq!(at_m, -0.8);
+    let after = away.advanced(-back_m, 0.0);
+    let along_after = door.local([after.x_m, after.y_m]).0;
+    assert!(
+        (along_after + s.line_up_nearest_m).abs() < 1e-6,
+        "{along_after}"
+    );
+    // 0.83 m before it: too little room to back towards it; on arcs
+    let mut p = Passage::new(door, s);
+    p.phase = Phase::LineUp { at_m: -0.63 };
+    let nearer = Pose2 {
+        x_m: 2.0 - 0.83,
+        ..away
+    };
+    assert!(p.held_turning(nearer));
+    assert!(p.turns_refused);
+    assert_eq!(p.phase, Phase::LineUp { at_m: -0.63 });
+    // squaring, a turn held away from the doorway: no backing across the
+    // axis (it would take the chair off the line it is on); on arcs
+    let mut p = Passage::new(door, s);
+    p.phase = Phase::Align;
+    assert!(p.held_turning(Pose2 {
+        x_m: 1.0,
+        y_m: 1.0,
+        theta_rad: 1.2,
+    }));
+    assert!(p.turns_refused);
+    assert_eq!(p.backed_up, 0);
 }
