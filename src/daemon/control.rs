@@ -548,8 +548,9 @@ impl Control {
         }
         let rear = || {
             (
-                !self.supervisor.limits.turn_needs_seen_rear || self.rear.view(now, pose).seen,
                 self.rear.vouched_at(now, &pose),
+                self.supervisor.limits.turn_needs_seen_rear
+                    && !self.rear.view(now, pose).reverse_seen,
             )
         };
         if let Some(cmd) = self.back_off.step(

@@ -100,10 +100,17 @@ impl Control {
                 // backing up only made room to line up with a doorway:
                 // the passage goes on without it (and one begun again
                 // from here does not ask again)
-                let at = self.asked_rear.take().map(|p| [p.x_m, p.y_m]);
+                let asked_at = self.asked_rear.take();
+                let at = asked_at.map(|p| [p.x_m, p.y_m]);
                 let refused =
                     at.is_some_and(|at| self.route.as_mut().is_some_and(|r| r.refuse_back_up(at)));
                 if refused {
+                    self.say("I will not back up.".into());
+                } else if let Some(p) = asked_at.filter(|_| self.back_off.backing()) {
+                    // backing off only made room for another try: the
+                    // chair stays held where it is, and goes on when the
+                    // way clears
+                    self.back_off.refuse(p);
                     self.say("I will not back up.".into());
                 } else {
                     self.goal.clear();

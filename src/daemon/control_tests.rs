@@ -515,12 +515,64 @@ fn held_by_something_ahead_on_the_way_it_backs_off_a_little_then_tries_again() {
             last_back = Some(50 * k);
         }
     }
-    // held for 3 s first, then backing for 1.5 s (the chair never moved in
-    // this test: held again, it backs off again after another 3 s)
+    // held for 3 s first, then backing until 12 cm back (the chair never
+    // moves in this test: it backs for as long as a back-off lasts)
     let first = first_back.expect("it backs off");
     assert!((3000..=3300).contains(&first), "{first} ms");
     assert!(c.back_off.count >= 1);
     assert!(last_back.expect("backing") >= first + 1300);
+}
+
+/// Held by something ahead with the rear unseen (nothing seen behind,
+/// nothing stood on there): the back-off is tried all the same, the
+/// supervisor holds the reverse, and the person is asked whether it is
+/// clear behind (they would see a step down too). "Yes": it backs.
+/// "No": it stays held, says so, the trip goes on, and it is not asked
+/// again from there.
+#[test]
+fn held_with_the_rear_unseen_it_asks_before_backing_off() {
+    let asked_then = |answer: UserInput| {
+        let (mut c, tracker) = searching_two_metres_ahead();
+        c.supervisor.limits.turn_needs_seen_rear = true;
+        let mut said = Vec::new();
+        let mut k = 1;
+        while k < 200 && !said.iter().any(|l: &String| l.contains("back up a little")) {
+            let out = step_with_a_box_ahead(&mut c, 50 * k, &tracker);
+            assert!(out.cmd.cmd.v_mps >= 0.0, "backed unasked at {k}");
+            said.extend(out.said);
+            k += 1;
+        }
+        assert!(
+            said.iter().any(|l| l.contains("Is it clear behind?")),
+            "never asked: {said:?}"
+        );
+        c.on_input(answer);
+        let mut backed = false;
+        for k in k..k + 100 {
+            let out = step_with_a_box_ahead(&mut c, 50 * k, &tracker);
+            backed |= out.cmd.cmd.v_mps < -0.01;
+            said.extend(out.said);
+        }
+        (c, backed, said)
+    };
+    let (c, backed, said) = asked_then(UserInput::Yes);
+    assert!(backed, "{said:?}");
+    assert!(
+        said.iter().any(|l| l == "Thank you. Backing up."),
+        "{said:?}"
+    );
+    assert_ne!(*c.goal_state(), GoalState::None);
+    let (c, backed, said) = asked_then(UserInput::No);
+    assert!(!backed, "{said:?}");
+    assert!(said.iter().any(|l| l == "I will not back up."), "{said:?}");
+    assert_eq!(
+        said.iter()
+            .filter(|l| l.contains("back up a little"))
+            .count(),
+        1,
+        "{said:?}"
+    );
+    assert_ne!(*c.goal_state(), GoalState::None, "the trip goes on");
 }
 
 /// A chair (0.5 m square, 0.9 m high) centred `x_m` ahead, in odom.
