@@ -229,7 +229,14 @@ mod tests {
             .is_some()));
         let mut b2 = b.clone();
         assert!((0..=70).all(|k| b2
-            .step(at(later + 10_000 + 50 * k), x(1.05), true, true, ask, &limits)
+            .step(
+                at(later + 10_000 + 50 * k),
+                x(1.05),
+                true,
+                true,
+                ask,
+                &limits
+            )
             .is_none()));
         // with the rear seen (no one asked), only onto floor it stood on or
         // the person vouched for
@@ -238,7 +245,14 @@ mod tests {
             .step(at(50 * k), x(0.0), true, true, || (false, false), &limits)
             .is_none()));
         assert!((0..=100).any(|k| b
-            .step(at(50 * k + 6000), x(0.0), true, true, || (true, false), &limits)
+            .step(
+                at(50 * k + 6000),
+                x(0.0),
+                true,
+                true,
+                || (true, false),
+                &limits
+            )
             .is_some()));
     }
 }
