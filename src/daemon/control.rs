@@ -531,6 +531,7 @@ impl Control {
         let in_place = self.in_place.update(now, pose, tracking, IN_PLACE_FOR);
         let gave_up = self.tell_if_held(
             now,
+            pose,
             match (target.is_some(), held, stood_still || in_place) {
                 (false, _, _) => None,
                 (true, true, _) => Some(held::Held::Supervisor),
@@ -540,7 +541,7 @@ impl Control {
             },
         );
         if let Some(e) = gave_up.filter(|_| event.is_none()) {
-            tracing::warn!(event = ?e, ?pose, "held on the way too long: the goal is given up");
+            tracing::warn!(event = ?e, ?pose, "held on the way too long: the goal is given up, or ends here beside the object");
             self.say(e.say());
             self.supervisor.goal_cleared();
             self.planner_cmd = None;

@@ -140,6 +140,7 @@ impl Control {
     pub(super) fn tell_if_held(
         &mut self,
         now: Stamp,
+        pose: crate::msg::Pose2,
         held: Option<Held>,
     ) -> Option<crate::estimation::goal::GoalEvent> {
         let Some(held) = held else {
@@ -195,7 +196,7 @@ impl Control {
             }
         }
         if held_for >= self.goal.settings.give_up_held_after {
-            let e = self.goal.give_up(held_for.as_secs_f64());
+            let e = self.goal.give_up(held_for.as_secs_f64(), pose);
             if e.is_some() {
                 self.held_since = None;
                 self.said_held = false;

@@ -196,6 +196,11 @@ pub const TRUSTED_OUT_OF_SIGHT: f64 = 0.5;
 /// Held facing the object this near the place's distance from its box:
 /// arrived, as near as it goes, m.
 pub const AT_STANDOFF_WITHIN_M: f64 = 0.2;
+/// Held until the goal would be given up, this near the place's distance
+/// from the object's box, whatever the heading: the object is beside the
+/// chair (within 0.35 m of where its front would stop), and the trip ends
+/// there rather than with "I cannot get to it", m.
+pub const BESIDE_AT_GIVE_UP_M: f64 = 0.35;
 /// At most this many places refused a word (the object's other sides).
 pub const REFUSED_AT_MOST: usize = 3;
 
@@ -394,13 +399,36 @@ impl GoalKeeper {
     }
 
     /// Held on the way for `held_s` (the caller times it against
-    /// [`GoalSettings::give_up_held_after`]): a goal being driven to is
-    /// dropped; None in any other state.
-    pub fn give_up(&mut self, held_s: f64) -> Option<GoalEvent> {
-        let GoalState::Tracking { label, .. } = &self.state else {
+    /// [`GoalSettings::give_up_held_after`]), the chair at `chair`: a goal
+    /// being driven to is dropped — unless the chair stands at the
+    /// place's distance from the object's box, give or take
+    /// [`BESIDE_AT_GIVE_UP_M`], on whatever side and however turned (the
+    /// object is beside it, and the way on to face it stayed held): then
+    /// the trip ends there, as near as it safely goes. None in any other
+    /// state.
+    pub fn give_up(&mut self, held_s: f64, chair: Pose2) -> Option<GoalEvent> {
+        let GoalState::Tracking {
+            label,
+            track,
+            approach,
+        } = &self.state
+        else {
             return None;
         };
         let label = label.clone();
+        let standoff = self.settings.standoff_m + self.settings.front_offset_m;
+        let beside = self.last_confidence >= TRUSTED_OUT_OF_SIGHT
+            && self.last_box.is_some_and(|b| {
+                (b.distance_m([chair.x_m, chair.y_m]) - standoff).abs() <= BESIDE_AT_GIVE_UP_M
+            });
+        if beside {
+            let off_m = (approach.x_m - chair.x_m).hypot(approach.y_m - chair.y_m);
+            self.state = GoalState::Reached {
+                label: label.clone(),
+                track: *track,
+            };
+            return Some(GoalEvent::ReachedNear { label, off_m });
+        }
         self.state = GoalState::None;
         Some(GoalEvent::GaveUp { label, held_s })
     }

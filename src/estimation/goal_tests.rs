@@ -333,21 +333,65 @@ fn held_near_the_approach_pose_ends_as_near_as_it_goes() {
 #[test]
 fn only_a_goal_being_driven_to_is_given_up() {
     let mut g = GoalKeeper::new(crate::config::Settings::defaults().goal_settings());
+    let start = Pose2::default();
     // no goal, or searching: nothing to give up
-    assert_eq!(g.give_up(50.0), None);
+    assert_eq!(g.give_up(50.0, start), None);
     g.set_prompt("chair");
-    assert_eq!(g.give_up(50.0), None);
+    assert_eq!(g.give_up(50.0, start), None);
     assert!(matches!(g.state(), GoalState::Searching { .. }));
     see_a_chair_ahead(&mut g, &|_| true, &|_| true);
     assert!(matches!(g.state(), GoalState::Tracking { .. }));
-    let e = g.give_up(41.2).expect("given up");
+    let e = g.give_up(41.2, start).expect("given up");
     assert_eq!(
         e.say(),
         "I cannot get to the chair: my way has been blocked for 41 seconds. Stopped."
     );
     assert_eq!(*g.state(), GoalState::None);
     assert!(g.approach().is_none());
-    assert_eq!(g.give_up(50.0), None);
+    assert_eq!(g.give_up(50.0, start), None);
+}
+
+/// Held until the goal would be given up with the object beside the
+/// chair — at the place's distance from its box, give or take
+/// `BESIDE_AT_GIVE_UP_M`, turned away from it (the turn to face it was
+/// what stayed held) —: the trip ends there, as near as it safely goes.
+/// Farther off, it is given up.
+#[test]
+fn held_to_the_end_beside_the_object_ends_there() {
+    let s = crate::config::Settings::defaults().goal_settings();
+    let standoff = s.standoff_m + s.front_offset_m;
+    // the chair's box begins 2.75 m ahead
+    let held_at = |off_m: f64| Pose2 {
+        x_m: 2.75 - standoff - off_m,
+        y_m: 0.0,
+        theta_rad: std::f64::consts::PI,
+    };
+    for off_m in [-0.3, 0.0, 0.3] {
+        let mut g = GoalKeeper::new(s);
+        g.set_prompt("chair");
+        see_a_chair_ahead(&mut g, &|_| true, &|_| true);
+        let e = g.give_up(40.0, held_at(off_m));
+        assert!(
+            matches!(e, Some(GoalEvent::ReachedNear { .. })),
+            "{off_m}: {e:?}"
+        );
+        assert!(
+            e.is_some_and(|e| e.say().contains("as near the chair as I can safely go")),
+            "{off_m}"
+        );
+        assert!(matches!(g.state(), GoalState::Reached { .. }));
+    }
+    for off_m in [-0.4, 0.4] {
+        let mut g = GoalKeeper::new(s);
+        g.set_prompt("chair");
+        see_a_chair_ahead(&mut g, &|_| true, &|_| true);
+        let e = g.give_up(40.0, held_at(off_m));
+        assert!(
+            matches!(e, Some(GoalEvent::GaveUp { .. })),
+            "{off_m}: {e:?}"
+        );
+        assert_eq!(*g.state(), GoalState::None);
+    }
 }
 
 #[test]
