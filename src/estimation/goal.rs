@@ -351,6 +351,36 @@ impl GoalKeeper {
     /// tracking, too far, or the track's confidence below
     /// [`TRUSTED_OUT_OF_SIGHT`]: the caller backs off and tries again).
     pub fn arrive_near(&mut self, chair: Pose2, within_m: f64) -> Option<GoalEvent> {
+        let GoalState::Tracking { approach, .. } = &self.state else {
+            return None;
+        };
+        let off_m = (approach.x_m - chair.x_m).hypot(approach.y_m - chair.y_m);
+        let at_standoff = self.last_box.is_some_and(|b| {
+            let c = b.center_m;
+            let bearing = (c[1] - chair.y_m).atan2(c[0] - chair.x_m);
+            self.off_standoff_m(chair)
+                .is_some_and(|d| d <= within_m.min(AT_STANDOFF_WITHIN_M))
+                && wrap_angle(bearing - chair.theta_rad).abs() <= std::f64::consts::FRAC_PI_2
+        });
+        // (a false detection's track, missed in most views that could
+        // have shown it, is not arrived at)
+        if (off_m > within_m && !at_standoff) || self.last_confidence < TRUSTED_OUT_OF_SIGHT {
+            return None;
+        }
+        self.end_here(chair)
+    }
+
+    /// How far the chair at `chair` is from the place's distance to the
+    /// tracked object's box (either way), m; None without a box.
+    fn off_standoff_m(&self, chair: Pose2) -> Option<f64> {
+        let standoff = self.settings.standoff_m + self.settings.front_offset_m;
+        self.last_box
+            .map(|b| (b.distance_m([chair.x_m, chair.y_m]) - standoff).abs())
+    }
+
+    /// The trip driving to a tracked object ends with the chair at
+    /// `chair`, as near as it safely goes; None when not tracking.
+    fn end_here(&mut self, chair: Pose2) -> Option<GoalEvent> {
         let GoalState::Tracking {
             label,
             track,
@@ -360,19 +390,6 @@ impl GoalKeeper {
             return None;
         };
         let off_m = (approach.x_m - chair.x_m).hypot(approach.y_m - chair.y_m);
-        let at_standoff = self.last_box.is_some_and(|b| {
-            let c = b.center_m;
-            let to_box = b.distance_m([chair.x_m, chair.y_m]);
-            let standoff = self.settings.standoff_m + self.settings.front_offset_m;
-            let bearing = (c[1] - chair.y_m).atan2(c[0] - chair.x_m);
-            (to_box - standoff).abs() <= within_m.min(AT_STANDOFF_WITHIN_M)
-                && wrap_angle(bearing - chair.theta_rad).abs() <= std::f64::consts::FRAC_PI_2
-        });
-        // (a false detection's track, missed in most views that could
-        // have shown it, is not arrived at)
-        if (off_m > within_m && !at_standoff) || self.last_confidence < TRUSTED_OUT_OF_SIGHT {
-            return None;
-        }
         let label = label.clone();
         self.state = GoalState::Reached {
             label: label.clone(),
@@ -407,27 +424,16 @@ impl GoalKeeper {
     /// the trip ends there, as near as it safely goes. None in any other
     /// state.
     pub fn give_up(&mut self, held_s: f64, chair: Pose2) -> Option<GoalEvent> {
-        let GoalState::Tracking {
-            label,
-            track,
-            approach,
-        } = &self.state
-        else {
+        let GoalState::Tracking { label, .. } = &self.state else {
             return None;
         };
         let label = label.clone();
-        let standoff = self.settings.standoff_m + self.settings.front_offset_m;
         let beside = self.last_confidence >= TRUSTED_OUT_OF_SIGHT
-            && self.last_box.is_some_and(|b| {
-                (b.distance_m([chair.x_m, chair.y_m]) - standoff).abs() <= BESIDE_AT_GIVE_UP_M
-            });
+            && self
+                .off_standoff_m(chair)
+                .is_some_and(|d| d <= BESIDE_AT_GIVE_UP_M);
         if beside {
-            let off_m = (approach.x_m - chair.x_m).hypot(approach.y_m - chair.y_m);
-            self.state = GoalState::Reached {
-                label: label.clone(),
-                track: *track,
-            };
-            return Some(GoalEvent::ReachedNear { label, off_m });
+            return self.end_here(chair);
         }
         self.state = GoalState::None;
         Some(GoalEvent::GaveUp { label, held_s })

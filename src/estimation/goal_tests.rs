@@ -360,17 +360,22 @@ fn only_a_goal_being_driven_to_is_given_up() {
 fn held_to_the_end_beside_the_object_ends_there() {
     let s = crate::config::Settings::defaults().goal_settings();
     let standoff = s.standoff_m + s.front_offset_m;
-    // the chair's box begins 2.75 m ahead
-    let held_at = |off_m: f64| Pose2 {
-        x_m: 2.75 - standoff - off_m,
-        y_m: 0.0,
-        theta_rad: std::f64::consts::PI,
-    };
-    for off_m in [-0.3, 0.0, 0.3] {
+    // the chair's box begins 2.75 m ahead; held `off_m` farther than the
+    // place's distance from it, turned away, for 40 s
+    let give_up_at = |off_m: f64| {
         let mut g = GoalKeeper::new(s);
         g.set_prompt("chair");
         see_a_chair_ahead(&mut g, &|_| true, &|_| true);
-        let e = g.give_up(40.0, held_at(off_m));
+        let held_at = Pose2 {
+            x_m: 2.75 - standoff - off_m,
+            y_m: 0.0,
+            theta_rad: std::f64::consts::PI,
+        };
+        let e = g.give_up(40.0, held_at);
+        (g, e)
+    };
+    for off_m in [-0.3, 0.0, 0.3] {
+        let (g, e) = give_up_at(off_m);
         assert!(
             matches!(e, Some(GoalEvent::ReachedNear { .. })),
             "{off_m}: {e:?}"
@@ -382,10 +387,7 @@ fn held_to_the_end_beside_the_object_ends_there() {
         assert!(matches!(g.state(), GoalState::Reached { .. }));
     }
     for off_m in [-0.4, 0.4] {
-        let mut g = GoalKeeper::new(s);
-        g.set_prompt("chair");
-        see_a_chair_ahead(&mut g, &|_| true, &|_| true);
-        let e = g.give_up(40.0, held_at(off_m));
+        let (g, e) = give_up_at(off_m);
         assert!(
             matches!(e, Some(GoalEvent::GaveUp { .. })),
             "{off_m}: {e:?}"
