@@ -131,6 +131,14 @@ impl BackOff {
                     omega_radps: 0.0,
                 });
             }
+            if going && backed_m < BACK_OFF_M {
+                // the person did not answer, or the reverse stayed held:
+                // the chair stays held where it is
+                tracing::info!(
+                    backed_m,
+                    "back-off ended at its time limit short of its distance"
+                );
+            }
             self.backing = None;
         }
         None
