@@ -335,12 +335,16 @@ impl Control {
                 self.view.as_ref(),
             );
         }
-        if let (Some(o), Some(odo)) = (inputs.obstacles, inputs.odometry) {
-            self.plan(now, o, camera.as_ref(), odo, inputs.tracker);
-        }
+        // what the lasers saw of the rear, before the plan: its turns on
+        // the spot are checked against the points the supervisor holds
+        // them for
         let rear = inputs
             .odometry
             .map(|odo| self.watch_rear(now, inputs.obstacles, odo.value.pose));
+        if let (Some(o), Some(odo)) = (inputs.obstacles, inputs.odometry) {
+            let rear_points = rear.as_ref().map_or(&[][..], |r| &r.points_base[..]);
+            self.plan(now, o, camera.as_ref(), rear_points, odo, inputs.tracker);
+        }
         let planned = self.planner_cmd;
         let supervisor_inputs = SupervisorInputs {
             obstacles: inputs.obstacles,
@@ -408,6 +412,7 @@ impl Control {
         now: Stamp,
         lasers: &Stamped<Obstacles>,
         camera: Option<&Stamped<Obstacles>>,
+        rear_points_base: &[[f32; 2]],
         odo: &Stamped<Odometry>,
         tracker: &Tracker,
     ) {
@@ -437,12 +442,16 @@ impl Control {
                 let mut points_base = lasers.value.points_base.clone();
                 points_base.extend(&c.value.points_base);
                 points_base.extend(&c.value.drop_offs_base);
-                Obstacles {
-                    points_base,
-                    ..Default::default()
-                }
+                points_base
             });
-        let o_turn = o_turn.as_ref().unwrap_or(&o);
+        // and the rear the lasers saw before, which the supervisor checks
+        // a turn against too
+        let mut o_turn = o_turn.unwrap_or_else(|| o.points_base.clone());
+        o_turn.extend(rear_points_base);
+        let o_turn = &Obstacles {
+            points_base: o_turn,
+            ..Default::default()
+        };
         let Odometry {
             pose,
             v_mps,

@@ -523,6 +523,55 @@ fn held_by_something_ahead_on_the_way_it_backs_off_a_little_then_tries_again() {
     assert!(last_back.expect("backing") >= first + 1300);
 }
 
+/// Something the lasers saw before, now behind the chair in their blind
+/// sector, 0.72 m from base_link: inside the corners' circle with the full
+/// margin (0.75 m) but outside it with the crawl's (0.68 m). The search
+/// turn is slowed to a crawl and turns; before the controller's turn
+/// checks counted the remembered rear, it asked for the faster turn, which
+/// the supervisor (counting it) held, step after step.
+#[test]
+fn a_turn_with_something_remembered_behind_just_outside_the_crawl_margin_crawls() {
+    let mut c = control(false);
+    let tracker = Tracker::new(crate::config::Settings::defaults().tracker);
+    c.on_input(UserInput::Goto("chair".into()));
+    let crawl = c.supervisor.crawl_turn_radps();
+    let step = |c: &mut Control, k: u64, theta_rad: f64, points_base: Vec<[f32; 2]>| {
+        let now = at(50 * k);
+        let (mut o, mut odo) = fresh(now);
+        o.value.points_base = points_base;
+        odo.value.pose.theta_rad = theta_rad;
+        c.step(
+            now,
+            ControlInputs {
+                obstacles: Some(&o),
+                odometry: Some(&odo),
+                tracker: &tracker,
+                camera: None,
+            },
+        )
+    };
+    // seen ahead facing the other way: behind now
+    step(
+        &mut c,
+        0,
+        std::f64::consts::PI,
+        vec![[0.72, 0.0], [4.0, 0.0]],
+    );
+    let mut turned = 0;
+    for k in 1..40 {
+        let out = step(&mut c, k, 0.0, vec![[4.0, 0.0]]);
+        let w = out.cmd.cmd.omega_radps.abs();
+        assert!(w <= crawl + 1e-9, "step {k}: {w} rad/s, crawl {crawl}");
+        assert_ne!(
+            out.cmd.state,
+            SupervisorState::Stopped(crate::msg::StopReason::Obstacle),
+            "step {k}"
+        );
+        turned += usize::from(w > 0.01);
+    }
+    assert!(turned >= 30, "turned in {turned} of 39 steps");
+}
+
 /// Held by something ahead with the rear unseen (nothing seen behind,
 /// nothing stood on there): the back-off is tried all the same, the
 /// supervisor holds the reverse, and the person is asked whether it is
