@@ -380,6 +380,17 @@ impl Router {
                 "doorway: held on the way to it, lining up from here"
             );
             *blocked = None;
+        } else if held_a_while && passage.held_passing(pose) {
+            // held with a corner on a jamb, turned or off the middle line:
+            // back, squaring, and line up again
+            let (along_m, left_m) = passage.door.local(from);
+            tracing::info!(
+                along_m,
+                left_m,
+                phase = ?passage.phase,
+                "doorway: held passing off the line, backing up to line up again"
+            );
+            *blocked = None;
         } else if held_a_while && passage.held_turning(pose) {
             // a turn on the spot held (a corner's circle reaches a jamb or
             // something beside the chair): on a crawl's arcs instead

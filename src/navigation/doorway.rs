@@ -201,6 +201,15 @@ const LINE_UP_TURNS_RAD: f64 = 0.12;
 /// Backing up only this square to the doorway, rad.
 const BACK_UP_SQUARE_RAD: f64 = 0.2;
 
+/// Held passing this far before the middle (base_link) or more, the
+/// chair's front is at the wall, not yet in the doorway: backing up and
+/// lining up again is still possible, m.
+const PASS_HELD_BACKS_BEFORE_M: f64 = 0.3;
+
+/// Held passing and turned off the axis by more than this, the chair backs
+/// up to line up again ([`Passage::held_passing`]), rad.
+const PASS_HELD_TURNED_RAD: f64 = 0.1;
+
 /// Backing out to turn: worth it only this far back at least, m.
 const BACK_OUT_MIN_M: f64 = 0.1;
 
@@ -349,6 +358,34 @@ impl Passage {
             self.turns_refused = true;
         }
         arcs
+    }
+
+    /// Held passing with the front at the doorway's wall, before the
+    /// chair is in it (base_link more than [`PASS_HELD_BACKS_BEFORE_M`]
+    /// before the middle), turned off the axis by more than
+    /// [`PASS_HELD_TURNED_RAD`] or off the middle line by more than the gap
+    /// leaves a side: a corner on a jamb. It backs up, squaring to the
+    /// axis as it backs, to where there is room to line up again (as
+    /// [`Passage::back_up`] does for a chair square to it), while back-ups
+    /// are left. Whether it does.
+    pub fn held_passing(&mut self, pose: Pose2) -> bool {
+        let s = self.settings;
+        let (along, left) = self.door.local([pose.x_m, pose.y_m]);
+        let heading_err = wrap_angle(pose.theta_rad - self.door.axis_rad);
+        let backs = self.phase == Phase::Pass
+            && along < -PASS_HELD_BACKS_BEFORE_M
+            && (heading_err.abs() > PASS_HELD_TURNED_RAD
+                || left.abs() > self.passes_off_m() + 0.01)
+            && self.backed_up < s.back_ups;
+        if backs {
+            self.backed_up += 1;
+            self.phase = Phase::BackUp {
+                to_m: (-s.line_up_nearest_m - s.line_up_ahead_m - left.abs().max(0.05))
+                    .max(along - s.back_up_m),
+                squaring: true,
+            };
+        }
+        backs
     }
 
     /// The bearing of the line-up point `at_m` along the axis from

@@ -715,3 +715,75 @@ fn a_turn_held_away_from_the_doorway_backs_out_and_turns_again() {
     assert!(p.turns_refused);
     assert_eq!(p.backed_up, 0);
 }
+
+/// Passing on arcs (turns held), the chair came onto the middle line at
+/// 0.3 rad and its front corner met a jamb 0.58 m before the middle: it
+/// backs up, squaring as it backs, to where it can line up again, and
+/// gets through. Not in the doorway already, not square and on the line
+/// (something else holds it), nor with no back-up left.
+#[test]
+fn held_passing_at_a_slant_with_the_front_at_the_wall_backs_up_and_lines_up_again() {
+    let door = door_at_x2(0.85);
+    let s = PassageSettings::default();
+    let held_at = Pose2 {
+        x_m: 2.0 - 0.58,
+        y_m: 1.0 + 0.10,
+        theta_rad: -0.3,
+    };
+    let passing = |backed_up: u32| {
+        let mut p = Passage::new(door, s);
+        p.phase = Phase::Pass;
+        p.turns_refused = true;
+        p.backed_up = backed_up;
+        p
+    };
+    let mut p = passing(0);
+    assert!(p.held_passing(held_at));
+    assert_eq!(p.backed_up, 1);
+    // room to line up (1.08 m before the middle), or back_up_m at most
+    let to = (-s.line_up_nearest_m - s.line_up_ahead_m - 0.10).max(-0.58 - s.back_up_m);
+    assert!(
+        matches!(p.phase, Phase::BackUp { to_m, squaring: true } if (to_m - to).abs() < 1e-9),
+        "{:?}",
+        p.phase
+    );
+    // back, squaring, to where it lines up again
+    let mut pose = held_at;
+    while let PassageCmd::Drive(c) = p.step(pose, [4.0, 1.0]) {
+        if c.v_mps >= 0.0 {
+            break;
+        }
+        pose = pose.advanced(c.v_mps * 0.05, c.omega_radps * 0.05);
+    }
+    let (along, left) = door.local([pose.x_m, pose.y_m]);
+    assert!(along <= to + 0.01 && along > to - 0.05, "{along}");
+    assert!(left.abs() < 0.15, "{left}");
+    assert!(pose.theta_rad.abs() < 0.1, "squared as it backed: {pose:?}");
+    assert!(matches!(p.phase, Phase::LineUp { .. }), "{:?}", p.phase);
+    let (end, worst_left, done) = drive(&mut p, pose, [4.0, 1.0]);
+    assert!(done, "did not get through: {end:?}");
+    assert!(worst_left < 0.05, "{worst_left}");
+    // in the doorway already, square and on the line, no back-up left,
+    // or not passing: held there, it does not back up
+    let in_it = Pose2 {
+        x_m: 2.0 - 0.2,
+        ..held_at
+    };
+    let square = Pose2 {
+        y_m: 1.01,
+        theta_rad: 0.02,
+        ..held_at
+    };
+    for (mut p, at) in [
+        (passing(0), in_it),
+        (passing(0), square),
+        (passing(s.back_ups), held_at),
+    ] {
+        assert!(!p.held_passing(at), "{at:?}");
+        assert_eq!(p.phase, Phase::Pass);
+    }
+    let mut p = Passage::new(door, s);
+    p.phase = Phase::Align;
+    assert!(!p.held_passing(held_at));
+    assert_eq!(p.phase, Phase::Align);
+}
