@@ -232,6 +232,9 @@ pub struct Passage {
     /// no to one ([`Passage::refuse_turns`]), or one was held
     /// ([`Passage::held_turning`]); it lines up and squares by arcs.
     pub turns_refused: bool,
+    /// The person said no to a turn on the spot ([`Passage::refuse_turns`]):
+    /// turns stay refused wherever the chair backs to.
+    pub turns_refused_by_person: bool,
 }
 
 /// Jamb points are taken within this of the wall's middle plane along the
@@ -288,6 +291,7 @@ impl Passage {
             backed_up: 0,
             lined_up_where_held: false,
             turns_refused: false,
+            turns_refused_by_person: false,
         }
     }
 
@@ -297,6 +301,7 @@ impl Passage {
     /// checked by the supervisor as any arc (the stop corridor along it).
     pub fn refuse_turns(&mut self) {
         self.turns_refused = true;
+        self.turns_refused_by_person = true;
     }
 
     /// Held on the way to the point before the doorway (something stands
@@ -379,6 +384,8 @@ impl Passage {
             && self.backed_up < s.back_ups;
         if backs {
             self.backed_up += 1;
+            // a turn held nearer the doorway may fit where it backs to
+            self.turns_refused = self.turns_refused_by_person;
             self.phase = Phase::BackUp {
                 to_m: (-s.line_up_nearest_m - s.line_up_ahead_m - left.abs().max(0.05))
                     .max(along - s.back_up_m),

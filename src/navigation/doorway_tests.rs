@@ -718,8 +718,9 @@ fn a_turn_held_away_from_the_doorway_backs_out_and_turns_again() {
 
 /// Passing on arcs (turns held), the chair came onto the middle line at
 /// 0.3 rad and its front corner met a jamb 0.58 m before the middle: it
-/// backs up, squaring as it backs, to where it can line up again, and
-/// gets through. Not in the doorway already, not square and on the line
+/// backs up, squaring as it backs, to where it can line up again (turns
+/// on the spot allowed again, unless the person refused them), and gets
+/// through. Not in the doorway already, not square and on the line
 /// (something else holds it), nor with no back-up left.
 #[test]
 fn held_passing_at_a_slant_with_the_front_at_the_wall_backs_up_and_lines_up_again() {
@@ -737,8 +738,18 @@ fn held_passing_at_a_slant_with_the_front_at_the_wall_backs_up_and_lines_up_agai
         p.backed_up = backed_up;
         p
     };
+    // turns refused by a held turn nearer the doorway; the person's no
+    // to a turn holds wherever the chair backs to
+    let mut said_no = passing(0);
+    said_no.refuse_turns();
+    assert!(said_no.held_passing(held_at));
+    assert!(said_no.turns_refused);
     let mut p = passing(0);
     assert!(p.held_passing(held_at));
+    assert!(
+        !p.turns_refused,
+        "a turn on the spot may fit where it backs to"
+    );
     assert_eq!(p.backed_up, 1);
     // room to line up (1.08 m before the middle), or back_up_m at most
     let to = (-s.line_up_nearest_m - s.line_up_ahead_m - 0.10).max(-0.58 - s.back_up_m);
