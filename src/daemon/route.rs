@@ -405,6 +405,15 @@ impl Router {
         }
         let give_up = blocked.is_some_and(|b| b.age_at(now) >= PASSAGE_BLOCKED_FOR)
             || since.age_at(now) >= PASSAGE_AT_MOST;
+        if give_up && passage.door.local(from).0 > HAND_BACK_HELD_PAST_M {
+            // out of its time with the rear out of the doorway (the
+            // search turned the chair there): through, not given up
+            tracing::info!(center = ?passage.door.center, along_m = passage.door.local(from).0, "doorway: through, out of its time beyond it");
+            self.passage = None;
+            self.path = None;
+            self.last_plan = None;
+            return None;
+        }
         if give_up {
             self.doorways_given_up += 1;
             let (along_m, left_m) = passage.door.local(from);
@@ -492,7 +501,7 @@ mod tests {
     }
 
     #[test]
-    fn held_past_a_doorway_with_its_rear_out_the_planner_takes_over() {
+    fn held_or_out_of_time_past_a_doorway_with_its_rear_out_the_planner_takes_over() {
         let start = |r: &mut Router| {
             r.map = Some(map_with_door(r.settings));
             let pose = crate::msg::Pose2 {
@@ -535,6 +544,25 @@ mod tests {
         );
         assert!(r.passage.is_none());
         assert_eq!(r.doorways_given_up, 0);
+        // out of the passage's time, the rear out of the doorway and the
+        // chair turned across it (a search turned it there): through,
+        // nothing given up; still in the doorway: given up
+        let turned = |x_m: f64| crate::msg::Pose2 {
+            theta_rad: 1.6,
+            ..at_x(x_m)
+        };
+        let late = at(PASSAGE_AT_MOST.as_millis() as u64 + 50);
+        for (x_m, given_up) in [(2.63, 0), (2.33, 1)] {
+            let mut r = Router::new(MapSettings::default());
+            start(&mut r);
+            let nav = SupervisorState::Navigating;
+            assert_eq!(
+                r.through_doorway(late, turned(x_m), [4.0, 1.0], 0.1, nav, &[]),
+                None
+            );
+            assert!(r.passage.is_none());
+            assert_eq!(r.doorways_given_up, given_up, "at {x_m}");
+        }
     }
 
     /// The person said it is not clear behind for a doorway's back-up: a
