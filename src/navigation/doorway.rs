@@ -210,6 +210,10 @@ const PASS_HELD_BACKS_BEFORE_M: f64 = 0.3;
 /// up to line up again ([`Passage::held_passing`]), rad.
 const PASS_HELD_TURNED_RAD: f64 = 0.1;
 
+/// Backing out towards the doorway stops this far short of the line-up's
+/// point, m.
+const LINE_UP_PAST_M: f64 = 0.05;
+
 /// Backing out to turn: worth it only this far back at least, m.
 const BACK_OUT_MIN_M: f64 = 0.1;
 
@@ -472,7 +476,8 @@ impl Passage {
     /// the phase that backs out straight, its heading held, away from
     /// what holds the turn — [`PassageSettings::back_up_m`] at most, less
     /// where backing nears the doorway (base_link no nearer than
-    /// `line_up_nearest_m` before the middle), none where that leaves
+    /// `line_up_nearest_m` before the middle, nor than [`LINE_UP_PAST_M`]
+    /// before the line-up's point), none where that leaves
     /// less than [`BACK_OUT_MIN_M`]; then the same turn from there. Only
     /// for a turn larger than passing steers out, and while back-ups are
     /// left.
@@ -487,7 +492,9 @@ impl Passage {
         let (along, _) = self.door.local([pose.x_m, pose.y_m]);
         // along the axis per metre backed (positive: towards the doorway)
         let towards = -wrap_angle(pose.theta_rad - self.door.axis_rad).cos();
-        let room_m = -s.line_up_nearest_m - along;
+        // (nor past the line-up's point: lining up from beyond it would
+        // square to the axis wherever the chair is off the line)
+        let room_m = (-s.line_up_nearest_m).min(at_m - LINE_UP_PAST_M) - along;
         let back_m = if towards > 1e-6 {
             s.back_up_m.min(room_m / towards)
         } else {
