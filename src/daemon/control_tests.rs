@@ -448,9 +448,22 @@ fn step_with_points(
     tracker: &Tracker,
     points_base: Vec<[f32; 2]>,
 ) -> ControlOutput {
+    step_facing(c, ms_, tracker, 0.0, points_base)
+}
+
+/// One step at `ms_`, the chair at rest at the origin facing `theta_rad`
+/// (odom), the lasers seeing `points_base`.
+fn step_facing(
+    c: &mut Control,
+    ms_: u64,
+    tracker: &Tracker,
+    theta_rad: f64,
+    points_base: Vec<[f32; 2]>,
+) -> ControlOutput {
     let now = at(ms_);
-    let (mut o, odo) = fresh(now);
+    let (mut o, mut odo) = fresh(now);
     o.value.points_base = points_base;
+    odo.value.pose.theta_rad = theta_rad;
     c.step(
         now,
         ControlInputs {
@@ -535,31 +548,12 @@ fn a_turn_with_something_remembered_behind_just_outside_the_crawl_margin_crawls(
     let tracker = Tracker::new(crate::config::Settings::defaults().tracker);
     c.on_input(UserInput::Goto("chair".into()));
     let crawl = c.supervisor.crawl_turn_radps();
-    let step = |c: &mut Control, k: u64, theta_rad: f64, points_base: Vec<[f32; 2]>| {
-        let now = at(50 * k);
-        let (mut o, mut odo) = fresh(now);
-        o.value.points_base = points_base;
-        odo.value.pose.theta_rad = theta_rad;
-        c.step(
-            now,
-            ControlInputs {
-                obstacles: Some(&o),
-                odometry: Some(&odo),
-                tracker: &tracker,
-                camera: None,
-            },
-        )
-    };
     // seen ahead facing the other way: behind now
-    step(
-        &mut c,
-        0,
-        std::f64::consts::PI,
-        vec![[0.72, 0.0], [4.0, 0.0]],
-    );
+    let pi = std::f64::consts::PI;
+    step_facing(&mut c, 0, &tracker, pi, vec![[0.72, 0.0], [4.0, 0.0]]);
     let mut turned = 0;
     for k in 1..40 {
-        let out = step(&mut c, k, 0.0, vec![[4.0, 0.0]]);
+        let out = step_facing(&mut c, 50 * k, &tracker, 0.0, vec![[4.0, 0.0]]);
         let w = out.cmd.cmd.omega_radps.abs();
         assert!(w <= crawl + 1e-9, "step {k}: {w} rad/s, crawl {crawl}");
         assert_ne!(

@@ -370,37 +370,26 @@ impl Router {
             self.last_plan = None;
             return None;
         }
-        // held on the way to the point before it: lined up from here
+        // held a while: on the way to the point before it, lined up from
+        // here; passing with a corner on a jamb (turned or off the middle
+        // line), backed up squaring to line up again; a turn on the spot
+        // held (a corner's circle reaches a jamb or something beside the
+        // chair), backed up or out to turn, or on a crawl's arcs instead
         let held_a_while = blocked.is_some_and(|b| b.age_at(now) >= LINE_UP_HELD_AFTER);
-        if held_a_while && passage.held_on_approach(pose) {
+        let manoeuvre = if !held_a_while {
+            None
+        } else if passage.held_on_approach(pose) {
+            Some("doorway: held on the way to it, lining up from here")
+        } else if passage.held_passing(pose) {
+            Some("doorway: held passing off the line, backing up to line up again")
+        } else if passage.held_turning(pose) {
+            Some("doorway: turn on the spot held, backing up to turn or lining up on arcs")
+        } else {
+            None
+        };
+        if let Some(what) = manoeuvre {
             let (along_m, left_m) = passage.door.local(from);
-            tracing::info!(
-                along_m,
-                left_m,
-                "doorway: held on the way to it, lining up from here"
-            );
-            *blocked = None;
-        } else if held_a_while && passage.held_passing(pose) {
-            // held with a corner on a jamb, turned or off the middle line:
-            // back, squaring, and line up again
-            let (along_m, left_m) = passage.door.local(from);
-            tracing::info!(
-                along_m,
-                left_m,
-                phase = ?passage.phase,
-                "doorway: held passing off the line, backing up to line up again"
-            );
-            *blocked = None;
-        } else if held_a_while && passage.held_turning(pose) {
-            // a turn on the spot held (a corner's circle reaches a jamb or
-            // something beside the chair): on a crawl's arcs instead
-            let (along_m, left_m) = passage.door.local(from);
-            tracing::info!(
-                along_m,
-                left_m,
-                phase = ?passage.phase,
-                "doorway: turn on the spot held, backing up to turn or lining up on arcs"
-            );
+            tracing::info!(along_m, left_m, phase = ?passage.phase, "{what}");
             *blocked = None;
         }
         let give_up = blocked.is_some_and(|b| b.age_at(now) >= PASSAGE_BLOCKED_FOR)
