@@ -361,13 +361,14 @@ impl Router {
             )
         );
         *blocked = if held { blocked.or(Some(now)) } else { None };
-        if held && passage.door.local(from).0 > HAND_BACK_HELD_PAST_M {
-            // through, the straight way on held: the planner takes over
-            // from here (a turn or an arc the supervisor admits)
-            tracing::info!(center = ?passage.door.center, along_m = passage.door.local(from).0, "doorway: through, held beyond it");
-            self.passage = None;
-            self.path = None;
-            self.last_plan = None;
+        let out_of_time = since.age_at(now) >= PASSAGE_AT_MOST;
+        if (held || out_of_time) && passage.door.local(from).0 > HAND_BACK_HELD_PAST_M {
+            // through, the straight way on held (or out of its time
+            // there, a search having turned the chair): the planner takes
+            // over from here (a turn or an arc the supervisor admits),
+            // nothing given up
+            tracing::info!(center = ?passage.door.center, along_m = passage.door.local(from).0, held, out_of_time, "doorway: through, beyond it");
+            self.end_passage();
             return None;
         }
         // held a while: on the way to the point before it, lined up from
@@ -392,17 +393,7 @@ impl Router {
             tracing::info!(along_m, left_m, phase = ?passage.phase, "{what}");
             *blocked = None;
         }
-        let give_up = blocked.is_some_and(|b| b.age_at(now) >= PASSAGE_BLOCKED_FOR)
-            || since.age_at(now) >= PASSAGE_AT_MOST;
-        if give_up && passage.door.local(from).0 > HAND_BACK_HELD_PAST_M {
-            // out of its time with the rear out of the doorway (the
-            // search turned the chair there): through, not given up
-            tracing::info!(center = ?passage.door.center, along_m = passage.door.local(from).0, "doorway: through, out of its time beyond it");
-            self.passage = None;
-            self.path = None;
-            self.last_plan = None;
-            return None;
-        }
+        let give_up = blocked.is_some_and(|b| b.age_at(now) >= PASSAGE_BLOCKED_FOR) || out_of_time;
         if give_up {
             self.doorways_given_up += 1;
             let (along_m, left_m) = passage.door.local(from);
@@ -429,13 +420,18 @@ impl Router {
         }
         match cmd {
             PassageCmd::Done => {
-                self.passage = None;
-                self.path = None;
-                self.last_plan = None;
+                self.end_passage();
                 None
             }
             cmd => Some(cmd),
         }
+    }
+
+    /// Through the doorway: the planner's way again, planned afresh.
+    fn end_passage(&mut self) {
+        self.passage = None;
+        self.path = None;
+        self.last_plan = None;
     }
 }
 
