@@ -390,11 +390,7 @@ impl Passage {
             self.backed_up += 1;
             // a turn held nearer the doorway may fit where it backs to
             self.turns_refused = self.turns_refused_by_person;
-            self.phase = Phase::BackUp {
-                to_m: (-s.line_up_nearest_m - s.line_up_ahead_m - left.abs().max(0.05))
-                    .max(along - s.back_up_m),
-                squaring: true,
-            };
+            self.phase = self.back_up_to_line_up(along, left);
         }
         backs
     }
@@ -441,14 +437,20 @@ impl Passage {
             && self.backed_up < s.back_ups)
             .then(|| {
                 self.backed_up += 1;
-                Phase::BackUp {
-                    // room to line up from there, on a line no steeper
-                    // than 45 degrees
-                    to_m: (-s.line_up_nearest_m - s.line_up_ahead_m - left.abs().max(0.05))
-                        .max(along - s.back_up_m),
-                    squaring: true,
-                }
+                self.back_up_to_line_up(along, left)
             })
+    }
+
+    /// Backing up, squaring, from `along`, `left` to where there is room
+    /// to line up, on a line no steeper than 45 degrees
+    /// ([`PassageSettings::back_up_m`] along the axis at most).
+    fn back_up_to_line_up(&self, along: f64, left: f64) -> Phase {
+        let s = self.settings;
+        Phase::BackUp {
+            to_m: (-s.line_up_nearest_m - s.line_up_ahead_m - left.abs().max(0.05))
+                .max(along - s.back_up_m),
+            squaring: true,
+        }
     }
 
     /// Near the middle line but too near the doorway to turn on the spot
