@@ -15,7 +15,8 @@ use crate::perception::boxes::{Aabb, Object3D, OrientedBox};
 #[derive(Debug, Clone, Copy, PartialEq, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct TrackerParams {
-    /// Hits before a track is confirmed.
+    /// Hits in a row (no miss where it should have been seen between
+    /// them) before a track is confirmed.
     pub confirm_hits: u32,
     /// Detections whose centroid is farther than this from a track (and
     /// whose box does not overlap it) start a new track, m.
@@ -81,6 +82,24 @@ pub struct Tracker {
     newest_view: Option<Stamp>,
 }
 
+/// A detection's box this far outside a track's on any side is still
+/// inside it, m.
+const PART_MARGIN_M: f64 = 0.05;
+/// A detection inside a track's box covering less than this share of its
+/// ground area is a part of the object, not a better measure of it.
+const PART_AREA_SHARE: f64 = 0.5;
+
+/// Whether `seen` lies inside `track` (within [`PART_MARGIN_M`]) and
+/// covers less than [`PART_AREA_SHARE`] of its ground.
+fn is_part_of(seen: &Aabb, track: &Aabb) -> bool {
+    let inside = (0..3).all(|i| {
+        seen.min_m[i] >= track.min_m[i] - PART_MARGIN_M
+            && seen.max_m[i] <= track.max_m[i] + PART_MARGIN_M
+    });
+    let area = |b: &Aabb| (b.max_m[0] - b.min_m[0]) * (b.max_m[1] - b.min_m[1]);
+    inside && area(seen) < PART_AREA_SHARE * area(track)
+}
+
 fn dist3(a: &[f64; 3], b: &[f64; 3]) -> f64 {
     ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
 }
@@ -126,7 +145,9 @@ impl Tracker {
                     continue;
                 }
                 let d = dist3(&c, &t.center_m);
-                if d <= p.max_center_distance_m || t.aabb().iou(&o.aabb) > 0.1 {
+                let ta = t.aabb();
+                if d <= p.max_center_distance_m || ta.iou(&o.aabb) > 0.1 || is_part_of(&o.aabb, &ta)
+                {
                     pairs.push((d, di, ti));
                 }
             }
@@ -142,14 +163,18 @@ impl Tracker {
             trk_used[ti] = true;
             let o = &objects[di];
             let t = &mut self.tracks[ti];
-            let k = t.variance_m2 / (t.variance_m2 + p.measurement_noise_m2);
-            let c = o.aabb.center_m();
-            let s = o.aabb.size_m();
-            for i in 0..3 {
-                t.center_m[i] += k * (c[i] - t.center_m[i]);
-                t.size_m[i] += k * (s[i] - t.size_m[i]);
+            // a part of the object (a corner seen up close, or at the
+            // view's edge) does not shrink its box to that part
+            if !is_part_of(&o.aabb, &t.aabb()) {
+                let k = t.variance_m2 / (t.variance_m2 + p.measurement_noise_m2);
+                let c = o.aabb.center_m();
+                let s = o.aabb.size_m();
+                for i in 0..3 {
+                    t.center_m[i] += k * (c[i] - t.center_m[i]);
+                    t.size_m[i] += k * (s[i] - t.size_m[i]);
+                }
+                t.variance_m2 *= 1.0 - k;
             }
-            t.variance_m2 *= 1.0 - k;
             t.hits += 1;
             t.streak += 1;
             t.misses = 0;
@@ -513,6 +538,40 @@ mod tests {
         // once confirmed, a miss does not unconfirm it
         tr.update(s(2.5), &[], |_| true);
         assert!(tr.tracks()[0].confirmed);
+    }
+
+    #[test]
+    fn a_corner_seen_up_close_does_not_shrink_the_box_but_a_box_beyond_it_moves_it() {
+        let mut tr = Tracker::new(crate::config::Settings::defaults().tracker);
+        // a bed seen whole: 1.6 m square about (3, 0)
+        for k in 0..3 {
+            tr.update(
+                s(0.5 * k as f64),
+                &[obj("bed", [3.0, 0.0, 0.3], 0.8)],
+                |_| true,
+            );
+        }
+        let whole = tr.tracks()[0].clone();
+        // then only its near corner, 0.3 m across, many times over
+        for k in 3..20 {
+            tr.update(
+                s(0.5 * k as f64),
+                &[obj("bed", [2.35, -0.65, 0.3], 0.15)],
+                |_| true,
+            );
+        }
+        let t = &tr.tracks()[0];
+        assert_eq!((t.center_m, t.size_m), (whole.center_m, whole.size_m));
+        assert_eq!(t.hits, 20);
+        assert!(t.last_seen == s(9.5) && t.misses == 0);
+        // a detection reaching out of the box is a measure: the box follows
+        tr.update(s(10.0), &[obj("bed", [3.3, 0.0, 0.3], 0.8)], |_| true);
+        assert!(tr.tracks()[0].center_m[0] > whole.center_m[0] + 0.01);
+        // as is one inside it covering most of it (a tighter outline)
+        let mut tr = Tracker::new(crate::config::Settings::defaults().tracker);
+        tr.update(s(0.0), &[obj("bed", [3.0, 0.0, 0.3], 0.8)], |_| true);
+        tr.update(s(0.5), &[obj("bed", [3.0, 0.0, 0.3], 0.7)], |_| true);
+        assert!(tr.tracks()[0].size_m[0] < 1.6 - 0.01);
     }
 
     #[test]
