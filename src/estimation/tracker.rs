@@ -1,6 +1,8 @@
 //! Objects in the odometry frame over time (pure): association by label and
-//! 3D overlap or centroid distance, a Kalman filter per track on position
-//! and extent, confirmation after N hits, confidence that decays when an
+//! 3D overlap, centroid distance or lying inside a track's box (a part of
+//! the object, which does not shrink it), a Kalman filter per track on
+//! position and extent, confirmation after N hits in a row (no miss where
+//! it should have been seen between them), confidence that decays when an
 //! object should be visible but is not, last-seen time kept, several
 //! instances of a label kept apart and fragments of one object merged.
 //! Also the goal: the confirmed track matching the prompt, and an approach
