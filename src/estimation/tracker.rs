@@ -59,7 +59,8 @@ pub struct Track {
     /// the view and not hidden behind something (the goal keeper does not
     /// call a goal lost for being hidden).
     pub expected_seen: bool,
-    /// The latest view's ground outline: its oriented box (odom). The
+    /// The latest whole view's ground outline (a part of the object seen
+    /// up close leaves it): its oriented box (odom). The
     /// upright box above is larger than a turned object (a desk at 30° to
     /// odom's axes: 1.29 × 1.10 m for 1.14 × 0.61 m), most at its corners.
     pub footprint: OrientedBox,
@@ -166,8 +167,10 @@ impl Tracker {
             let o = &objects[di];
             let t = &mut self.tracks[ti];
             // a part of the object (a corner seen up close, or at the
-            // view's edge) does not shrink its box to that part
-            if !is_part_of(&o.aabb, &t.aabb()) {
+            // view's edge) does not shrink its box, nor its outline, to
+            // that part
+            let part = is_part_of(&o.aabb, &t.aabb());
+            if !part {
                 let k = t.variance_m2 / (t.variance_m2 + p.measurement_noise_m2);
                 let c = o.aabb.center_m();
                 let s = o.aabb.size_m();
@@ -176,6 +179,7 @@ impl Tracker {
                     t.size_m[i] += k * (s[i] - t.size_m[i]);
                 }
                 t.variance_m2 *= 1.0 - k;
+                t.footprint = o.obb;
             }
             t.hits += 1;
             t.streak += 1;
@@ -185,7 +189,6 @@ impl Tracker {
             t.score = t.score.max(o.score);
             t.last_seen = stamp;
             t.expected_seen = true;
-            t.footprint = o.obb;
         }
         // misses where the track should have been seen
         for (ti, t) in self.tracks.iter_mut().enumerate() {

@@ -136,6 +136,7 @@ fn a_corner_seen_up_close_does_not_shrink_the_box_but_a_box_beyond_it_moves_it()
     }
     let t = &tr.tracks()[0];
     assert_eq!((t.center_m, t.size_m), (whole.center_m, whole.size_m));
+    assert_eq!(t.footprint, whole.footprint);
     assert_eq!(t.hits, 20);
     assert!(t.last_seen == s(9.5) && t.misses == 0);
     // a detection reaching out of the box is a measure: the box follows
