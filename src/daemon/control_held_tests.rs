@@ -140,12 +140,17 @@ fn a_turn_with_something_remembered_behind_just_outside_the_crawl_margin_crawls(
 /// supervisor holds the reverse, and the person is asked whether it is
 /// clear behind (they would see a step down too). "Yes": it backs.
 /// "No": it stays held, says so, the trip goes on, and it is not asked
-/// again from there.
+/// again from there. The person's "no" to a turn on the spot here before
+/// does not stop the question: backing up straight is another question,
+/// and unasked, the back-off would wait out its time with the chair held.
 #[test]
 fn held_with_the_rear_unseen_it_asks_before_backing_off() {
-    let asked_then = |answer: UserInput| {
+    let asked_after = |answer: UserInput, turn_refused_here: bool| {
         let (mut c, tracker) = searching_two_metres_ahead();
         c.supervisor.limits.turn_needs_seen_rear = true;
+        if turn_refused_here {
+            c.turn_refused_at = Some(crate::msg::Pose2::default());
+        }
         let mut said = Vec::new();
         let mut k = 1;
         while k < 200 && !said.iter().any(|l: &String| l.contains("back up a little")) {
@@ -167,6 +172,7 @@ fn held_with_the_rear_unseen_it_asks_before_backing_off() {
         }
         (c, backed, said)
     };
+    let asked_then = |answer: UserInput| asked_after(answer, false);
     let (c, backed, said) = asked_then(UserInput::Yes);
     assert!(backed, "{said:?}");
     assert!(
@@ -185,6 +191,8 @@ fn held_with_the_rear_unseen_it_asks_before_backing_off() {
         "{said:?}"
     );
     assert_ne!(*c.goal_state(), GoalState::None, "the trip goes on");
+    let (_, backed, said) = asked_after(UserInput::Yes, true);
+    assert!(backed, "a turn refused here: {said:?}");
 }
 
 /// A chair (0.5 m square, 0.9 m high) centred `x_m` ahead, in odom.

@@ -111,8 +111,16 @@ impl Control {
         before_unseen: bool,
     ) {
         use crate::msg::StopReason::{FloorUnseen, RearUnseen};
-        // where the person said no, not asked again
-        let refused = pose.is_some_and(|p| self.turn_refused_here(&p));
+        let backing = self
+            .planner_cmd
+            .as_ref()
+            .is_some_and(|c| c.value.v_mps < 0.0);
+        // where the person said no to a turn, not asked about a turn
+        // again; backing up straight is another question (the strip
+        // behind, not the circle a turn sweeps), asked even there — a
+        // back-off that waited for an answer never asked would time out
+        // with the chair held in front of what holds it
+        let refused = !backing && pose.is_some_and(|p| self.turn_refused_here(&p));
         let waiting = !refused
             && matches!(
                 state,
@@ -136,10 +144,6 @@ impl Control {
         if since.age_at(now) >= ASK_REAR_AFTER && self.asked_rear.is_none() {
             if let Some(p) = pose {
                 self.asked_rear = Some(p);
-                let backing = self
-                    .planner_cmd
-                    .as_ref()
-                    .is_some_and(|c| c.value.v_mps < 0.0);
                 self.asked_back_up = backing;
                 let around =
                     !backing && (state == SupervisorState::Stopped(FloorUnseen) || floor_unseen);
