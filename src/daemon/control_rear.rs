@@ -11,9 +11,6 @@ use crate::msg::{Obstacles, Stamp, Stamped, SupervisorState};
 
 /// A turn refused for an unseen rear this long: the person is asked.
 pub(super) const ASK_REAR_AFTER: std::time::Duration = std::time::Duration::from_secs(1);
-/// The person's "yes" to backing up holds this far straight back (a
-/// doorway's back-up is 0.4 m at most), m.
-pub(super) const BACK_UP_VOUCHED_M: f64 = 0.45;
 /// Turns no longer refused for an unseen rear this long: that wait is over.
 pub(super) const REAR_WAIT_OVER_AFTER: std::time::Duration = std::time::Duration::from_secs(1);
 
@@ -85,7 +82,8 @@ impl Control {
         if std::mem::take(&mut self.rear_yes) {
             if let Some(at) = self.asked_rear.take() {
                 if self.asked_back_up {
-                    self.rear.confirm_backing(now, at, BACK_UP_VOUCHED_M);
+                    self.rear
+                        .confirm_backing(now, at, crate::safety::rear::BACK_UP_VOUCHED_M);
                 } else if self.asked_around {
                     self.rear.confirm_around(now, at);
                 } else {
@@ -149,8 +147,8 @@ impl Control {
                     !backing && (state == SupervisorState::Stopped(FloorUnseen) || floor_unseen);
                 self.asked_around = around;
                 self.say(if backing {
-                    "I need to back up a little, and I cannot see behind me. \
-                     Is it clear behind? Say yes to let me back up, or no."
+                    "I need to back up a little, up to half a metre, and I cannot see \
+                     behind me. Is it clear behind? Say yes to let me back up, or no."
                         .into()
                 } else if around && before_unseen {
                     "I need to turn on the spot, and I cannot see behind me or the floor near \

@@ -96,6 +96,12 @@ pub struct RearWatch {
 /// the spot (0.65 m) and a margin, m.
 pub const AROUND_VOUCHED_M: f64 = 0.70;
 
+/// The person's "clear behind" for backing up holds this far straight
+/// back from where it was said (base_link; a doorway's back-up is 0.4 m at
+/// most), and not beyond: the question says how far ("up to half a
+/// metre"), and a reverse held at this end stops within the rest, m.
+pub const BACK_UP_VOUCHED_M: f64 = 0.45;
+
 /// The person's words for the floor around the chair, kept at most.
 const MAX_FLOOR_VOUCHED: usize = 32;
 
@@ -257,7 +263,11 @@ impl RearWatch {
             }
             let (c, s) = (p.theta_rad.cos(), p.theta_rad.sin());
             let behind = -(c * (pose.x_m - p.x_m) + s * (pose.y_m - p.y_m));
-            let b = behind.clamp(0.0, back_m);
+            if behind > back_m {
+                // past the line's end: the person did not look there
+                return false;
+            }
+            let b = behind.max(0.0);
             let on_line = Pose2 {
                 x_m: p.x_m - c * b,
                 y_m: p.y_m - s * b,
@@ -442,8 +452,11 @@ mod tests {
             // they looked at the strip behind, not the corners' circle
             assert!(!v.seen, "at {x}");
         }
-        // beyond the line's end, beside it, or expired
+        // beyond the line's end (not even a few centimetres: the person
+        // looked as far as the question said), beside it, or expired
         assert!(!w.view(at(5.0), pose(0.3, 0.0)).reverse_seen);
+        assert!(!w.view(at(5.0), pose(0.5, 0.0)).reverse_seen);
+        assert!(w.view(at(5.0), pose(0.56, 0.0)).reverse_seen);
         let aside = Pose2 {
             y_m: 0.3,
             ..pose(0.8, 0.0)

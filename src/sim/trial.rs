@@ -94,9 +94,11 @@ const ANSWER_AFTER: Duration = Duration::from_millis(1500);
 /// the circle the chair's word for the floor holds in), m.
 const CLEAR_BEHIND_M: f64 = crate::safety::rear::AROUND_VOUCHED_M;
 
-/// Backing up, the chair's rear edge (0.45 m behind base_link) moves at
-/// most this far back; the person looks along its width and a margin, m.
-const CLEAR_BACK_M: f64 = 0.40;
+/// Backing up, the chair asks about half a metre behind its rear edge
+/// (0.45 m behind base_link; the word holds for
+/// [`crate::safety::rear::BACK_UP_VOUCHED_M`] of that, the rest is for
+/// stopping): the person looks that far, along its width and a margin, m.
+const CLEAR_BACK_M: f64 = 0.50;
 const CLEAR_BACK_HALF_WIDTH_M: f64 = 0.40;
 /// The person's look is sampled this finely, m.
 const LOOK_STEP_M: f64 = 0.01;

@@ -294,6 +294,13 @@ impl SimWorld {
         if c <= 0.0 {
             self.report.collision_steps += 1;
             if self.report.first_contact.is_none() {
+                tracing::warn!(
+                    time_s = self.mcu_us as f64 * 1e-6,
+                    object = ?nearest,
+                    v_mps = self.v_mps,
+                    omega_radps = self.omega_radps,
+                    "simulated world: the chair's footprint touched something"
+                );
                 self.report.first_contact = Some(Contact {
                     time_s: self.mcu_us as f64 * 1e-6,
                     object: nearest,
