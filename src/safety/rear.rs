@@ -10,8 +10,9 @@
 //!   for the turn check). A chair that drove forward to here has seen its
 //!   rear; one that just woke up has not.
 //! - vouched: the person in the chair (or the carer) said it is clear
-//!   behind ("yes" to the chair's question), for this spot (`near_m`) and
-//!   `confirm_for`.
+//!   behind ("yes" to the chair's question), for this spot (within
+//!   [`TURN_WORD_WITHIN_M`]: what they looked at is the corners' circle
+//!   there) and `confirm_for`.
 //!
 //! Otherwise the supervisor refuses the turn (`RearUnseen`) and the chair
 //! asks. The same word, asked as "is it clear around me?", vouches for
@@ -107,8 +108,17 @@ const MAX_FLOOR_VOUCHED: usize = 32;
 
 const CELL_M: f64 = 0.05;
 /// The person's word for backing up holds facing within this of the
-/// chair's heading when they gave it, rad.
-const BACKING_HEADING_RAD: f64 = 0.35;
+/// chair's heading when they gave it, and with base_link within
+/// [`BACKING_ASIDE_M`] of the line straight back from there, rad and m:
+/// they looked at the strip behind, the chair's width and 0.05 m a side,
+/// and turned 0.05 rad over the 0.45 m the rear corners reach 0.023 m
+/// aside, 0.043 m with the line's 0.02 m.
+const BACKING_HEADING_RAD: f64 = 0.05;
+const BACKING_ASIDE_M: f64 = 0.02;
+/// The person's word for a turn on the spot holds with base_link this
+/// near where they gave it, m: they looked at the circle the corners
+/// sweep there (0.65 m), to [`AROUND_VOUCHED_M`].
+pub const TURN_WORD_WITHIN_M: f64 = 0.04;
 /// A new view is kept when the chair turned this much (or moved `near_m`/2).
 const VIEW_STEP_RAD: f64 = 0.09;
 /// Remembered points this far inside the edge of the lasers' seen sector
@@ -246,8 +256,10 @@ impl RearWatch {
 
     /// Whether the person's "clear behind" holds at `pose` now.
     fn vouched(&self, now: Stamp, pose: &Pose2) -> bool {
-        self.confirmed
-            .is_some_and(|(t, p)| t.age_at(now) <= self.settings.confirm_for && self.near(&p, pose))
+        self.confirmed.is_some_and(|(t, p)| {
+            t.age_at(now) <= self.settings.confirm_for
+                && (p.x_m - pose.x_m).hypot(p.y_m - pose.y_m) <= TURN_WORD_WITHIN_M
+        })
     }
 
     /// Whether the person's word for backing up holds at `pose`: near
@@ -267,13 +279,9 @@ impl RearWatch {
                 // past the line's end: the person did not look there
                 return false;
             }
-            let b = behind.max(0.0);
-            let on_line = Pose2 {
-                x_m: p.x_m - c * b,
-                y_m: p.y_m - s * b,
-                theta_rad: p.theta_rad,
-            };
-            self.near(&on_line, pose)
+            // (forward of where it was said: its own trail)
+            let aside = -s * (pose.x_m - p.x_m) + c * (pose.y_m - p.y_m);
+            aside.abs() <= BACKING_ASIDE_M
         })
     }
 
@@ -391,6 +399,10 @@ mod tests {
         // turning on the spot keeps it
         assert!(w.view(at(5.0), pose(0.0, 120.0)).seen);
         assert!(!w.view(at(5.0), pose(0.5, 0.0)).seen, "another spot");
+        // the person looked at the corners' circle here (0.65 m, to 0.70
+        // m): a few centimetres off it still lies inside, 0.1 m off not
+        assert!(w.view(at(5.0), pose(0.03, 0.0)).seen, "a creep");
+        assert!(!w.view(at(5.0), pose(0.1, 0.0)).seen, "0.1 m off");
         assert!(!w.view(at(61.0), pose(0.0, 0.0)).seen, "expired");
         // a word for behind is not one for all around
         assert!(!w.view(at(5.0), pose(0.0, 0.0)).around_vouched);
@@ -464,8 +476,20 @@ mod tests {
         assert!(!w.view(at(5.0), aside).reverse_seen);
         assert!(!w.view(at(61.0), pose(0.8, 0.0)).reverse_seen);
         // turned away from the way it faced: its rear backs elsewhere
-        assert!(w.view(at(5.0), pose(0.8, 15.0)).reverse_seen);
-        assert!(!w.view(at(5.0), pose(0.8, 40.0)).reverse_seen);
+        assert!(w.view(at(5.0), pose(0.8, 2.0)).reverse_seen);
+        assert!(!w.view(at(5.0), pose(0.8, 8.0)).reverse_seen);
+        // a centimetre or two aside of the line: the strip they looked at
+        // is the chair's width and 0.05 m a side
+        let just_aside = Pose2 {
+            y_m: 0.015,
+            ..pose(0.8, 0.0)
+        };
+        assert!(w.view(at(5.0), just_aside).reverse_seen);
+        let aside = Pose2 {
+            y_m: 0.05,
+            ..pose(0.8, 0.0)
+        };
+        assert!(!w.view(at(5.0), aside).reverse_seen);
         // a word for a turn holds for both at its spot
         w.confirm(at(10.0), pose(2.0, 0.0));
         let v = w.view(at(11.0), pose(2.0, 0.0));

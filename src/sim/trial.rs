@@ -97,7 +97,8 @@ const CLEAR_BEHIND_M: f64 = crate::safety::rear::AROUND_VOUCHED_M;
 /// Backing up, the chair asks about half a metre behind its rear edge
 /// (0.45 m behind base_link; the word holds for
 /// [`crate::safety::rear::BACK_UP_VOUCHED_M`] of that, the rest is for
-/// stopping): the person looks that far, along its width and a margin, m.
+/// stopping): the person looks that far, along its width and 0.05 m a
+/// side (the word holds turned 0.05 rad at most, or 2 cm aside), m.
 const CLEAR_BACK_M: f64 = 0.50;
 const CLEAR_BACK_HALF_WIDTH_M: f64 = 0.40;
 /// The person's look is sampled this finely, m.
