@@ -262,10 +262,12 @@ impl RearWatch {
         })
     }
 
-    /// Whether the person's word for backing up holds at `pose`: near
-    /// the line straight back from where they gave it, facing within
-    /// [`BACKING_HEADING_RAD`] of the way it faced then (turned further,
-    /// its rear would back into space they did not look at).
+    /// Whether the person's word for backing up holds at `pose`: within
+    /// [`BACKING_ASIDE_M`] of the line straight back from where they gave
+    /// it and no further back than its length, facing within
+    /// [`BACKING_HEADING_RAD`] of the way it faced then (turned further or
+    /// further aside, its rear would back into space they did not look
+    /// at).
     fn vouched_backing(&self, now: Stamp, pose: &Pose2) -> bool {
         self.confirmed_back.is_some_and(|(t, p, back_m)| {
             if t.age_at(now) > self.settings.confirm_for
