@@ -30,6 +30,14 @@ fn twelve_generated_scenes_are_driven_without_touching_anything() {
         assert!(!r.collision, "{r:?}");
         assert!(!r.fell, "{r:?}");
     }
+    // the benchmark's test of "reachable" (the chair's own footprint
+    // driven on the true floor plan) never denies a place the chair got to
+    for r in results.iter().filter(|r| r.reached) {
+        assert!(
+            r.reachable,
+            "reached where the benchmark says no drive leads: {r:?}"
+        );
+    }
     // a trip that ends anywhere but at the object says why
     for r in results.iter().filter(|r| !r.reached) {
         assert!(r.last_said.is_some(), "{r:?}");

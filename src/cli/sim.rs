@@ -211,7 +211,7 @@ fn trips(config: Option<&std::path::Path>, args: &SimArgs) -> Result<(), Failure
         "scenes": ok.len(),
         "reached": ok.iter().filter(|t| t.reached).count(),
         "success": ok.iter().filter(|t| t.success).count(),
-        "unreachable": ok.iter().filter(|t| t.shortest_path_m.is_none()).count(),
+        "unreachable": ok.iter().filter(|t| !t.reachable).count(),
         "stops": ok.iter().map(|t| t.stops).sum::<u64>(),
         "questions": ok.iter().map(|t| t.questions).sum::<u64>(),
         "collisions": ok.iter().filter(|t| t.collision).count(),

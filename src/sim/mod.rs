@@ -6,6 +6,7 @@
 //! (`replica`).
 
 pub mod devices;
+pub mod drive;
 pub mod hokuyo;
 pub mod path;
 pub mod pty;

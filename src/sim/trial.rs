@@ -18,8 +18,10 @@ use crate::daemon::{Outcome, RunOptions};
 use crate::msg::{Clock, TokioClock, UserInput};
 
 use super::devices::devices;
+use super::drive::{drivable, Drivable};
 use super::path::shortest_path_m;
 use super::scene::Scene;
+use super::world::Footprint;
 use super::world::SimWorld;
 
 /// One scene's line.
@@ -50,8 +52,10 @@ pub struct TrialResult {
     pub contact: Option<String>,
     pub path_m: f64,
     /// The shortest drive to a place the `reached` test accepts (the
-    /// standoff ± the arrival's tolerance and 0.25 m); None: no place
-    /// beside the object can be reached.
+    /// standoff ± the arrival's tolerance and 0.25 m) for a disc of the
+    /// chair's half-width, the widest disc inside its footprint: no drive
+    /// of the chair is shorter. None: not even that disc reaches a place
+    /// beside the object.
     pub shortest_path_m: Option<f64>,
     /// The shortest drive to a place the chair's own arrival accepts (the
     /// standoff ± `goal.reached_within_m`): the path ratio's yardstick,
@@ -59,6 +63,11 @@ pub struct TrialResult {
     /// benchmark's tolerance. None where `shortest_path_m` is None (or no
     /// such place can be reached).
     pub shortest_path_to_standoff_m: Option<f64>,
+    /// The chair itself — its footprint, turning on the spot and driving
+    /// straight — can reach a place the `reached` test accepts
+    /// (`sim::drive`). A scene where it cannot counts as a success when the
+    /// chair says so and stops.
+    pub reachable: bool,
     pub time_s: f64,
     pub outcome: Outcome,
     /// Times the chair stopped for safety on the way (the supervisor's
@@ -341,7 +350,7 @@ pub async fn run(
         &scene.prompt,
         g.standoff_m + g.front_offset_m,
         g.reached_within_m + 0.25,
-        0.4,
+        Footprint::CHAIR.half_width_m,
     );
     let shortest_to_standoff = shortest.and_then(|_| {
         shortest_path_m(
@@ -350,9 +359,41 @@ pub async fn run(
             &scene.prompt,
             g.standoff_m + g.front_offset_m,
             g.reached_within_m,
-            0.4,
+            Footprint::CHAIR.half_width_m,
         )
     });
+    // the chair's footprint with the margin its supervisor keeps at a
+    // crawl (passing a doorway): a place only a narrower margin reaches is
+    // one the chair should refuse
+    let margin_m = settings
+        .safety
+        .corridor_margin_slow_m
+        .min(settings.safety.corridor_margin_m);
+    let kept_clear = Footprint {
+        front_m: Footprint::CHAIR.front_m + margin_m,
+        rear_m: Footprint::CHAIR.rear_m + margin_m,
+        half_width_m: Footprint::CHAIR.half_width_m + margin_m,
+    };
+    let reachable = match drivable(
+        &scene.room,
+        scene.start,
+        &scene.prompt,
+        g.standoff_m + g.front_offset_m,
+        g.reached_within_m + 0.25,
+        kept_clear,
+    ) {
+        Drivable::Yes => true,
+        Drivable::No => false,
+        Drivable::Undecided => {
+            // counted reachable: giving up there is then a failure
+            tracing::warn!(
+                scene = index,
+                "the benchmark's search for a drive to the word ran past its bound; \
+                     the scene is counted reachable"
+            );
+            true
+        }
+    };
     let collision = w.collision_steps > 0;
     let contact = w.first_contact.map(|c| {
         let what = match c.object.and_then(|i| scene.room.objects.get(i)) {
@@ -365,7 +406,7 @@ pub async fn run(
         )
     });
     let fell = w.fell_steps > 0;
-    let said_unreachable = shortest.is_none()
+    let said_unreachable = !reachable
         && w.v_mps.abs() < 0.05
         && matches!(
             r.outcome,
@@ -416,6 +457,7 @@ pub async fn run(
         path_m: w.distance_travelled_m,
         shortest_path_m: shortest,
         shortest_path_to_standoff_m: shortest_to_standoff,
+        reachable,
         time_s: r.duration_s,
         outcome: r.outcome,
         stops: r.planner.stops + r.stops,

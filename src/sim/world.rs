@@ -30,6 +30,15 @@ pub struct Footprint {
     pub half_width_m: f64,
 }
 
+impl Footprint {
+    /// The chair's: 1.0 × 0.7 m, base_link 0.45 m ahead of the rear edge.
+    pub const CHAIR: Footprint = Footprint {
+        front_m: 0.55,
+        rear_m: 0.45,
+        half_width_m: 0.35,
+    };
+}
+
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct SimReport {
     pub truth: Pose2,
@@ -229,11 +238,7 @@ impl SimWorld {
             v_mps: 0.0,
             omega_radps: 0.0,
             motor_tau_s: 0.15,
-            footprint: Footprint {
-                front_m: 0.55,
-                rear_m: 0.45,
-                half_width_m: 0.35,
-            },
+            footprint: Footprint::CHAIR,
             drive,
             counts: (0.0, 0.0),
             mcu_us: 0,
