@@ -130,7 +130,7 @@ async fn a_word_nothing_answers_ends_in_not_found_after_searching() {
     // a full turn on the spot (~21 s at 0.3 rad/s, after the question),
     // then on to any place it has not seen that it can turn in (the living
     // room has none), within the search's time limit
-    let limit = opennav::estimation::goal::SEARCH_AT_MOST.as_secs_f64();
+    let limit = opennav::config::Settings::defaults().goal.search_at_most_s;
     assert!(
         (18.0..limit + 2.0).contains(&r.duration_s),
         "{}",

@@ -36,6 +36,9 @@ pub struct GoalSettings {
     /// it tries gets it nearer): the goal is given up, the chair stops and
     /// says so.
     pub give_up_held_after: Duration,
+    /// A search (turns on the spot and the places between) ends "not
+    /// found" after this.
+    pub search_at_most: Duration,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -223,11 +226,6 @@ const EXPLORED_WITHIN_M: f64 = 0.3;
 /// Driving to a place to search gives up after this long (and searches
 /// where it is).
 const EXPLORE_FOR: Duration = Duration::from_secs(40);
-/// A search (turns and the places between) ends "not found" after this
-/// (a four-room apartment needs it: a search turn takes 21 s, a doorway up
-/// to a minute; at 90 s, 5 more of `opennav sim --scenes 500 --seed 1`
-/// ended "not found" short of an object the chair then reached).
-pub const SEARCH_AT_MOST: Duration = Duration::from_secs(150);
 
 /// A track of the same word this close to where the goal was last seen is
 /// the goal (the tracker split or renumbered it), m.
@@ -601,7 +599,7 @@ impl GoalKeeper {
                 Some(GoalEvent::LookedAround { seen: labels })
             }
             GoalState::Searching { label } | GoalState::Exploring { label, .. }
-                if self.search_since.get_or_insert(now).age_at(now) > SEARCH_AT_MOST
+                if self.search_since.get_or_insert(now).age_at(now) > s.search_at_most
                     && tracker
                         .goal(&label, from)
                         .is_none_or(|t| t.last_seen.age_at(now) > s.unseen_after) =>

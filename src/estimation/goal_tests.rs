@@ -790,3 +790,34 @@ fn held_at_the_standoff_of_a_turned_object_ends_as_near_as_it_goes() {
         Some(GoalEvent::ReachedNear { .. })
     ));
 }
+
+#[test]
+fn a_search_ends_not_found_at_the_configured_limit() {
+    // a chair that never gets its search turn done (held where it
+    // stands): the search's time limit ends it, and only that
+    let tracker = Tracker::new(crate::config::Settings::defaults().tracker);
+    let mut g = GoalKeeper::new(GoalSettings {
+        search_at_most: Duration::from_secs(30),
+        ..crate::config::Settings::defaults().goal_settings()
+    });
+    g.set_prompt("piano");
+    let mut not_found = Vec::new();
+    for k in 0..=400 {
+        let now_s = k as f64 * 0.1;
+        let ev = g.update(
+            t(now_s),
+            &tracker,
+            Pose2::default(),
+            &[],
+            &|_| true,
+            &|_| true,
+        );
+        if let Some(GoalEvent::NotFound { label }) = ev {
+            not_found.push((now_s, label));
+        }
+    }
+    assert_eq!(not_found.len(), 1, "{not_found:?}");
+    let (at_s, label) = &not_found[0];
+    assert_eq!(label, "piano");
+    assert!((30.0..30.2).contains(at_s), "ended at {at_s} s");
+}

@@ -90,10 +90,9 @@ pub struct TrialResult {
     pub files: Vec<String>,
 }
 
-/// How long a trip may take: the search's limit and half a minute for the
-/// way to what it found (180 s).
-pub const TRIAL_LIMIT: Duration =
-    Duration::from_secs(crate::estimation::goal::SEARCH_AT_MOST.as_secs() + 30);
+/// How long a trip may take beyond the search's limit
+/// (`goal.search_at_most_s`): the way to what it found.
+pub const TRIAL_AFTER_SEARCH: Duration = Duration::from_secs(30);
 
 /// A person's time to answer a question, s.
 const ANSWER_AFTER: Duration = Duration::from_millis(1500);
@@ -309,7 +308,7 @@ pub async fn run(
     let mcap: Option<PathBuf> = record.map(|d| d.join(format!("scene-{index}.mcap")));
     let opts = RunOptions {
         exit_on_arrival: true,
-        max_duration: Some(TRIAL_LIMIT),
+        max_duration: Some(settings.goal_settings().search_at_most + TRIAL_AFTER_SEARCH),
         record: mcap.clone(),
         speech: Some(speech_tx),
         ..Default::default()
