@@ -55,6 +55,18 @@ impl Default for MapSettings {
     }
 }
 
+/// A grid cell's eight neighbours, as (column, row) steps.
+pub const NEIGHBOURS_8: [(i64, i64); 8] = [
+    (1, 0),
+    (-1, 0),
+    (0, 1),
+    (0, -1),
+    (1, 1),
+    (1, -1),
+    (-1, 1),
+    (-1, -1),
+];
+
 /// Evidence per update and its bounds (log-odds in small integers).
 const HIT: i8 = 3;
 const MISS: i8 = 1;
@@ -504,16 +516,7 @@ impl GridMap {
                 return Some((i, parent));
             }
             let (x, y) = ((i % n) as i64, (i / n) as i64);
-            for (dx, dy) in [
-                (1, 0),
-                (-1, 0),
-                (0, 1),
-                (0, -1),
-                (1, 1),
-                (1, -1),
-                (-1, 1),
-                (-1, -1),
-            ] {
+            for (dx, dy) in NEIGHBOURS_8 {
                 let (nx, ny) = (x + dx, y + dy);
                 if nx < 0 || ny < 0 || nx >= n as i64 || ny >= n as i64 {
                     continue;

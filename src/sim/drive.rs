@@ -196,14 +196,12 @@ pub fn drivable(
         if d > to_goal[k] {
             continue;
         }
-        let (i, j) = ((k % nx) as i64, (k / nx) as i64);
-        for (di, dj) in NEIGHBOURS {
-            let (a, b) = (i + di, j + dj);
-            if a < 0 || b < 0 || a >= nx as i64 || b >= ny as i64 {
-                continue;
-            }
-            let n = b as usize * nx + a as usize;
-            let nd = d + CELL_M * ((di * di + dj * dj) as f64).sqrt();
+        for (n, diagonal) in super::path::cells_beside(k, nx, ny) {
+            let nd = d + if diagonal {
+                CELL_M * std::f64::consts::SQRT_2
+            } else {
+                CELL_M
+            };
             if passable[n] && nd < to_goal[n] {
                 to_goal[n] = nd;
                 heap.push(Reverse(((nd * 1000.0) as u64, n)));
@@ -310,33 +308,12 @@ pub fn drivable(
 /// far (0.1 mm), base_link's position (bits of its f64s), heading index.
 type Open = (u64, u64, [u64; 2], usize);
 
-const NEIGHBOURS: [(i64, i64); 8] = [
-    (1, 0),
-    (-1, 0),
-    (0, 1),
-    (0, -1),
-    (1, 1),
-    (1, -1),
-    (-1, 1),
-    (-1, -1),
-];
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::sim::path::shortest_path_m;
-    use crate::sim::room::SimObject;
+    use crate::sim::path::tests::thing;
     use crate::sim::scene::WALL_LABEL;
-
-    fn thing(label: &str, min: [f64; 2], max: [f64; 2]) -> SimObject {
-        SimObject {
-            label_id: 1,
-            label: label.into(),
-            min_m: [min[0], min[1], 0.0],
-            max_m: [max[0], max[1], 1.0],
-            color: [0, 0, 0],
-        }
-    }
 
     fn pose(x_m: f64, y_m: f64, theta_rad: f64) -> Pose2 {
         Pose2 {

@@ -80,31 +80,12 @@ pub fn shortest_path_m(
         if goal[c] && free[c] {
             return Some(d as f64 / 1000.0);
         }
-        let (i, j) = ((c % nx) as i64, (c / nx) as i64);
-        for (di, dj) in [
-            (1, 0),
-            (-1, 0),
-            (0, 1),
-            (0, -1),
-            (1, 1),
-            (1, -1),
-            (-1, 1),
-            (-1, -1),
-        ] {
-            let (a, b) = (i + di, j + dj);
-            if a < 0 || b < 0 || a >= nx as i64 || b >= ny as i64 {
-                continue;
-            }
-            let n = b as usize * nx + a as usize;
+        for (n, diagonal_step) in cells_beside(c, nx, ny) {
             // the start cell may be tight; every other cell must be free
             if !free[n] {
                 continue;
             }
-            let step = if di != 0 && dj != 0 {
-                diagonal
-            } else {
-                straight
-            };
+            let step = if diagonal_step { diagonal } else { straight };
             let nd = d + step;
             if nd < dist[n] {
                 dist[n] = nd;
@@ -115,12 +96,26 @@ pub fn shortest_path_m(
     None
 }
 
+/// The cells beside cell `c` of a row-major `nx` × `ny` grid, each with
+/// whether it lies diagonally from `c`.
+pub(crate) fn cells_beside(c: usize, nx: usize, ny: usize) -> impl Iterator<Item = (usize, bool)> {
+    let (i, j) = ((c % nx) as i64, (c / nx) as i64);
+    crate::navigation::map::NEIGHBOURS_8
+        .into_iter()
+        .filter_map(move |(di, dj)| {
+            let (a, b) = (i + di, j + dj);
+            (a >= 0 && b >= 0 && a < nx as i64 && b < ny as i64)
+                .then(|| (b as usize * nx + a as usize, di != 0 && dj != 0))
+        })
+}
+
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::sim::scene::{generate, scene_seed, WALL_LABEL};
 
-    fn thing(label: &str, min: [f64; 2], max: [f64; 2]) -> SimObject {
+    /// A box of `label`, 1 m high, over `min`–`max` on the floor.
+    pub(crate) fn thing(label: &str, min: [f64; 2], max: [f64; 2]) -> SimObject {
         SimObject {
             label_id: 1,
             label: label.into(),
