@@ -9,7 +9,9 @@
 //! moves of 6 cm forward or back along the heading and 5° turns on the
 //! spot, each pose's rectangle tested exactly against every box taller than
 //! the floor's clutter (as the simulated world counts contact), the outer
-//! walls and the steps down. A pure core: no I/O, no clock.
+//! walls and the steps down. The caller gives the footprint with whatever
+//! margin it must keep (the benchmark: the supervisor's crawl margin). A
+//! pure core: no I/O, no clock.
 
 use super::room::Room;
 use super::scene::WALKER_LABEL;
