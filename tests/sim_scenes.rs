@@ -76,6 +76,19 @@ fn the_command_prints_a_line_per_scene_and_a_summary_whatever_the_job_count() {
         assert!(
             l["navigation"]["doorways_given_up"].as_u64() <= l["navigation"]["doorways"].as_u64()
         );
+        // the last passage given up says in which phase and where
+        let last = &l["navigation"]["last_doorway_given_up"];
+        assert_eq!(
+            last.is_null(),
+            l["navigation"]["doorways_given_up"] == 0,
+            "{l}"
+        );
+        if !last.is_null() {
+            assert!(
+                last["phase"].is_string() && last["along_m"].is_number(),
+                "{l}"
+            );
+        }
         assert_eq!(l["collision"] == true, l["contact"].is_string(), "{l}");
         // the drive to the chair's own stopping place is never shorter
         // than to the edge of the `reached` test's wider band

@@ -88,6 +88,22 @@ pub struct NavigationStats {
     /// Plans of the way on the map that found none (the local planner
     /// then heads straight for the place).
     pub no_way: u64,
+    /// The last doorway passage given up: where and how (None: none was).
+    pub last_doorway_given_up: Option<DoorwayGivenUp>,
+}
+
+/// A doorway passage given up: the phase it was in, the doorway's width
+/// and the chair's place about its middle (along its axis, positive
+/// beyond; to its left) and heading off its axis, and whether the
+/// supervisor held it there (else it ran out of time).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct DoorwayGivenUp {
+    pub phase: &'static str,
+    pub width_m: f64,
+    pub along_m: f64,
+    pub left_m: f64,
+    pub heading_err_rad: f64,
+    pub held: bool,
 }
 
 pub struct Control {
@@ -697,6 +713,7 @@ impl Control {
             back_offs: self.back_off.count,
             detours: self.detours,
             no_way: self.route.as_ref().map_or(0, |r| r.no_way),
+            last_doorway_given_up: self.route.as_ref().and_then(|r| r.last_given_up),
         }
     }
 

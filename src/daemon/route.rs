@@ -49,6 +49,7 @@ pub struct Router {
     back_up_refused_at: Option<[f64; 2]>,
     pub doorways: u64,
     pub doorways_given_up: u64,
+    pub last_given_up: Option<super::control::DoorwayGivenUp>,
 }
 
 /// A doorway given up after the chair stood blocked in it this long, or
@@ -122,6 +123,7 @@ impl Router {
             back_up_refused_at: None,
             doorways: 0,
             doorways_given_up: 0,
+            last_given_up: None,
         }
     }
 
@@ -398,6 +400,14 @@ impl Router {
             self.doorways_given_up += 1;
             let (along_m, left_m) = passage.door.local(from);
             let heading_err_rad = crate::msg::wrap_angle(pose.theta_rad - passage.door.axis_rad);
+            self.last_given_up = Some(super::control::DoorwayGivenUp {
+                phase: passage.phase.name(),
+                width_m: passage.door.width_m,
+                along_m,
+                left_m,
+                heading_err_rad,
+                held: blocked.is_some(),
+            });
             tracing::warn!(
                 center = ?passage.door.center,
                 width_m = passage.door.width_m,
@@ -547,6 +557,18 @@ mod tests {
             );
             assert!(r.passage.is_none());
             assert_eq!(r.doorways_given_up, given_up, "at {x_m}");
+            // the one given up says where and how: out of time, not held
+            match (given_up, r.last_given_up) {
+                (0, None) => {}
+                (1, Some(g)) => {
+                    assert!(!g.held, "{g:?}");
+                    assert!(
+                        g.along_m < 0.5 && (g.heading_err_rad - 1.6).abs() < 0.1,
+                        "{g:?}"
+                    );
+                }
+                (n, g) => panic!("{n} given up, last {g:?}"),
+            }
         }
     }
 

@@ -89,6 +89,20 @@ pub enum Phase {
     },
 }
 
+impl Phase {
+    /// The phase's name, as in the logs.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Phase::Approach => "approach",
+            Phase::LineUp { .. } => "line_up",
+            Phase::Align => "align",
+            Phase::Pass => "pass",
+            Phase::BackUp { .. } => "back_up",
+            Phase::BackOut { .. } => "back_out",
+        }
+    }
+}
+
 /// What to do now.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum PassageCmd {
