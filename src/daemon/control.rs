@@ -74,6 +74,8 @@ pub struct ControlOutput {
     pub done: Option<Outcome>,
 }
 
+use super::route::DoorwayGivenUp;
+
 /// What the chair did on its way besides following the planner.
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
 pub struct NavigationStats {
@@ -90,20 +92,6 @@ pub struct NavigationStats {
     pub no_way: u64,
     /// The last doorway passage given up: where and how (None: none was).
     pub last_doorway_given_up: Option<DoorwayGivenUp>,
-}
-
-/// A doorway passage given up: the phase it was in, the doorway's width
-/// and the chair's place about its middle (along its axis, positive
-/// beyond; to its left) and heading off its axis, and whether the
-/// supervisor held it there (else it ran out of time).
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
-pub struct DoorwayGivenUp {
-    pub phase: &'static str,
-    pub width_m: f64,
-    pub along_m: f64,
-    pub left_m: f64,
-    pub heading_err_rad: f64,
-    pub held: bool,
 }
 
 pub struct Control {

@@ -49,7 +49,21 @@ pub struct Router {
     back_up_refused_at: Option<[f64; 2]>,
     pub doorways: u64,
     pub doorways_given_up: u64,
-    pub last_given_up: Option<super::control::DoorwayGivenUp>,
+    pub last_given_up: Option<DoorwayGivenUp>,
+}
+
+/// A doorway passage given up: the phase it was in, the doorway's width
+/// and the chair's place about its middle (along its axis, positive
+/// beyond; to its left) and heading off its axis, and whether the
+/// supervisor held it there (else it ran out of time).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct DoorwayGivenUp {
+    pub phase: &'static str,
+    pub width_m: f64,
+    pub along_m: f64,
+    pub left_m: f64,
+    pub heading_err_rad: f64,
+    pub held: bool,
 }
 
 /// A doorway given up after the chair stood blocked in it this long, or
@@ -399,25 +413,21 @@ impl Router {
         if give_up {
             self.doorways_given_up += 1;
             let (along_m, left_m) = passage.door.local(from);
-            let heading_err_rad = crate::msg::wrap_angle(pose.theta_rad - passage.door.axis_rad);
-            self.last_given_up = Some(super::control::DoorwayGivenUp {
+            let given_up = DoorwayGivenUp {
                 phase: passage.phase.name(),
                 width_m: passage.door.width_m,
                 along_m,
                 left_m,
-                heading_err_rad,
+                heading_err_rad: crate::msg::wrap_angle(pose.theta_rad - passage.door.axis_rad),
                 held: blocked.is_some(),
-            });
+            };
             tracing::warn!(
                 center = ?passage.door.center,
-                width_m = passage.door.width_m,
                 phase = ?passage.phase,
-                along_m,
-                left_m,
-                heading_err_rad,
-                held = blocked.is_some(),
+                ?given_up,
                 "doorway: given up"
             );
+            self.last_given_up = Some(given_up);
             self.skip = Some((passage.door.center, Stamp(now.0 + PASSAGE_SKIP_FOR)));
             self.passage = None;
             return None;
