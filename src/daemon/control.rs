@@ -92,6 +92,10 @@ pub struct NavigationStats {
     pub no_way: u64,
     /// The last doorway passage given up: where and how (None: none was).
     pub last_doorway_given_up: Option<DoorwayGivenUp>,
+    /// Manoeuvres on the map begun (held with no way round), and given up
+    /// (held on them, or out of time).
+    pub manoeuvres: u64,
+    pub manoeuvres_given_up: u64,
 }
 
 pub struct Control {
@@ -177,6 +181,12 @@ pub struct Control {
     said_held: bool,
     /// Whether this hold has had the object's other side tried.
     tried_other_side: bool,
+    /// The manoeuvre under way; manoeuvres begun for this goal, begun in
+    /// all, and given up.
+    manoeuvre: Option<manoeuvre::Manoeuvre>,
+    manoeuvres_for_goal: u32,
+    manoeuvres: u64,
+    manoeuvres_held: u64,
 }
 
 /// A turn on the spot refused this long for an unseen rear: the chair asks.
@@ -256,6 +266,10 @@ impl Control {
             held_since: None,
             said_held: false,
             tried_other_side: false,
+            manoeuvre: None,
+            manoeuvres_for_goal: 0,
+            manoeuvres: 0,
+            manoeuvres_held: 0,
         }
     }
 
@@ -357,7 +371,9 @@ impl Control {
             camera: camera.as_ref(),
             rear: rear.as_ref(),
         };
-        self.detour_if_held(now, &supervisor_inputs);
+        if !self.manoeuvring() {
+            self.detour_if_held(now, &supervisor_inputs);
+        }
         let mut cmd = self.supervisor.step(
             now,
             &SupervisorInputs {
@@ -560,6 +576,8 @@ impl Control {
             self.planner_cmd = None;
             return self.finish_step(Some(e));
         }
+        // a manoeuvre under way drives (the back-off only keeps its trail)
+        let manoeuvre = self.manoeuvre_step(now, pose, state);
         let rear = || {
             (
                 self.rear.vouched_at(now, &pose),
@@ -567,14 +585,15 @@ impl Control {
                     && !self.rear.view(now, pose).reverse_seen,
             )
         };
-        if let Some(cmd) = self.back_off.step(
+        let backing = self.back_off.step(
             now,
             pose,
-            target.is_some(),
+            target.is_some() && manoeuvre.is_none(),
             held,
             rear,
             &self.supervisor.limits,
-        ) {
+        );
+        if let Some(cmd) = manoeuvre.or(backing) {
             self.planner_cmd = Some(Stamped::new(now, cmd));
             return self.finish_step(event);
         }
@@ -702,6 +721,8 @@ impl Control {
             detours: self.detours,
             no_way: self.route.as_ref().map_or(0, |r| r.no_way),
             last_doorway_given_up: self.route.as_ref().and_then(|r| r.last_given_up),
+            manoeuvres: self.manoeuvres,
+            manoeuvres_given_up: self.manoeuvres_held,
         }
     }
 
@@ -722,6 +743,10 @@ impl Control {
 /// What the step does when the supervisor holds the way.
 #[path = "control_held.rs"]
 mod held;
+
+/// A manoeuvre on the map where the way stays held.
+#[path = "control_manoeuvre.rs"]
+mod manoeuvre;
 
 /// The search: its turns and where it goes on.
 #[path = "control_search.rs"]

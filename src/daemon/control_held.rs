@@ -159,6 +159,16 @@ impl Control {
                 tracing::info!(?held, "held on the way: trying another side of the object");
             }
         }
+        // no way round: a manoeuvre on the map, where one is found (the
+        // hold starts again)
+        if held_for >= SAY_HELD_AFTER
+            && !self.said_held
+            && held == Held::Supervisor
+            && self.begin_manoeuvre(now, pose)
+        {
+            self.held_since = None;
+            return None;
+        }
         if held_for >= SAY_HELD_AFTER && !self.said_held {
             self.said_held = true;
             // driving to an object, the wait has an end

@@ -184,6 +184,40 @@ impl GridMap {
             .then_some((x as usize, y as usize))
     }
 
+    /// Whether any blocked cell whose centre lies in the odom box
+    /// `lo`–`hi` passes `test` (its centre, odom).
+    pub fn any_blocked_in(
+        &self,
+        lo: [f64; 2],
+        hi: [f64; 2],
+        mut test: impl FnMut([f64; 2]) -> bool,
+    ) -> bool {
+        let r = self.settings.resolution_m;
+        let n = self.n as f64;
+        let span = |a: f64, b: f64, o: f64| {
+            let i0 = ((a - o) / r - 0.5).ceil().max(0.0);
+            let i1 = ((b - o) / r - 0.5).floor().min(n - 1.0);
+            (i0 as usize, i1 as usize, i0 <= i1)
+        };
+        let (x0, x1, xs) = span(lo[0], hi[0], self.origin_m[0]);
+        let (y0, y1, ys) = span(lo[1], hi[1], self.origin_m[1]);
+        if !(xs && ys) {
+            return false;
+        }
+        (y0..=y1).any(|y| {
+            (x0..=x1).any(|x| {
+                let i = y * self.n + x;
+                self.is_blocked(i) && test(self.center(i))
+            })
+        })
+    }
+
+    /// The distance field at odom `p`, m (None: off the map); it must be
+    /// up to date ([`GridMap::update_distances`]).
+    pub fn clearance_at_m(&self, p: [f64; 2]) -> Option<f64> {
+        self.cell(p).map(|i| self.dist[i] as f64)
+    }
+
     /// The cell index of an odom point (None: off the map).
     pub fn cell(&self, p: [f64; 2]) -> Option<usize> {
         self.cell_xy(p).map(|(x, y)| y * self.n + x)
@@ -477,6 +511,17 @@ impl GridMap {
         Some(1.0 + s.w_comfort * tight * tight + unknown)
     }
 
+    /// Whether cell `i` lies under a chair at cell `start` (a way out of a
+    /// tight spot may pass there).
+    fn escape_cells(&self, start: usize) -> impl Fn(usize) -> bool {
+        let n = self.n;
+        let start_xy = (start % n, start / n);
+        let cells = (self.settings.half_width_m / self.settings.resolution_m).ceil() as usize + 1;
+        move |i: usize| {
+            (i % n).abs_diff(start_xy.0) <= cells && (i / n).abs_diff(start_xy.1) <= cells
+        }
+    }
+
     /// Dijkstra (A* with `heuristic`) from `from` over passable cells; a
     /// chair too close to something may leave the cells under it.
     fn search(
@@ -489,13 +534,7 @@ impl GridMap {
         let start = self.cell(from)?;
         let n = self.n;
         let r = self.settings.resolution_m;
-        let start_xy = (start % n, start / n);
-        // the cells under the chair, to get out of a tight spot
-        let escape_cells = (self.settings.half_width_m / r).ceil() as usize + 1;
-        let escape = move |i: usize| {
-            (i % n).abs_diff(start_xy.0) <= escape_cells
-                && (i / n).abs_diff(start_xy.1) <= escape_cells
-        };
+        let escape = self.escape_cells(start);
         let mut g = vec![f32::INFINITY; n * n];
         let mut parent = vec![u32::MAX; n * n];
         let mut heap = BinaryHeap::new();

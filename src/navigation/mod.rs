@@ -8,6 +8,7 @@ pub mod apf;
 pub mod detour;
 pub mod doorway;
 pub mod grid;
+pub mod manoeuvre;
 pub mod map;
 pub mod mpc;
 pub mod planner;

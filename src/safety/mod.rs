@@ -221,7 +221,7 @@ impl Supervisor {
     }
 
     /// How far the footprint's corners reach from base_link, m.
-    fn corner_reach_m(&self) -> f64 {
+    pub fn corner_reach_m(&self) -> f64 {
         self.footprint().corner_reach_m()
     }
 

@@ -1,0 +1,154 @@
+//! What the control step does when the way to the place beside the object
+//! stays held with no detour: a manoeuvre on the chair's map
+//! (`navigation::manoeuvre`: turns on the spot where the corners' circle
+//! is clear, straight crawls forward or back), followed move by move under
+//! the supervisor like any command. Held for a while on it, or out of
+//! time, it is over, said, and the hold goes on as before (the goal is
+//! given up in time).
+
+use super::Control;
+use crate::estimation::goal::GoalState;
+use crate::msg::{Pose2, Stamp, SupervisorState, VelocityCmd};
+use crate::navigation::manoeuvre::{self, Follower, ManoeuvreShape};
+
+/// A manoeuvre held by the supervisor this long without a break is over
+/// (long enough for the person to answer a question about the rear).
+pub(super) const MANOEUVRE_HELD_FOR: std::time::Duration = std::time::Duration::from_secs(12);
+/// A manoeuvre still going after this long is over.
+pub(super) const MANOEUVRE_AT_MOST: std::time::Duration = std::time::Duration::from_secs(150);
+/// Manoeuvres begun at most, per goal.
+pub(super) const MANOEUVRES_PER_GOAL: u32 = 3;
+/// The manoeuvre ends within this of the place beside the object, and
+/// turned within this of facing it (m, rad): the planner does the rest.
+const ENDS_WITHIN_M: f64 = 0.25;
+const ENDS_TURNED_WITHIN_RAD: f64 = 0.6;
+/// A straight move's speed, m/s.
+const MANOEUVRE_MPS: f64 = 0.08;
+
+/// A manoeuvre under way.
+#[derive(Debug, Clone)]
+pub(super) struct Manoeuvre {
+    follower: Follower,
+    since: Stamp,
+    held_since: Option<Stamp>,
+}
+
+impl Control {
+    /// The footprint the manoeuvre keeps clear: the supervisor's at a
+    /// crawl.
+    fn manoeuvre_shape(&self) -> ManoeuvreShape {
+        let l = &self.supervisor.limits;
+        let side_margin_m = l.corridor_margin_slow_m.min(l.corridor_margin_m);
+        ManoeuvreShape {
+            front_m: l.front_offset_m,
+            rear_m: l.rear_offset_m,
+            half_width_m: l.chair_width_m / 2.0,
+            side_margin_m,
+            ahead_m: l.stop_distance_slow_m.min(l.stop_distance_m),
+            turn_radius_m: self.supervisor.corner_reach_m() + side_margin_m,
+        }
+    }
+
+    /// Held on the way to the place beside the object with no way round:
+    /// a manoeuvre there on the map, begun if one is found (true).
+    pub(super) fn begin_manoeuvre(&mut self, now: Stamp, pose: Pose2) -> bool {
+        if !matches!(self.goal.state(), GoalState::Tracking { .. })
+            || self.manoeuvres_for_goal >= MANOEUVRES_PER_GOAL
+        {
+            return false;
+        }
+        let Some(a) = self.goal.approach() else {
+            return false;
+        };
+        let shape = self.manoeuvre_shape();
+        let Some(map) = self.route.as_mut().and_then(|r| r.map.as_mut()) else {
+            return false;
+        };
+        map.update_distances();
+        self.manoeuvres_for_goal += 1;
+        let found = manoeuvre::plan(
+            map,
+            pose,
+            [a.x_m, a.y_m],
+            a.yaw_rad,
+            ENDS_WITHIN_M,
+            ENDS_TURNED_WITHIN_RAD,
+            &shape,
+        );
+        let Some(moves) = found else {
+            tracing::info!(?pose, place = ?a, "manoeuvre: none found on the map");
+            return false;
+        };
+        tracing::info!(?pose, place = ?a, ?moves, "manoeuvre: begun");
+        self.manoeuvres += 1;
+        self.manoeuvre = Some(Manoeuvre {
+            follower: Follower::new(moves),
+            since: now,
+            held_since: None,
+        });
+        self.say(
+            "Something is in my way. I will work my way round it, turning on the spot and \
+             driving straight; say stop to stay here."
+                .to_string(),
+        );
+        true
+    }
+
+    /// The manoeuvre's command this step (None: there is none, or it is
+    /// over). `state`: the supervisor's state after the last step.
+    pub(super) fn manoeuvre_step(
+        &mut self,
+        now: Stamp,
+        pose: Pose2,
+        state: SupervisorState,
+    ) -> Option<VelocityCmd> {
+        if !matches!(self.goal.state(), GoalState::Tracking { .. }) {
+            if !matches!(
+                self.goal.state(),
+                GoalState::Holding { .. } | GoalState::Tracking { .. }
+            ) {
+                self.manoeuvres_for_goal = 0;
+            }
+            if self.manoeuvre.take().is_some() {
+                tracing::info!("manoeuvre: over, no place to go to");
+            }
+            return None;
+        }
+        let turn_radps = self.supervisor.crawl_turn_radps();
+        let m = self.manoeuvre.as_mut()?;
+        let held = state != SupervisorState::Navigating;
+        if !held {
+            m.held_since = None;
+        }
+        let held_for = m.held_since.get_or_insert(now).age_at(now);
+        let over = if held && held_for >= MANOEUVRE_HELD_FOR {
+            Some("held")
+        } else if m.since.age_at(now) >= MANOEUVRE_AT_MOST {
+            Some("out of time")
+        } else {
+            None
+        };
+        let cmd = match over {
+            None => m.follower.command(pose, MANOEUVRE_MPS, turn_radps),
+            Some(_) => None,
+        };
+        if cmd.is_none() {
+            let left = m.follower.left().len();
+            self.manoeuvre = None;
+            match over {
+                Some(why) => {
+                    self.manoeuvres_held += 1;
+                    tracing::warn!(?pose, why, left, "manoeuvre: given up");
+                    self.say("I could not work my way round it.".to_string());
+                }
+                None => tracing::info!(?pose, "manoeuvre: done"),
+            }
+        }
+        cmd
+    }
+
+    /// A manoeuvre is under way.
+    pub(super) fn manoeuvring(&self) -> bool {
+        self.manoeuvre.is_some()
+    }
+}

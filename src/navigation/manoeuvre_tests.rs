@@ -1,0 +1,196 @@
+//! Tests of `navigation::manoeuvre` (split out to keep it readable).
+
+use super::*;
+use crate::navigation::map::MapSettings;
+
+/// The chair's footprint as the supervisor keeps it at a crawl.
+const SHAPE: ManoeuvreShape = ManoeuvreShape {
+    front_m: 0.55,
+    rear_m: 0.45,
+    half_width_m: 0.35,
+    side_margin_m: 0.03,
+    ahead_m: 0.15,
+    turn_radius_m: 0.68,
+};
+
+/// Points of a wall from `a` to `b` (odom), 2 cm apart.
+fn wall(a: [f64; 2], b: [f64; 2]) -> Vec<[f64; 2]> {
+    let len = (b[0] - a[0]).hypot(b[1] - a[1]);
+    let n = (len / 0.02).ceil() as usize;
+    (0..=n)
+        .map(|k| {
+            let t = k as f64 / n as f64;
+            [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]
+        })
+        .collect()
+}
+
+fn map_of(points: &[[f64; 2]]) -> GridMap {
+    let mut map = GridMap::new(MapSettings::default(), [0.0, 0.0]);
+    map.set_camera(points, &[]);
+    map.update_distances();
+    map
+}
+
+/// The chair driven by the follower at 20 Hz, as a unicycle; its poses.
+fn drive(moves: Vec<Move>, start: Pose2) -> Vec<Pose2> {
+    let mut f = Follower::new(moves);
+    let mut pose = start;
+    let mut poses = vec![pose];
+    for _ in 0..20_000 {
+        let Some(cmd) = f.command(pose, 0.08, 0.14) else {
+            return poses;
+        };
+        let dt = 0.05;
+        pose.x_m += cmd.v_mps * pose.theta_rad.cos() * dt;
+        pose.y_m += cmd.v_mps * pose.theta_rad.sin() * dt;
+        pose.theta_rad = wrap_angle(pose.theta_rad + cmd.omega_radps * dt);
+        poses.push(pose);
+    }
+    panic!("the follower never finished");
+}
+
+/// Whether the footprint (no margins) at `pose` holds any of `points`.
+fn touches(pose: &Pose2, points: &[[f64; 2]]) -> bool {
+    let (s, c) = pose.theta_rad.sin_cos();
+    points.iter().any(|q| {
+        let (dx, dy) = (q[0] - pose.x_m, q[1] - pose.y_m);
+        let (x, y) = (c * dx + s * dy, -s * dx + c * dy);
+        (-SHAPE.rear_m..=SHAPE.front_m).contains(&x) && y.abs() <= SHAPE.half_width_m
+    })
+}
+
+#[test]
+fn in_the_open_it_is_a_turn_and_a_straight_drive() {
+    let map = map_of(&[]);
+    let start = Pose2 {
+        x_m: 0.0,
+        y_m: 0.0,
+        theta_rad: 0.0,
+    };
+    let moves = plan(
+        &map,
+        start,
+        [0.0, 2.0],
+        std::f64::consts::FRAC_PI_2,
+        0.08,
+        0.2,
+        &SHAPE,
+    )
+    .expect("a manoeuvre in the open");
+    assert_eq!(moves.len(), 2, "{moves:?}");
+    assert!(matches!(moves[0], Move::Turn { .. }), "{moves:?}");
+    assert!(
+        matches!(moves[1], Move::Straight { forward: true, .. }),
+        "{moves:?}"
+    );
+    let end = *drive(moves, start).last().expect("poses");
+    assert!(end.x_m.hypot(end.y_m - 2.0) <= 0.1, "{end:?}");
+}
+
+/// A 0.85 m doorway in a wall at x = 1 and a wall 1.5 m beyond it: the
+/// chair, facing the doorway, must pass it whole before it can turn left
+/// to the goal along the far wall. Every turn is made where the corners'
+/// circle is clear, and the footprint never touches a wall.
+#[test]
+fn through_a_doorway_it_turns_only_once_past_it() {
+    let mut points = wall([1.0, -4.0], [1.0, -0.425]);
+    points.extend(wall([1.0, 0.425], [1.0, 4.0]));
+    points.extend(wall([2.5 + 0.8, -4.0], [2.5 + 0.8, 4.0]));
+    let map = map_of(&points);
+    let start = Pose2 {
+        x_m: 0.2,
+        y_m: 0.0,
+        theta_rad: 0.0,
+    };
+    let goal = [2.4, 2.0];
+    let moves = plan(
+        &map,
+        start,
+        goal,
+        std::f64::consts::FRAC_PI_2,
+        0.08,
+        0.2,
+        &SHAPE,
+    )
+    .expect("a manoeuvre through the doorway");
+    let mut pose = start;
+    for m in &moves {
+        match *m {
+            Move::Turn { .. } => {
+                let nearest = points
+                    .iter()
+                    .map(|q| (q[0] - pose.x_m).hypot(q[1] - pose.y_m))
+                    .fold(f64::INFINITY, f64::min);
+                assert!(
+                    nearest >= SHAPE.turn_radius_m - 0.05,
+                    "a turn at {pose:?} with a wall {nearest} m away: {moves:?}"
+                );
+            }
+            Move::Straight {
+                to, heading_rad, ..
+            } => {
+                pose = Pose2 {
+                    x_m: to[0],
+                    y_m: to[1],
+                    theta_rad: heading_rad,
+                };
+            }
+        }
+    }
+    let poses = drive(moves, start);
+    for p in &poses {
+        assert!(
+            !touches(p, &points),
+            "the footprint touches a wall at {p:?}"
+        );
+    }
+    let end = *poses.last().expect("poses");
+    assert!(
+        (end.x_m - goal[0]).hypot(end.y_m - goal[1]) <= 0.12,
+        "{end:?}"
+    );
+    assert!(
+        wrap_angle(end.theta_rad - std::f64::consts::FRAC_PI_2).abs() <= 0.25,
+        "{end:?}"
+    );
+}
+
+/// The goal past a wall with no gap the chair fits through (a 0.6 m one):
+/// no manoeuvre.
+#[test]
+fn past_a_wall_with_no_gap_wide_enough_there_is_none() {
+    let mut points = wall([1.0, -4.0], [1.0, -0.3]);
+    points.extend(wall([1.0, 0.3], [1.0, 4.0]));
+    let map = map_of(&points);
+    let start = Pose2 {
+        x_m: 0.0,
+        y_m: 0.0,
+        theta_rad: 0.0,
+    };
+    assert_eq!(plan(&map, start, [2.0, 0.0], 0.0, 0.08, 0.2, &SHAPE), None);
+}
+
+/// Backing up: the chair's front 5 cm from a wall, the goal behind it
+/// facing the same way; the manoeuvre backs up (no turn needed, none
+/// fits with the wall so near).
+#[test]
+fn against_a_wall_it_backs_away() {
+    let points = wall([0.6, -3.0], [0.6, 3.0]);
+    let map = map_of(&points);
+    let start = Pose2 {
+        x_m: 0.0,
+        y_m: 0.0,
+        theta_rad: 0.0,
+    };
+    let moves = plan(&map, start, [-1.0, 0.0], 0.0, 0.08, 0.2, &SHAPE).expect("a way back");
+    assert!(
+        matches!(moves[0], Move::Straight { forward: false, .. }),
+        "{moves:?}"
+    );
+    let end = *drive(moves, start).last().expect("poses");
+    assert!(
+        (end.x_m + 1.0).abs() <= 0.1 && end.y_m.abs() <= 0.1,
+        "{end:?}"
+    );
+}
