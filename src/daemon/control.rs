@@ -561,6 +561,7 @@ impl Control {
         let gave_up = self.tell_if_held(
             now,
             pose,
+            &o_turn.points_base,
             match (target.is_some(), held, stood_still || in_place) {
                 (false, _, _) => None,
                 (true, true, _) => Some(held::Held::Supervisor),

@@ -141,6 +141,7 @@ impl Control {
         &mut self,
         now: Stamp,
         pose: crate::msg::Pose2,
+        seen_now_base: &[[f32; 2]],
         held: Option<Held>,
     ) -> Option<crate::estimation::goal::GoalEvent> {
         let Some(held) = held else {
@@ -164,7 +165,7 @@ impl Control {
         if held_for >= SAY_HELD_AFTER
             && !self.said_held
             && held == Held::Supervisor
-            && self.begin_manoeuvre(now, pose)
+            && self.begin_manoeuvre(now, pose, seen_now_base)
         {
             self.held_since = None;
             return None;

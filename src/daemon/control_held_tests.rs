@@ -490,24 +490,50 @@ fn held_or_standing_still_on_the_way_is_said_once_after_the_time() {
     let mut c = control(false);
     let said = |c: &mut Control| std::mem::take(&mut c.said);
     // standing still with nothing holding it: said after SAY_HELD_AFTER
-    c.tell_if_held(at(0), Pose2::default(), Some(held::Held::StandingStill));
-    c.tell_if_held(at(9_900), Pose2::default(), Some(held::Held::StandingStill));
+    c.tell_if_held(
+        at(0),
+        Pose2::default(),
+        &[],
+        Some(held::Held::StandingStill),
+    );
+    c.tell_if_held(
+        at(9_900),
+        Pose2::default(),
+        &[],
+        Some(held::Held::StandingStill),
+    );
     assert!(said(&mut c).is_empty());
     c.tell_if_held(
         at(10_000),
         Pose2::default(),
+        &[],
         Some(held::Held::StandingStill),
     );
     let s = said(&mut c);
     assert_eq!(s.len(), 1, "{s:?}");
     assert!(s[0].contains("cannot find how to get nearer"), "{s:?}");
     // once, though it goes on (and a hold after it is the same wait)
-    c.tell_if_held(at(12_000), Pose2::default(), Some(held::Held::Supervisor));
+    c.tell_if_held(
+        at(12_000),
+        Pose2::default(),
+        &[],
+        Some(held::Held::Supervisor),
+    );
     assert!(said(&mut c).is_empty());
     // moving again ends it; a supervisor's hold is its own sentence
-    c.tell_if_held(at(13_000), Pose2::default(), None);
-    c.tell_if_held(at(14_000), Pose2::default(), Some(held::Held::Supervisor));
-    c.tell_if_held(at(24_000), Pose2::default(), Some(held::Held::Supervisor));
+    c.tell_if_held(at(13_000), Pose2::default(), &[], None);
+    c.tell_if_held(
+        at(14_000),
+        Pose2::default(),
+        &[],
+        Some(held::Held::Supervisor),
+    );
+    c.tell_if_held(
+        at(24_000),
+        Pose2::default(),
+        &[],
+        Some(held::Held::Supervisor),
+    );
     let s = said(&mut c);
     assert_eq!(s.len(), 1, "{s:?}");
     assert!(s[0].contains("Something is in my way"), "{s:?}");

@@ -106,6 +106,11 @@ impl Control {
                     at.is_some_and(|at| self.route.as_mut().is_some_and(|r| r.refuse_back_up(at)));
                 if refused {
                     self.say("I will not back up.".into());
+                } else if self.manoeuvring() {
+                    // a manoeuvre's reverse: it is over, and the chair
+                    // stays held where it is (the goal given up in time)
+                    self.end_manoeuvre("not clear behind");
+                    self.say("I will not back up.".into());
                 } else if let Some(p) = asked_at.filter(|_| self.back_off.backing()) {
                     // backing off only made room for another try: the
                     // chair stays held where it is, and goes on when the
@@ -123,6 +128,9 @@ impl Control {
                 // another way (the planner's arcs, another place to look
                 // from), and "stop" stays
                 self.turn_refused_at = self.asked_rear.take();
+                if self.manoeuvring() {
+                    self.end_manoeuvre("not clear around");
+                }
                 if self.asked_around {
                     self.floor_refused_at = self.turn_refused_at;
                     tracing::info!(at = ?self.floor_refused_at, "not clear around: the floor never seen here holds the chair until seen");

@@ -50,8 +50,15 @@ impl Control {
     }
 
     /// Held on the way to the place beside the object with no way round:
-    /// a manoeuvre there on the map, begun if one is found (true).
-    pub(super) fn begin_manoeuvre(&mut self, now: Stamp, pose: Pose2) -> bool {
+    /// a manoeuvre there on the map, begun if one is found (true). It
+    /// keeps clear of `seen_now_base` too (base_link: what the supervisor
+    /// checks a turn on the spot against now).
+    pub(super) fn begin_manoeuvre(
+        &mut self,
+        now: Stamp,
+        pose: Pose2,
+        seen_now_base: &[[f32; 2]],
+    ) -> bool {
         if !matches!(self.goal.state(), GoalState::Tracking { .. })
             || self.manoeuvres_for_goal >= MANOEUVRES_PER_GOAL
         {
@@ -66,8 +73,17 @@ impl Control {
         };
         map.update_distances();
         self.manoeuvres_for_goal += 1;
+        let (sin, cos) = pose.theta_rad.sin_cos();
+        let seen_now: Vec<[f64; 2]> = seen_now_base
+            .iter()
+            .map(|q| {
+                let (x, y) = (q[0] as f64, q[1] as f64);
+                [pose.x_m + cos * x - sin * y, pose.y_m + sin * x + cos * y]
+            })
+            .collect();
         let found = manoeuvre::plan(
             map,
+            &seen_now,
             pose,
             [a.x_m, a.y_m],
             a.yaw_rad,
@@ -145,6 +161,14 @@ impl Control {
             }
         }
         cmd
+    }
+
+    /// The person said no to a manoeuvre's move (`why`): it is over.
+    pub(super) fn end_manoeuvre(&mut self, why: &str) {
+        if let Some(m) = self.manoeuvre.take() {
+            self.manoeuvres_held += 1;
+            tracing::warn!(why, left = m.follower.left().len(), "manoeuvre: given up");
+        }
     }
 
     /// A manoeuvre is under way.

@@ -84,12 +84,84 @@ struct Node {
     parent: u32,
 }
 
+/// Points (odom) sorted into the search's cells, to test a box against.
+struct Buckets {
+    lo: [f64; 2],
+    nx: usize,
+    ny: usize,
+    /// Cell c's points are `points[first[c]..first[c + 1]]`.
+    first: Vec<u32>,
+    points: Vec<[f64; 2]>,
+}
+
+impl Buckets {
+    fn new(all: &[[f64; 2]], lo: [f64; 2], nx: usize, ny: usize) -> Self {
+        let cell = |p: &[f64; 2]| -> Option<usize> {
+            let (i, j) = (
+                ((p[0] - lo[0]) / CELL_M).floor(),
+                ((p[1] - lo[1]) / CELL_M).floor(),
+            );
+            (i >= 0.0 && j >= 0.0 && (i as usize) < nx && (j as usize) < ny)
+                .then(|| j as usize * nx + i as usize)
+        };
+        let mut keyed: Vec<(usize, [f64; 2])> = all
+            .iter()
+            .filter_map(|p| cell(p).map(|c| (c, *p)))
+            .collect();
+        keyed.sort_by_key(|(c, _)| *c);
+        let mut first = vec![0u32; nx * ny + 1];
+        for (c, _) in &keyed {
+            first[c + 1] += 1;
+        }
+        for c in 0..nx * ny {
+            first[c + 1] += first[c];
+        }
+        Buckets {
+            lo,
+            nx,
+            ny,
+            first,
+            points: keyed.into_iter().map(|(_, p)| p).collect(),
+        }
+    }
+
+    /// Whether any point in the box `blo`–`bhi` passes `test`.
+    fn any_in(&self, blo: [f64; 2], bhi: [f64; 2], mut test: impl FnMut([f64; 2]) -> bool) -> bool {
+        if self.points.is_empty() {
+            return false;
+        }
+        let span = |a: f64, b: f64, o: f64, n: usize| {
+            let i0 = ((a - o) / CELL_M).floor().max(0.0) as usize;
+            let i1 = ((b - o) / CELL_M).floor().min(n as f64 - 1.0);
+            (i0, i1)
+        };
+        let (x0, x1) = span(blo[0], bhi[0], self.lo[0], self.nx);
+        let (y0, y1) = span(blo[1], bhi[1], self.lo[1], self.ny);
+        if x1 < 0.0 || y1 < 0.0 {
+            return false;
+        }
+        (y0..=y1 as usize).any(|y| {
+            (x0..=x1 as usize).any(|x| {
+                let c = y * self.nx + x;
+                self.points[self.first[c] as usize..self.first[c + 1] as usize]
+                    .iter()
+                    .any(|p| test(*p))
+            })
+        })
+    }
+}
+
 /// The manoeuvre from `start` to base_link within `within_m` of `goal` and
 /// heading within `yaw_tol_rad` of `goal_yaw_rad` (odom) on `map` (its
 /// distance field up to date), or None where none is found within the
-/// bounds.
+/// bounds. `seen_now`: the points the supervisor holds the chair for now
+/// (odom: the lasers', the camera's, the rear it remembers, the
+/// drop-offs), kept clear as the map's blocked cells are; the map may
+/// have let go of some of them, or never held them.
+#[allow(clippy::too_many_arguments)]
 pub fn plan(
     map: &GridMap,
+    seen_now: &[[f64; 2]],
     start: Pose2,
     goal: [f64; 2],
     goal_yaw_rad: f64,
@@ -174,30 +246,30 @@ pub fn plan(
     let reach_m = (shape.front_m.max(shape.rear_m) + shape.ahead_m)
         .hypot(shape.half_width_m + shape.side_margin_m);
     // the footprint at `p`, heading k, moving `dir` (+1 forward, -1 back)
+    let seen_now = Buckets::new(seen_now, lo, nx, ny);
     let straight_clear = |p: [f64; 2], k: usize, dir: f64| -> bool {
-        if map.clearance_at_m(p).is_some_and(|d| d - r >= reach_m) {
-            return true;
-        }
         let (s, c) = heading(k).sin_cos();
         let x_lo = -shape.rear_m - if dir < 0.0 { shape.ahead_m } else { 0.0 };
         let x_hi = shape.front_m + if dir > 0.0 { shape.ahead_m } else { 0.0 };
         let half = shape.half_width_m + shape.side_margin_m;
         let box_lo = [p[0] - reach_m, p[1] - reach_m];
         let box_hi = [p[0] + reach_m, p[1] + reach_m];
-        !map.any_blocked_in(box_lo, box_hi, |q| {
+        let inside = |q: [f64; 2]| {
             let (dx, dy) = (q[0] - p[0], q[1] - p[1]);
             let (x, y) = (c * dx + s * dy, -s * dx + c * dy);
             x >= x_lo && x <= x_hi && y.abs() <= half
-        })
+        };
+        let map_clear = map.clearance_at_m(p).is_some_and(|d| d - r >= reach_m)
+            || !map.any_blocked_in(box_lo, box_hi, inside);
+        map_clear && !seen_now.any_in(box_lo, box_hi, inside)
     };
     let turn_clear = |p: [f64; 2]| -> bool {
         let rr = shape.turn_radius_m;
-        if map.clearance_at_m(p).is_some_and(|d| d - r >= rr) {
-            return true;
-        }
-        !map.any_blocked_in([p[0] - rr, p[1] - rr], [p[0] + rr, p[1] + rr], |q| {
-            (q[0] - p[0]).hypot(q[1] - p[1]) < rr
-        })
+        let (box_lo, box_hi) = ([p[0] - rr, p[1] - rr], [p[0] + rr, p[1] + rr]);
+        let inside = |q: [f64; 2]| (q[0] - p[0]).hypot(q[1] - p[1]) < rr;
+        let map_clear = map.clearance_at_m(p).is_some_and(|d| d - r >= rr)
+            || !map.any_blocked_in(box_lo, box_hi, inside);
+        map_clear && !seen_now.any_in(box_lo, box_hi, inside)
     };
     // every turn is a move of its own: the heading left to turn to the
     // goal's costs at least its turn steps (the guide stays a lower bound)

@@ -70,6 +70,7 @@ fn in_the_open_it_is_a_turn_and_a_straight_drive() {
     };
     let moves = plan(
         &map,
+        &[],
         start,
         [0.0, 2.0],
         std::f64::consts::FRAC_PI_2,
@@ -106,6 +107,7 @@ fn through_a_doorway_it_turns_only_once_past_it() {
     let goal = [2.4, 2.0];
     let moves = plan(
         &map,
+        &[],
         start,
         goal,
         std::f64::consts::FRAC_PI_2,
@@ -168,7 +170,10 @@ fn past_a_wall_with_no_gap_wide_enough_there_is_none() {
         y_m: 0.0,
         theta_rad: 0.0,
     };
-    assert_eq!(plan(&map, start, [2.0, 0.0], 0.0, 0.08, 0.2, &SHAPE), None);
+    assert_eq!(
+        plan(&map, &[], start, [2.0, 0.0], 0.0, 0.08, 0.2, &SHAPE),
+        None
+    );
 }
 
 /// Backing up: the chair's front 5 cm from a wall, the goal behind it
@@ -183,7 +188,7 @@ fn against_a_wall_it_backs_away() {
         y_m: 0.0,
         theta_rad: 0.0,
     };
-    let moves = plan(&map, start, [-1.0, 0.0], 0.0, 0.08, 0.2, &SHAPE).expect("a way back");
+    let moves = plan(&map, &[], start, [-1.0, 0.0], 0.0, 0.08, 0.2, &SHAPE).expect("a way back");
     assert!(
         matches!(moves[0], Move::Straight { forward: false, .. }),
         "{moves:?}"
@@ -193,4 +198,36 @@ fn against_a_wall_it_backs_away() {
         (end.x_m + 1.0).abs() <= 0.1 && end.y_m.abs() <= 0.1,
         "{end:?}"
     );
+}
+
+/// What the supervisor sees now counts as the map does: the same wall
+/// with no gap wide enough, given only as the points seen now (the map
+/// empty), leaves no manoeuvre; a gap of 0.85 m in it leaves one.
+#[test]
+fn the_points_seen_now_are_kept_clear_as_the_map_is() {
+    let map = map_of(&[]);
+    let start = Pose2 {
+        x_m: 0.0,
+        y_m: 0.0,
+        theta_rad: 0.0,
+    };
+    let with_gap = |gap_m: f64| {
+        let mut points = wall([1.0, -4.0], [1.0, -gap_m / 2.0]);
+        points.extend(wall([1.0, gap_m / 2.0], [1.0, 4.0]));
+        points
+    };
+    let narrow = with_gap(0.6);
+    assert_eq!(
+        plan(&map, &narrow, start, [2.0, 0.0], 0.0, 0.08, 0.2, &SHAPE),
+        None
+    );
+    let wide = with_gap(0.85);
+    let moves = plan(&map, &wide, start, [2.0, 0.0], 0.0, 0.08, 0.2, &SHAPE)
+        .expect("a manoeuvre through the gap");
+    for p in drive(moves, start) {
+        assert!(
+            !touches(&p, &wide),
+            "the footprint touches the wall at {p:?}"
+        );
+    }
 }
