@@ -601,3 +601,64 @@ fn held_on_the_way_to_an_object_without_a_break_it_gives_the_goal_up_and_stops()
         assert_eq!(*c.goal_state(), GoalState::None);
     }
 }
+
+/// Held on the way to a chair 3 m ahead by a box across the way just
+/// before the chair's front, with the map of what it has seen: after
+/// the wait with no way round, a manoeuvre on the map begins (said, and
+/// the step's command is its first move, which the supervisor lets out);
+/// the person's "no" to its reverse ends it, and the chair stays held on
+/// its way to the chair (the trip goes on: not "Staying here.").
+#[test]
+fn held_with_no_way_round_it_works_its_way_round_on_the_map() {
+    let mut c = control(true).with_map(MapSettings::default());
+    c.supervisor.limits.turn_needs_seen_rear = true;
+    c.on_input(UserInput::Goto("chair".into()));
+    let mut tracker = Tracker::new(crate::config::Settings::defaults().tracker);
+    let chair = chair_at(3.0);
+    let mut points_base: Vec<[f32; 2]> = (-8..=8).map(|k| [0.68, k as f32 * 0.05]).collect();
+    points_base.push([4.0, 0.0]);
+    let mut said = Vec::new();
+    let mut began_at = None;
+    for k in 0..600u64 {
+        let now = at(50 * k);
+        tracker.update(now, std::slice::from_ref(&chair), |_| true);
+        let (mut o, odo) = fresh(now);
+        o.value.points_base = points_base.clone();
+        let out = c.step(
+            now,
+            ControlInputs {
+                obstacles: Some(&o),
+                odometry: Some(&odo),
+                tracker: &tracker,
+                camera: None,
+            },
+        );
+        let begun = out.said.iter().any(|s| s.contains("work my way round"));
+        said.extend(out.said);
+        if begun {
+            began_at = Some(k);
+            break;
+        }
+    }
+    let k = began_at.unwrap_or_else(|| panic!("no manoeuvre: {said:?}"));
+    assert!(c.manoeuvring());
+    assert_eq!(c.navigation_stats().manoeuvres, 1);
+    // its first move: backing away from the box (no turn fits with the
+    // box inside the corners' circle)
+    let first = c.manoeuvre_step(
+        at(50 * k + 50),
+        Pose2::default(),
+        SupervisorState::Navigating,
+    );
+    assert!(first.is_some_and(|m| m.v_mps < 0.0), "{first:?}");
+    // the person says it is not clear behind
+    c.asked_rear = Some(Pose2::default());
+    c.asked_back_up = true;
+    c.on_input(UserInput::No);
+    let said: Vec<String> = std::mem::take(&mut c.said);
+    assert!(said.iter().any(|s| s == "I will not back up."), "{said:?}");
+    assert!(!said.iter().any(|s| s.contains("Staying here")), "{said:?}");
+    assert!(!c.manoeuvring());
+    assert_eq!(c.navigation_stats().manoeuvres_given_up, 1);
+    assert!(matches!(c.goal.state(), GoalState::Tracking { .. }));
+}

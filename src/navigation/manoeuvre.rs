@@ -79,7 +79,11 @@ enum Kind {
 #[derive(Clone, Copy)]
 struct Node {
     p: [f64; 2],
+    /// The lattice's heading, and the heading itself (the start's until
+    /// the first turn: the chair drives on as it stands, not as the
+    /// lattice rounds it), rad.
     k: usize,
+    theta: f64,
     kind: Kind,
     parent: u32,
 }
@@ -247,8 +251,8 @@ pub fn plan(
         .hypot(shape.half_width_m + shape.side_margin_m);
     // the footprint at `p`, heading k, moving `dir` (+1 forward, -1 back)
     let seen_now = Buckets::new(seen_now, lo, nx, ny);
-    let straight_clear = |p: [f64; 2], k: usize, dir: f64| -> bool {
-        let (s, c) = heading(k).sin_cos();
+    let straight_clear = |p: [f64; 2], theta: f64, dir: f64| -> bool {
+        let (s, c) = theta.sin_cos();
         let x_lo = -shape.rear_m - if dir < 0.0 { shape.ahead_m } else { 0.0 };
         let x_hi = shape.front_m + if dir > 0.0 { shape.ahead_m } else { 0.0 };
         let half = shape.half_width_m + shape.side_margin_m;
@@ -287,6 +291,7 @@ pub fn plan(
     let mut nodes = vec![Node {
         p: [start.x_m, start.y_m],
         k: k0,
+        theta: start.theta_rad,
         kind: Kind::Start,
         parent: u32::MAX,
     }];
@@ -303,30 +308,26 @@ pub fn plan(
         if g > best[key(c, node.k)] + 1e-3 {
             continue;
         }
-        let yaw_off = wrap_angle(heading(node.k) - goal_yaw_rad).abs();
+        let yaw_off = wrap_angle(node.theta - goal_yaw_rad).abs();
         if (node.p[0] - goal[0]).hypot(node.p[1] - goal[1]) <= within_m && yaw_off <= yaw_tol_rad {
-            return Some(moves(&nodes, id as usize, heading));
+            return Some(moves(&nodes, id as usize));
         }
         expanded += 1;
         if expanded > MAX_EXPANDED {
             return None;
         }
-        let (s, co) = heading(node.k).sin_cos();
-        let mut next: Vec<(Kind, [f64; 2], usize, f64)> = Vec::with_capacity(4);
+        let (s, co) = node.theta.sin_cos();
+        let mut next: Vec<(Kind, [f64; 2], usize, f64, f64)> = Vec::with_capacity(4);
         for (kind, dir) in [(Kind::Forward, 1.0), (Kind::Back, -1.0)] {
             let p = [node.p[0] + dir * STEP_M * co, node.p[1] + dir * STEP_M * s];
             let factor = if dir < 0.0 { REVERSE_FACTOR } else { 1.0 };
-            next.push((kind, p, node.k, STEP_M * S_PER_M * factor));
+            next.push((kind, p, node.k, node.theta, STEP_M * S_PER_M * factor));
         }
         for dk in [1, HEADINGS - 1] {
-            next.push((
-                Kind::Turn,
-                node.p,
-                (node.k + dk) % HEADINGS,
-                S_PER_TURN_STEP,
-            ));
+            let k = (node.k + dk) % HEADINGS;
+            next.push((Kind::Turn, node.p, k, heading(k), S_PER_TURN_STEP));
         }
-        for (kind, p, k, cost) in next {
+        for (kind, p, k, theta, cost) in next {
             let Some(c2) = cell(p) else { continue };
             if !to_goal[c2].is_finite() {
                 continue;
@@ -343,8 +344,8 @@ pub fn plan(
             }
             let clear = match kind {
                 Kind::Turn => *turn_ok[c2].get_or_insert_with(|| turn_clear(p)),
-                Kind::Forward => straight_clear(p, k, 1.0),
-                Kind::Back => straight_clear(p, k, -1.0),
+                Kind::Forward => straight_clear(p, theta, 1.0),
+                Kind::Back => straight_clear(p, theta, -1.0),
                 Kind::Start => false,
             };
             if !clear {
@@ -354,6 +355,7 @@ pub fn plan(
             nodes.push(Node {
                 p,
                 k,
+                theta,
                 kind,
                 parent: id,
             });
@@ -369,7 +371,7 @@ pub fn plan(
 }
 
 /// The moves from the start to node `end`, each run of one kind as one.
-fn moves(nodes: &[Node], end: usize, heading: impl Fn(usize) -> f64) -> Vec<Move> {
+fn moves(nodes: &[Node], end: usize) -> Vec<Move> {
     let mut chain = vec![end];
     let mut i = end;
     while nodes[i].parent != u32::MAX {
@@ -383,11 +385,11 @@ fn moves(nodes: &[Node], end: usize, heading: impl Fn(usize) -> f64) -> Vec<Move
         let n = nodes[i];
         let m = match n.kind {
             Kind::Turn => Move::Turn {
-                to_rad: wrap_angle(heading(n.k)),
+                to_rad: wrap_angle(n.theta),
             },
             Kind::Forward | Kind::Back => Move::Straight {
                 to: n.p,
-                heading_rad: wrap_angle(heading(n.k)),
+                heading_rad: wrap_angle(n.theta),
                 forward: n.kind == Kind::Forward,
             },
             Kind::Start => continue,
