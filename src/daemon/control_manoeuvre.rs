@@ -22,6 +22,9 @@ pub(super) const MANOEUVRES_PER_GOAL: u32 = 3;
 /// turned within this of facing it (m, rad): the planner does the rest.
 const ENDS_WITHIN_M: f64 = 0.25;
 const ENDS_TURNED_WITHIN_RAD: f64 = 0.6;
+/// Searching, the manoeuvre ends within this of the place to look from,
+/// m.
+const SEARCH_ENDS_WITHIN_M: f64 = 0.3;
 /// A straight move's speed, m/s.
 const MANOEUVRE_MPS: f64 = 0.08;
 
@@ -29,6 +32,9 @@ const MANOEUVRE_MPS: f64 = 0.08;
 #[derive(Debug, Clone)]
 pub(super) struct Manoeuvre {
     follower: Follower,
+    /// Planned to the place beside the object (else to a place to look
+    /// from): over when the goal keeper's state is no longer that.
+    tracking: bool,
     since: Stamp,
     held_since: Option<Stamp>,
 }
@@ -59,14 +65,35 @@ impl Control {
         pose: Pose2,
         seen_now_base: &[[f32; 2]],
     ) -> bool {
-        if !matches!(self.goal.state(), GoalState::Tracking { .. })
-            || self.manoeuvres_for_goal >= MANOEUVRES_PER_GOAL
-        {
+        if self.manoeuvres_for_goal >= MANOEUVRES_PER_GOAL {
             return false;
         }
-        let Some(a) = self.goal.approach() else {
-            return false;
+        // to the place beside the object, facing it; or, searching, to
+        // the place to look from, however turned
+        let (to, yaw_rad, within_m, turned_within_rad) = match self.goal.state() {
+            GoalState::Tracking { .. } => {
+                let Some(a) = self.goal.approach() else {
+                    return false;
+                };
+                // the object beside it already: held on, the trip ends
+                // here as near as it safely goes (a manoeuvre would take
+                // it away)
+                if self.goal.beside_at_give_up(pose) {
+                    return false;
+                }
+                (
+                    [a.x_m, a.y_m],
+                    a.yaw_rad,
+                    ENDS_WITHIN_M,
+                    ENDS_TURNED_WITHIN_RAD,
+                )
+            }
+            GoalState::Exploring { target, .. } => {
+                (*target, 0.0, SEARCH_ENDS_WITHIN_M, std::f64::consts::PI)
+            }
+            _ => return false,
         };
+        let tracking = matches!(self.goal.state(), GoalState::Tracking { .. });
         let shape = self.manoeuvre_shape();
         let Some(map) = self.route.as_mut().and_then(|r| r.map.as_mut()) else {
             return false;
@@ -85,20 +112,21 @@ impl Control {
             map,
             &seen_now,
             pose,
-            [a.x_m, a.y_m],
-            a.yaw_rad,
-            ENDS_WITHIN_M,
-            ENDS_TURNED_WITHIN_RAD,
+            to,
+            yaw_rad,
+            within_m,
+            turned_within_rad,
             &shape,
         );
         let Some(moves) = found else {
-            tracing::info!(?pose, place = ?a, "manoeuvre: none found on the map");
+            tracing::info!(?pose, ?to, "manoeuvre: none found on the map");
             return false;
         };
-        tracing::info!(?pose, place = ?a, ?moves, "manoeuvre: begun");
+        tracing::info!(?pose, ?to, ?moves, "manoeuvre: begun");
         self.manoeuvres += 1;
         self.manoeuvre = Some(Manoeuvre {
             follower: Follower::new(moves),
+            tracking,
             since: now,
             held_since: None,
         });
@@ -118,16 +146,21 @@ impl Control {
         pose: Pose2,
         state: SupervisorState,
     ) -> Option<VelocityCmd> {
-        if !matches!(self.goal.state(), GoalState::Tracking { .. }) {
-            if !matches!(
-                self.goal.state(),
-                GoalState::Holding { .. } | GoalState::Tracking { .. }
-            ) {
-                self.manoeuvres_for_goal = 0;
-            }
-            if self.manoeuvre.take().is_some() {
-                tracing::info!("manoeuvre: over, no place to go to");
-            }
+        if matches!(
+            self.goal.state(),
+            GoalState::None | GoalState::Reached { .. }
+        ) {
+            self.manoeuvres_for_goal = 0;
+        }
+        let tracking = matches!(self.goal.state(), GoalState::Tracking { .. });
+        let exploring = matches!(self.goal.state(), GoalState::Exploring { .. });
+        if self
+            .manoeuvre
+            .as_ref()
+            .is_some_and(|m| !(m.tracking && tracking || !m.tracking && exploring))
+        {
+            self.manoeuvre = None;
+            tracing::info!("manoeuvre: over, the goal changed");
             return None;
         }
         let turn_radps = self.supervisor.crawl_turn_radps();

@@ -426,15 +426,21 @@ impl GoalKeeper {
             return None;
         };
         let label = label.clone();
-        let beside = self.last_confidence >= TRUSTED_OUT_OF_SIGHT
-            && self
-                .off_standoff_m(chair)
-                .is_some_and(|d| d <= BESIDE_AT_GIVE_UP_M);
-        if beside {
+        if self.beside_at_give_up(chair) {
             return self.end_here(chair);
         }
         self.state = GoalState::None;
         Some(GoalEvent::GaveUp { label, held_s })
+    }
+
+    /// Whether a trip held for good with the chair at `chair` would end
+    /// there, as near as it safely goes ([`GoalKeeper::give_up`]: the
+    /// object beside it, at the place's distance from its box).
+    pub fn beside_at_give_up(&self, chair: Pose2) -> bool {
+        self.last_confidence >= TRUSTED_OUT_OF_SIGHT
+            && self
+                .off_standoff_m(chair)
+                .is_some_and(|d| d <= BESIDE_AT_GIVE_UP_M)
     }
 
     /// The next place to search (odom), or None: no place is left, and the
