@@ -321,6 +321,7 @@ impl Control {
         }
         self.goal.clear();
         self.planner_cmd = None;
+        self.manoeuvre = None;
     }
 
     fn say(&mut self, s: String) {

@@ -602,28 +602,29 @@ fn held_on_the_way_to_an_object_without_a_break_it_gives_the_goal_up_and_stops()
     }
 }
 
-/// Held on the way to a chair 3 m ahead by a box across the way just
-/// before the chair's front, with the map of what it has seen: after
-/// the wait with no way round, a manoeuvre on the map begins (said, and
-/// the step's command is its first move, which the supervisor lets out);
-/// the person's "no" to its reverse ends it, and the chair stays held on
-/// its way to the chair (the trip goes on: not "Staying here.").
-#[test]
-fn held_with_no_way_round_it_works_its_way_round_on_the_map() {
+/// A box across the way just before the chair's front (and the room's
+/// far wall), as the lasers see it.
+fn box_across() -> Vec<[f32; 2]> {
+    let mut points_base: Vec<[f32; 2]> = (-8..=8).map(|k| [0.68, k as f32 * 0.05]).collect();
+    points_base.push([4.0, 0.0]);
+    points_base
+}
+
+/// Going to a chair 3 m ahead with the map of what it has seen, held by
+/// [`box_across`] until a manoeuvre begins (None: none began in 30 s);
+/// the control, the tracker, the step it began at, and what was said.
+fn held_going_to_a_chair_3_m_ahead() -> (Control, Tracker, Option<u64>, Vec<String>) {
     let mut c = control(true).with_map(MapSettings::default());
     c.supervisor.limits.turn_needs_seen_rear = true;
     c.on_input(UserInput::Goto("chair".into()));
     let mut tracker = Tracker::new(crate::config::Settings::defaults().tracker);
     let chair = chair_at(3.0);
-    let mut points_base: Vec<[f32; 2]> = (-8..=8).map(|k| [0.68, k as f32 * 0.05]).collect();
-    points_base.push([4.0, 0.0]);
     let mut said = Vec::new();
-    let mut began_at = None;
     for k in 0..600u64 {
         let now = at(50 * k);
         tracker.update(now, std::slice::from_ref(&chair), |_| true);
         let (mut o, odo) = fresh(now);
-        o.value.points_base = points_base.clone();
+        o.value.points_base = box_across();
         let out = c.step(
             now,
             ControlInputs {
@@ -636,15 +637,29 @@ fn held_with_no_way_round_it_works_its_way_round_on_the_map() {
         let begun = out.said.iter().any(|s| s.contains("work my way round"));
         said.extend(out.said);
         if begun {
-            began_at = Some(k);
-            break;
+            return (c, tracker, Some(k), said);
         }
     }
-    let k = began_at.unwrap_or_else(|| panic!("no manoeuvre: {said:?}"));
+    (c, tracker, None, said)
+}
+
+/// Held on the way to a chair by a box across the way, with the map of
+/// what it has seen: after the wait with no way round, a manoeuvre on
+/// the map begins (said; its first move backs away from the box, no turn
+/// fitting with the box inside the corners' circle); the person's "no"
+/// to its reverse ends it, and the chair stays held on its way to the
+/// chair (the trip goes on: not "Staying here.").
+#[test]
+fn held_with_no_way_round_it_works_its_way_round_on_the_map() {
+    let (mut c, _, began, said) = held_going_to_a_chair_3_m_ahead();
+    let k = began.unwrap_or_else(|| panic!("no manoeuvre: {said:?}"));
+    // after the hold's 10 s with no way round (the back-off asked about)
+    assert!(
+        k * 50 >= SAY_HELD_AFTER.as_millis() as u64,
+        "began at step {k}"
+    );
     assert!(c.manoeuvring());
     assert_eq!(c.navigation_stats().manoeuvres, 1);
-    // its first move: backing away from the box (no turn fits with the
-    // box inside the corners' circle)
     let first = c.manoeuvre_step(
         at(50 * k + 50),
         Pose2::default(),
@@ -661,4 +676,39 @@ fn held_with_no_way_round_it_works_its_way_round_on_the_map() {
     assert!(!c.manoeuvring());
     assert_eq!(c.navigation_stats().manoeuvres_given_up, 1);
     assert!(matches!(c.goal.state(), GoalState::Tracking { .. }));
+}
+
+/// "Stop" during a manoeuvre ends it at once: the chair's command is
+/// zero from the next step, and the goal waits for "go".
+#[test]
+fn stop_during_a_manoeuvre_ends_it_at_once() {
+    let (mut c, tracker, began, said) = held_going_to_a_chair_3_m_ahead();
+    let k = began.unwrap_or_else(|| panic!("no manoeuvre: {said:?}"));
+    c.on_input(UserInput::Stop);
+    assert!(!c.manoeuvring());
+    let out = step_with_points(&mut c, 50 * (k + 1), &tracker, box_across());
+    assert_eq!(out.cmd.cmd, VelocityCmd::default());
+    assert!(!c.manoeuvring());
+}
+
+/// Searching (a place to look from 2 m ahead), held by the same box with
+/// no way round: no manoeuvre (the search gives a held place up for
+/// another); the chair says it is held.
+#[test]
+fn held_with_no_way_round_while_searching_it_does_not_manoeuvre() {
+    let mut c = control(false).with_map(MapSettings::default());
+    c.on_input(UserInput::Goto("chair".into()));
+    step_empty(&mut c, 0);
+    c.goal.explore(at(0), Some([2.0, 0.0]));
+    let tracker = Tracker::new(crate::config::Settings::defaults().tracker);
+    let mut said = Vec::new();
+    for k in 1..=300u64 {
+        said.extend(step_with_points(&mut c, 50 * k, &tracker, box_across()).said);
+        assert!(!c.manoeuvring(), "step {k}: {said:?}");
+    }
+    assert!(
+        said.iter().any(|s| s.contains("cannot find a way round")),
+        "{said:?}"
+    );
+    assert_eq!(c.navigation_stats().manoeuvres, 0);
 }

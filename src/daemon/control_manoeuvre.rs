@@ -22,9 +22,6 @@ pub(super) const MANOEUVRES_PER_GOAL: u32 = 3;
 /// turned within this of facing it (m, rad): the planner does the rest.
 const ENDS_WITHIN_M: f64 = 0.25;
 const ENDS_TURNED_WITHIN_RAD: f64 = 0.6;
-/// Searching, the manoeuvre ends within this of the place to look from,
-/// m.
-const SEARCH_ENDS_WITHIN_M: f64 = 0.3;
 /// A straight move's speed, m/s.
 const MANOEUVRE_MPS: f64 = 0.08;
 
@@ -32,9 +29,6 @@ const MANOEUVRE_MPS: f64 = 0.08;
 #[derive(Debug, Clone)]
 pub(super) struct Manoeuvre {
     follower: Follower,
-    /// Planned to the place beside the object (else to a place to look
-    /// from): over when the goal keeper's state is no longer that.
-    tracking: bool,
     since: Stamp,
     held_since: Option<Stamp>,
 }
@@ -68,32 +62,21 @@ impl Control {
         if self.manoeuvres_for_goal >= MANOEUVRES_PER_GOAL {
             return false;
         }
-        // to the place beside the object, facing it; or, searching, to
-        // the place to look from, however turned
-        let (to, yaw_rad, within_m, turned_within_rad) = match self.goal.state() {
-            GoalState::Tracking { .. } => {
-                let Some(a) = self.goal.approach() else {
-                    return false;
-                };
-                // the object beside it already: held on, the trip ends
-                // here as near as it safely goes (a manoeuvre would take
-                // it away)
-                if self.goal.beside_at_give_up(pose) {
-                    return false;
-                }
-                (
-                    [a.x_m, a.y_m],
-                    a.yaw_rad,
-                    ENDS_WITHIN_M,
-                    ENDS_TURNED_WITHIN_RAD,
-                )
-            }
-            GoalState::Exploring { target, .. } => {
-                (*target, 0.0, SEARCH_ENDS_WITHIN_M, std::f64::consts::PI)
-            }
-            _ => return false,
+        // to the place beside the object, facing it (searching, a held way
+        // to a place to look from is given up for another place: a
+        // manoeuvre there took the time the search had, measured over the
+        // 500 scenes)
+        if !matches!(self.goal.state(), GoalState::Tracking { .. }) {
+            return false;
+        }
+        let Some(a) = self.goal.approach() else {
+            return false;
         };
-        let tracking = matches!(self.goal.state(), GoalState::Tracking { .. });
+        // the object beside it already: held on, the trip ends here as
+        // near as it safely goes (a manoeuvre would take it away)
+        if self.goal.beside_at_give_up(pose) {
+            return false;
+        }
         let shape = self.manoeuvre_shape();
         let Some(map) = self.route.as_mut().and_then(|r| r.map.as_mut()) else {
             return false;
@@ -112,21 +95,20 @@ impl Control {
             map,
             &seen_now,
             pose,
-            to,
-            yaw_rad,
-            within_m,
-            turned_within_rad,
+            [a.x_m, a.y_m],
+            a.yaw_rad,
+            ENDS_WITHIN_M,
+            ENDS_TURNED_WITHIN_RAD,
             &shape,
         );
         let Some(moves) = found else {
-            tracing::info!(?pose, ?to, "manoeuvre: none found on the map");
+            tracing::info!(?pose, place = ?a, "manoeuvre: none found on the map");
             return false;
         };
-        tracing::info!(?pose, ?to, ?moves, "manoeuvre: begun");
+        tracing::info!(?pose, place = ?a, ?moves, "manoeuvre: begun");
         self.manoeuvres += 1;
         self.manoeuvre = Some(Manoeuvre {
             follower: Follower::new(moves),
-            tracking,
             since: now,
             held_since: None,
         });
@@ -152,15 +134,10 @@ impl Control {
         ) {
             self.manoeuvres_for_goal = 0;
         }
-        let tracking = matches!(self.goal.state(), GoalState::Tracking { .. });
-        let exploring = matches!(self.goal.state(), GoalState::Exploring { .. });
-        if self
-            .manoeuvre
-            .as_ref()
-            .is_some_and(|m| !(m.tracking && tracking || !m.tracking && exploring))
-        {
-            self.manoeuvre = None;
-            tracing::info!("manoeuvre: over, the goal changed");
+        if !matches!(self.goal.state(), GoalState::Tracking { .. }) {
+            if self.manoeuvre.take().is_some() {
+                tracing::info!("manoeuvre: over, no place to go to");
+            }
             return None;
         }
         let turn_radps = self.supervisor.crawl_turn_radps();
