@@ -213,6 +213,19 @@ fn held_on_the_way_to_a_chair_at(x_m: f32, steps: u64) -> (Option<u64>, Vec<Stri
     )
 }
 
+/// One step at `ms_`, the chair at rest at the origin, the camera seeing
+/// `chair` (into `tracker`) and the lasers `points_base`.
+fn step_seeing_chair(
+    c: &mut Control,
+    tracker: &mut Tracker,
+    chair: &crate::msg::Object3D,
+    ms_: u64,
+    points_base: Vec<[f32; 2]>,
+) -> ControlOutput {
+    tracker.update(at(ms_), std::slice::from_ref(chair), |_| true);
+    step_facing(c, ms_, tracker, 0.0, points_base)
+}
+
 /// Goes to `chair` with the lasers' points `points_base`, for `steps` steps
 /// of 50 ms (the chair stands where it is); the step at which the trip
 /// ended (arrived, at rest) and what was said.
@@ -226,19 +239,7 @@ fn trip_to(
     let mut tracker = Tracker::new(crate::config::Settings::defaults().tracker);
     let mut said = Vec::new();
     for k in 0..steps {
-        let now = at(50 * k);
-        tracker.update(now, std::slice::from_ref(&chair), |_| true);
-        let (mut o, odo) = fresh(now);
-        o.value.points_base = points_base.clone();
-        let out = c.step(
-            now,
-            ControlInputs {
-                obstacles: Some(&o),
-                odometry: Some(&odo),
-                tracker: &tracker,
-                camera: None,
-            },
-        );
+        let out = step_seeing_chair(&mut c, &mut tracker, &chair, 50 * k, points_base.clone());
         said.extend(out.said);
         if out.done.is_some() {
             assert_eq!(out.done, Some(Outcome::Arrived));
@@ -489,51 +490,25 @@ fn asked_about_the_rear_near_the_object_and_not_answered_it_arrives_as_near_as_i
 fn held_or_standing_still_on_the_way_is_said_once_after_the_time() {
     let mut c = control(false);
     let said = |c: &mut Control| std::mem::take(&mut c.said);
+    let held_at = |c: &mut Control, ms: u64, held: Option<held::Held>| {
+        c.tell_if_held(at(ms), Pose2::default(), &[], held);
+    };
+    use held::Held::{StandingStill, Supervisor};
     // standing still with nothing holding it: said after SAY_HELD_AFTER
-    c.tell_if_held(
-        at(0),
-        Pose2::default(),
-        &[],
-        Some(held::Held::StandingStill),
-    );
-    c.tell_if_held(
-        at(9_900),
-        Pose2::default(),
-        &[],
-        Some(held::Held::StandingStill),
-    );
+    held_at(&mut c, 0, Some(StandingStill));
+    held_at(&mut c, 9_900, Some(StandingStill));
     assert!(said(&mut c).is_empty());
-    c.tell_if_held(
-        at(10_000),
-        Pose2::default(),
-        &[],
-        Some(held::Held::StandingStill),
-    );
+    held_at(&mut c, 10_000, Some(StandingStill));
     let s = said(&mut c);
     assert_eq!(s.len(), 1, "{s:?}");
     assert!(s[0].contains("cannot find how to get nearer"), "{s:?}");
     // once, though it goes on (and a hold after it is the same wait)
-    c.tell_if_held(
-        at(12_000),
-        Pose2::default(),
-        &[],
-        Some(held::Held::Supervisor),
-    );
+    held_at(&mut c, 12_000, Some(Supervisor));
     assert!(said(&mut c).is_empty());
     // moving again ends it; a supervisor's hold is its own sentence
-    c.tell_if_held(at(13_000), Pose2::default(), &[], None);
-    c.tell_if_held(
-        at(14_000),
-        Pose2::default(),
-        &[],
-        Some(held::Held::Supervisor),
-    );
-    c.tell_if_held(
-        at(24_000),
-        Pose2::default(),
-        &[],
-        Some(held::Held::Supervisor),
-    );
+    held_at(&mut c, 13_000, None);
+    held_at(&mut c, 14_000, Some(Supervisor));
+    held_at(&mut c, 24_000, Some(Supervisor));
     let s = said(&mut c);
     assert_eq!(s.len(), 1, "{s:?}");
     assert!(s[0].contains("Something is in my way"), "{s:?}");
@@ -621,19 +596,7 @@ fn held_going_to_a_chair_3_m_ahead() -> (Control, Tracker, Option<u64>, Vec<Stri
     let chair = chair_at(3.0);
     let mut said = Vec::new();
     for k in 0..600u64 {
-        let now = at(50 * k);
-        tracker.update(now, std::slice::from_ref(&chair), |_| true);
-        let (mut o, odo) = fresh(now);
-        o.value.points_base = box_across();
-        let out = c.step(
-            now,
-            ControlInputs {
-                obstacles: Some(&o),
-                odometry: Some(&odo),
-                tracker: &tracker,
-                camera: None,
-            },
-        );
+        let out = step_seeing_chair(&mut c, &mut tracker, &chair, 50 * k, box_across());
         let begun = out.said.iter().any(|s| s.contains("work my way round"));
         said.extend(out.said);
         if begun {

@@ -63,11 +63,7 @@ fn touches(pose: &Pose2, points: &[[f64; 2]]) -> bool {
 #[test]
 fn in_the_open_it_is_a_turn_and_a_straight_drive() {
     let map = map_of(&[]);
-    let start = Pose2 {
-        x_m: 0.0,
-        y_m: 0.0,
-        theta_rad: 0.0,
-    };
+    let start = Pose2::default();
     let moves = plan(
         &map,
         &[],
@@ -165,11 +161,7 @@ fn past_a_wall_with_no_gap_wide_enough_there_is_none() {
     let mut points = wall([1.0, -4.0], [1.0, -0.3]);
     points.extend(wall([1.0, 0.3], [1.0, 4.0]));
     let map = map_of(&points);
-    let start = Pose2 {
-        x_m: 0.0,
-        y_m: 0.0,
-        theta_rad: 0.0,
-    };
+    let start = Pose2::default();
     assert_eq!(
         plan(&map, &[], start, [2.0, 0.0], 0.0, 0.08, 0.2, &SHAPE),
         None
@@ -183,11 +175,7 @@ fn past_a_wall_with_no_gap_wide_enough_there_is_none() {
 fn against_a_wall_it_backs_away() {
     let points = wall([0.6, -3.0], [0.6, 3.0]);
     let map = map_of(&points);
-    let start = Pose2 {
-        x_m: 0.0,
-        y_m: 0.0,
-        theta_rad: 0.0,
-    };
+    let start = Pose2::default();
     let moves = plan(&map, &[], start, [-1.0, 0.0], 0.0, 0.08, 0.2, &SHAPE).expect("a way back");
     assert!(
         matches!(moves[0], Move::Straight { forward: false, .. }),
@@ -206,11 +194,7 @@ fn against_a_wall_it_backs_away() {
 #[test]
 fn the_points_seen_now_are_kept_clear_as_the_map_is() {
     let map = map_of(&[]);
-    let start = Pose2 {
-        x_m: 0.0,
-        y_m: 0.0,
-        theta_rad: 0.0,
-    };
+    let start = Pose2::default();
     let with_gap = |gap_m: f64| {
         let mut points = wall([1.0, -4.0], [1.0, -gap_m / 2.0]);
         points.extend(wall([1.0, gap_m / 2.0], [1.0, 4.0]));
