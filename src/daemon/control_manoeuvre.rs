@@ -78,6 +78,12 @@ impl Control {
             return false;
         }
         let shape = self.manoeuvre_shape();
+        // where the person said it is not clear around: no turn there
+        let no_turns: Vec<([f64; 2], f64)> = self
+            .turn_refused_at
+            .map(|p| ([p.x_m, p.y_m], super::REFUSED_TURN_WITHIN_M))
+            .into_iter()
+            .collect();
         let Some(map) = self.route.as_mut().and_then(|r| r.map.as_mut()) else {
             return false;
         };
@@ -94,6 +100,7 @@ impl Control {
         let found = manoeuvre::plan(
             map,
             &seen_now,
+            &no_turns,
             pose,
             [a.x_m, a.y_m],
             a.yaw_rad,

@@ -161,11 +161,14 @@ impl Buckets {
 /// bounds. `seen_now`: the points the supervisor holds the chair for now
 /// (odom: the lasers', the camera's, the rear it remembers, the
 /// drop-offs), kept clear as the map's blocked cells are; the map may
-/// have let go of some of them, or never held them.
+/// have let go of some of them, or never held them. `no_turns`: places
+/// (odom centre, radius m) where no turn on the spot is made (the person
+/// said it is not clear around there).
 #[allow(clippy::too_many_arguments)]
 pub fn plan(
     map: &GridMap,
     seen_now: &[[f64; 2]],
+    no_turns: &[([f64; 2], f64)],
     start: Pose2,
     goal: [f64; 2],
     goal_yaw_rad: f64,
@@ -268,6 +271,12 @@ pub fn plan(
         map_clear && !seen_now.any_in(box_lo, box_hi, inside)
     };
     let turn_clear = |p: [f64; 2]| -> bool {
+        if no_turns
+            .iter()
+            .any(|(c, r)| (p[0] - c[0]).hypot(p[1] - c[1]) <= *r)
+        {
+            return false;
+        }
         let rr = shape.turn_radius_m;
         let (box_lo, box_hi) = ([p[0] - rr, p[1] - rr], [p[0] + rr, p[1] + rr]);
         let inside = |q: [f64; 2]| (q[0] - p[0]).hypot(q[1] - p[1]) < rr;

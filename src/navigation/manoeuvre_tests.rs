@@ -67,6 +67,7 @@ fn in_the_open_it_is_a_turn_and_a_straight_drive() {
     let moves = plan(
         &map,
         &[],
+        &[],
         start,
         [0.0, 2.0],
         std::f64::consts::FRAC_PI_2,
@@ -103,6 +104,7 @@ fn through_a_doorway_it_turns_only_once_past_it() {
     let goal = [2.4, 2.0];
     let moves = plan(
         &map,
+        &[],
         &[],
         start,
         goal,
@@ -163,7 +165,7 @@ fn past_a_wall_with_no_gap_wide_enough_there_is_none() {
     let map = map_of(&points);
     let start = Pose2::default();
     assert_eq!(
-        plan(&map, &[], start, [2.0, 0.0], 0.0, 0.08, 0.2, &SHAPE),
+        plan(&map, &[], &[], start, [2.0, 0.0], 0.0, 0.08, 0.2, &SHAPE),
         None
     );
 }
@@ -176,7 +178,8 @@ fn against_a_wall_it_backs_away() {
     let points = wall([0.6, -3.0], [0.6, 3.0]);
     let map = map_of(&points);
     let start = Pose2::default();
-    let moves = plan(&map, &[], start, [-1.0, 0.0], 0.0, 0.08, 0.2, &SHAPE).expect("a way back");
+    let moves =
+        plan(&map, &[], &[], start, [-1.0, 0.0], 0.0, 0.08, 0.2, &SHAPE).expect("a way back");
     assert!(
         matches!(moves[0], Move::Straight { forward: false, .. }),
         "{moves:?}"
@@ -202,11 +205,21 @@ fn the_points_seen_now_are_kept_clear_as_the_map_is() {
     };
     let narrow = with_gap(0.6);
     assert_eq!(
-        plan(&map, &narrow, start, [2.0, 0.0], 0.0, 0.08, 0.2, &SHAPE),
+        plan(
+            &map,
+            &narrow,
+            &[],
+            start,
+            [2.0, 0.0],
+            0.0,
+            0.08,
+            0.2,
+            &SHAPE
+        ),
         None
     );
     let wide = with_gap(0.85);
-    let moves = plan(&map, &wide, start, [2.0, 0.0], 0.0, 0.08, 0.2, &SHAPE)
+    let moves = plan(&map, &wide, &[], start, [2.0, 0.0], 0.0, 0.08, 0.2, &SHAPE)
         .expect("a manoeuvre through the gap");
     for p in drive(moves, start) {
         assert!(
@@ -214,4 +227,36 @@ fn the_points_seen_now_are_kept_clear_as_the_map_is() {
             "the footprint touches the wall at {p:?}"
         );
     }
+}
+
+/// Where the person said it is not clear around, no turn on the spot:
+/// in the open, the goal to the left, the manoeuvre drives away before it
+/// turns.
+#[test]
+fn no_turn_where_the_person_said_no() {
+    let map = map_of(&[]);
+    let start = Pose2::default();
+    let goal = [0.0, 2.0];
+    let no_turns = [([0.0, 0.0], 0.15)];
+    let moves = plan(
+        &map,
+        &[],
+        &no_turns,
+        start,
+        goal,
+        std::f64::consts::FRAC_PI_2,
+        0.08,
+        0.2,
+        &SHAPE,
+    )
+    .expect("a manoeuvre");
+    assert!(
+        matches!(moves[0], Move::Straight { .. }),
+        "turned where it was told not to: {moves:?}"
+    );
+    let end = *drive(moves, start).last().expect("poses");
+    assert!(
+        (end.x_m - goal[0]).hypot(end.y_m - goal[1]) <= 0.1,
+        "{end:?}"
+    );
 }
