@@ -25,6 +25,21 @@ fn wall(a: [f64; 2], b: [f64; 2]) -> Vec<[f64; 2]> {
         .collect()
 }
 
+/// The manoeuvre from `start` to within 8 cm of `goal`, turned within
+/// 0.2 rad of `yaw_rad`, for [`SHAPE`].
+fn plan_to(
+    map: &GridMap,
+    seen_now: &[[f64; 2]],
+    no_turns: &[([f64; 2], f64)],
+    start: Pose2,
+    goal: [f64; 2],
+    yaw_rad: f64,
+) -> Option<Vec<Move>> {
+    plan(
+        map, seen_now, no_turns, start, goal, yaw_rad, 0.08, 0.2, &SHAPE,
+    )
+}
+
 fn map_of(points: &[[f64; 2]]) -> GridMap {
     let mut map = GridMap::new(MapSettings::default(), [0.0, 0.0]);
     map.set_camera(points, &[]);
@@ -64,16 +79,13 @@ fn touches(pose: &Pose2, points: &[[f64; 2]]) -> bool {
 fn in_the_open_it_is_a_turn_and_a_straight_drive() {
     let map = map_of(&[]);
     let start = Pose2::default();
-    let moves = plan(
+    let moves = plan_to(
         &map,
         &[],
         &[],
         start,
         [0.0, 2.0],
         std::f64::consts::FRAC_PI_2,
-        0.08,
-        0.2,
-        &SHAPE,
     )
     .expect("a manoeuvre in the open");
     assert_eq!(moves.len(), 2, "{moves:?}");
@@ -102,18 +114,8 @@ fn through_a_doorway_it_turns_only_once_past_it() {
         theta_rad: 0.0,
     };
     let goal = [2.4, 2.0];
-    let moves = plan(
-        &map,
-        &[],
-        &[],
-        start,
-        goal,
-        std::f64::consts::FRAC_PI_2,
-        0.08,
-        0.2,
-        &SHAPE,
-    )
-    .expect("a manoeuvre through the doorway");
+    let moves = plan_to(&map, &[], &[], start, goal, std::f64::consts::FRAC_PI_2)
+        .expect("a manoeuvre through the doorway");
     let mut pose = start;
     for m in &moves {
         match *m {
@@ -164,10 +166,7 @@ fn past_a_wall_with_no_gap_wide_enough_there_is_none() {
     points.extend(wall([1.0, 0.3], [1.0, 4.0]));
     let map = map_of(&points);
     let start = Pose2::default();
-    assert_eq!(
-        plan(&map, &[], &[], start, [2.0, 0.0], 0.0, 0.08, 0.2, &SHAPE),
-        None
-    );
+    assert_eq!(plan_to(&map, &[], &[], start, [2.0, 0.0], 0.0), None);
 }
 
 /// Backing up: the chair's front 5 cm from a wall, the goal behind it
@@ -178,8 +177,7 @@ fn against_a_wall_it_backs_away() {
     let points = wall([0.6, -3.0], [0.6, 3.0]);
     let map = map_of(&points);
     let start = Pose2::default();
-    let moves =
-        plan(&map, &[], &[], start, [-1.0, 0.0], 0.0, 0.08, 0.2, &SHAPE).expect("a way back");
+    let moves = plan_to(&map, &[], &[], start, [-1.0, 0.0], 0.0).expect("a way back");
     assert!(
         matches!(moves[0], Move::Straight { forward: false, .. }),
         "{moves:?}"
@@ -204,23 +202,10 @@ fn the_points_seen_now_are_kept_clear_as_the_map_is() {
         points
     };
     let narrow = with_gap(0.6);
-    assert_eq!(
-        plan(
-            &map,
-            &narrow,
-            &[],
-            start,
-            [2.0, 0.0],
-            0.0,
-            0.08,
-            0.2,
-            &SHAPE
-        ),
-        None
-    );
+    assert_eq!(plan_to(&map, &narrow, &[], start, [2.0, 0.0], 0.0), None);
     let wide = with_gap(0.85);
-    let moves = plan(&map, &wide, &[], start, [2.0, 0.0], 0.0, 0.08, 0.2, &SHAPE)
-        .expect("a manoeuvre through the gap");
+    let moves =
+        plan_to(&map, &wide, &[], start, [2.0, 0.0], 0.0).expect("a manoeuvre through the gap");
     for p in drive(moves, start) {
         assert!(
             !touches(&p, &wide),
@@ -238,16 +223,13 @@ fn no_turn_where_the_person_said_no() {
     let start = Pose2::default();
     let goal = [0.0, 2.0];
     let no_turns = [([0.0, 0.0], 0.15)];
-    let moves = plan(
+    let moves = plan_to(
         &map,
         &[],
         &no_turns,
         start,
         goal,
         std::f64::consts::FRAC_PI_2,
-        0.08,
-        0.2,
-        &SHAPE,
     )
     .expect("a manoeuvre");
     assert!(
