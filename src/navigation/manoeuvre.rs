@@ -88,6 +88,34 @@ struct Node {
     parent: u32,
 }
 
+/// The search's cells: [`CELL_M`] squares from `lo` (odom), `nx` by `ny`.
+#[derive(Clone, Copy)]
+struct Window {
+    lo: [f64; 2],
+    nx: usize,
+    ny: usize,
+}
+
+impl Window {
+    /// The cell holding odom `p` (None: outside).
+    fn cell(&self, p: [f64; 2]) -> Option<usize> {
+        let (i, j) = (
+            ((p[0] - self.lo[0]) / CELL_M).floor(),
+            ((p[1] - self.lo[1]) / CELL_M).floor(),
+        );
+        (i >= 0.0 && j >= 0.0 && (i as usize) < self.nx && (j as usize) < self.ny)
+            .then(|| j as usize * self.nx + i as usize)
+    }
+
+    /// Cell `c`'s centre (odom).
+    fn centre(&self, c: usize) -> [f64; 2] {
+        [
+            self.lo[0] + ((c % self.nx) as f64 + 0.5) * CELL_M,
+            self.lo[1] + ((c / self.nx) as f64 + 0.5) * CELL_M,
+        ]
+    }
+}
+
 /// Points (odom) sorted into the search's cells, to test a box against.
 struct Buckets {
     lo: [f64; 2],
@@ -99,18 +127,11 @@ struct Buckets {
 }
 
 impl Buckets {
-    fn new(all: &[[f64; 2]], lo: [f64; 2], nx: usize, ny: usize) -> Self {
-        let cell = |p: &[f64; 2]| -> Option<usize> {
-            let (i, j) = (
-                ((p[0] - lo[0]) / CELL_M).floor(),
-                ((p[1] - lo[1]) / CELL_M).floor(),
-            );
-            (i >= 0.0 && j >= 0.0 && (i as usize) < nx && (j as usize) < ny)
-                .then(|| j as usize * nx + i as usize)
-        };
+    fn new(all: &[[f64; 2]], w: Window) -> Self {
+        let Window { lo, nx, ny } = w;
         let mut keyed: Vec<(usize, [f64; 2])> = all
             .iter()
-            .filter_map(|p| cell(p).map(|c| (c, *p)))
+            .filter_map(|p| w.cell(*p).map(|c| (c, *p)))
             .collect();
         keyed.sort_by_key(|(c, _)| *c);
         let mut first = vec![0u32; nx * ny + 1];
@@ -188,20 +209,9 @@ pub fn plan(
         ((hi[0] - lo[0]) / CELL_M).ceil() as usize,
         ((hi[1] - lo[1]) / CELL_M).ceil() as usize,
     );
-    let cell = |p: [f64; 2]| -> Option<usize> {
-        let (i, j) = (
-            ((p[0] - lo[0]) / CELL_M).floor(),
-            ((p[1] - lo[1]) / CELL_M).floor(),
-        );
-        (i >= 0.0 && j >= 0.0 && (i as usize) < nx && (j as usize) < ny)
-            .then(|| j as usize * nx + i as usize)
-    };
-    let centre = |c: usize| {
-        [
-            lo[0] + ((c % nx) as f64 + 0.5) * CELL_M,
-            lo[1] + ((c / nx) as f64 + 0.5) * CELL_M,
-        ]
-    };
+    let window = Window { lo, nx, ny };
+    let cell = |p: [f64; 2]| window.cell(p);
+    let centre = |c: usize| window.centre(c);
     let r = map.settings.resolution_m;
     // the guide: seconds at a crawl to the goal through cells where the
     // chair's inscribed disc could be
@@ -253,7 +263,7 @@ pub fn plan(
     let reach_m = (shape.front_m.max(shape.rear_m) + shape.ahead_m)
         .hypot(shape.half_width_m + shape.side_margin_m);
     // the footprint at `p`, heading k, moving `dir` (+1 forward, -1 back)
-    let seen_now = Buckets::new(seen_now, lo, nx, ny);
+    let seen_now = Buckets::new(seen_now, window);
     let straight_clear = |p: [f64; 2], theta: f64, dir: f64| -> bool {
         let (s, c) = theta.sin_cos();
         let x_lo = -shape.rear_m - if dir < 0.0 { shape.ahead_m } else { 0.0 };
