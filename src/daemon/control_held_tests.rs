@@ -675,3 +675,40 @@ fn held_with_no_way_round_while_searching_it_does_not_manoeuvre() {
     );
     assert_eq!(c.navigation_stats().manoeuvres, 0);
 }
+
+/// Held far from the place beside the object, where no manoeuvre reaches
+/// the place itself (something stands on it, seen now): the manoeuvre
+/// ends on the map's way 1.5 m on instead (there the planner goes on).
+#[test]
+fn a_manoeuvre_to_a_place_out_of_reach_ends_on_the_way() {
+    let mut c = control(true).with_map(MapSettings::default());
+    c.on_input(UserInput::Goto("chair".into()));
+    let mut tracker = Tracker::new(crate::config::Settings::defaults().tracker);
+    let chair = chair_at(4.0);
+    for k in 0..20u64 {
+        step_seeing_chair(&mut c, &mut tracker, &chair, 50 * k, vec![[6.0, 0.0]]);
+    }
+    assert!(matches!(c.goal.state(), GoalState::Tracking { .. }));
+    let place = c.goal.approach().expect("the place beside the chair");
+    assert!(place.x_m > 2.5, "{place:?}");
+    // something seen now on the place
+    let on_the_place: Vec<[f32; 2]> = (-6..=6)
+        .flat_map(|i| (-6..=6).map(move |j| (i, j)))
+        .map(|(i, j)| {
+            [
+                (place.x_m + i as f64 * 0.05) as f32,
+                (place.y_m + j as f64 * 0.05) as f32,
+            ]
+        })
+        .collect();
+    assert!(c.begin_manoeuvre(at(1000), Pose2::default(), &on_the_place));
+    use crate::navigation::manoeuvre::Move;
+    let end = match c.manoeuvre_left().and_then(|m| m.last()) {
+        Some(Move::Straight { to, .. }) => to,
+        last => panic!("the manoeuvre ends with {last:?}"),
+    };
+    assert!(
+        (end[0] - 1.5).hypot(end[1]) <= 0.25 + 0.05,
+        "ends at {end:?}, not on the way 1.5 m on"
+    );
+}

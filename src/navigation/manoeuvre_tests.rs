@@ -242,3 +242,36 @@ fn no_turn_where_the_person_said_no() {
         "{end:?}"
     );
 }
+
+/// The narrowest doorway of the benchmark, 0.80 m, on the map alone and
+/// turned to the grid at twelve angles (its jambs' cells fall differently
+/// at each): 5 cm a side for the chair and its crawl's margins (0.76 m).
+/// The manoeuvre goes through, and the chair driven by the follower never
+/// touches a wall.
+#[test]
+fn through_the_narrowest_doorway_on_the_map() {
+    for k in 0..12 {
+        let turned_rad = 0.3 + k as f64 * 0.1;
+        let (s, c) = turned_rad.sin_cos();
+        let turn = |p: [f64; 2]| [c * p[0] - s * p[1], s * p[0] + c * p[1]];
+        let mut points = wall([1.0, -4.0], [1.0, -0.40]);
+        points.extend(wall([1.0, 0.40], [1.0, 4.0]));
+        let points: Vec<[f64; 2]> = points.into_iter().map(turn).collect();
+        let map = map_of(&points);
+        let from = turn([0.0, 0.0]);
+        let start = Pose2 {
+            x_m: from[0],
+            y_m: from[1],
+            theta_rad: turned_rad,
+        };
+        let goal = turn([2.2, 0.0]);
+        let moves = plan_to(&map, &[], &[], start, goal, turned_rad)
+            .unwrap_or_else(|| panic!("no manoeuvre through the doorway turned {turned_rad} rad"));
+        for p in drive(moves, start) {
+            assert!(
+                !touches(&p, &points),
+                "the footprint touches a wall at {p:?}"
+            );
+        }
+    }
+}
