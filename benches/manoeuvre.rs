@@ -7,19 +7,11 @@
 //! Run: `cargo bench --bench manoeuvre`.
 
 use criterion::{criterion_group, criterion_main, Criterion};
+use opennav::config::Settings;
 use opennav::msg::Pose2;
 use opennav::navigation::manoeuvre::{plan, ManoeuvreShape};
 use opennav::navigation::map::{GridMap, MapSettings};
-
-/// The chair's footprint as the supervisor keeps it at a crawl.
-const SHAPE: ManoeuvreShape = ManoeuvreShape {
-    front_m: 0.55,
-    rear_m: 0.45,
-    half_width_m: 0.35,
-    side_margin_m: 0.03,
-    ahead_m: 0.15,
-    turn_radius_m: 0.68,
-};
+use opennav::safety::Supervisor;
 
 /// The map of a wall at x = 1 m with a gap of `gap_m` about y = 0.
 fn wall_with_gap(gap_m: f64) -> GridMap {
@@ -36,6 +28,9 @@ fn wall_with_gap(gap_m: f64) -> GridMap {
 
 fn bench(c: &mut Criterion) {
     let start = Pose2::default();
+    // the chair's footprint as the supervisor keeps it at a crawl
+    let supervisor = Supervisor::new(Settings::defaults().safety_limits());
+    let shape = ManoeuvreShape::at_a_crawl(&supervisor);
     let cases = [
         ("manoeuvre_through_a_0_85_m_doorway", 0.85, [2.2, 0.0], true),
         ("manoeuvre_none_past_a_0_72_m_gap", 0.72, [2.2, 0.0], false),
@@ -48,7 +43,7 @@ fn bench(c: &mut Criterion) {
     ];
     for (name, gap_m, goal, found) in cases {
         let map = wall_with_gap(gap_m);
-        let search = || plan(&map, &[], &[], start, goal, 0.0, 0.25, 0.6, &SHAPE);
+        let search = || plan(&map, &[], &[], start, goal, 0.0, 0.25, 0.6, &shape);
         assert_eq!(search().is_some(), found, "{name}");
         c.bench_function(name, |b| b.iter(search));
     }

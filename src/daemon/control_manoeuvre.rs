@@ -39,21 +39,6 @@ pub(super) struct Manoeuvre {
 }
 
 impl Control {
-    /// The footprint the manoeuvre keeps clear: the supervisor's at a
-    /// crawl.
-    fn manoeuvre_shape(&self) -> ManoeuvreShape {
-        let l = &self.supervisor.limits;
-        let side_margin_m = l.corridor_margin_slow_m.min(l.corridor_margin_m);
-        ManoeuvreShape {
-            front_m: l.front_offset_m,
-            rear_m: l.rear_offset_m,
-            half_width_m: l.chair_width_m / 2.0,
-            side_margin_m,
-            ahead_m: l.stop_distance_slow_m.min(l.stop_distance_m),
-            turn_radius_m: self.supervisor.corner_reach_m() + side_margin_m,
-        }
-    }
-
     /// Held on the way to the place beside the object with no way round:
     /// a manoeuvre there on the map, begun if one is found (true). It
     /// keeps clear of `seen_now_base` too (base_link: what the supervisor
@@ -84,7 +69,7 @@ impl Control {
             return false;
         }
         let place = [a.x_m, a.y_m];
-        let shape = self.manoeuvre_shape();
+        let shape = ManoeuvreShape::at_a_crawl(&self.supervisor);
         // where the person said it is not clear around: no turn there
         let no_turns: Vec<([f64; 2], f64)> = self
             .turn_refused_at

@@ -37,6 +37,22 @@ pub struct ManoeuvreShape {
     pub turn_radius_m: f64,
 }
 
+impl ManoeuvreShape {
+    /// The footprint the supervisor keeps clear at a crawl.
+    pub fn at_a_crawl(supervisor: &crate::safety::Supervisor) -> ManoeuvreShape {
+        let l = &supervisor.limits;
+        let side_margin_m = l.corridor_margin_slow_m.min(l.corridor_margin_m);
+        ManoeuvreShape {
+            front_m: l.front_offset_m,
+            rear_m: l.rear_offset_m,
+            half_width_m: l.chair_width_m / 2.0,
+            side_margin_m,
+            ahead_m: l.stop_distance_slow_m.min(l.stop_distance_m),
+            turn_radius_m: supervisor.corner_reach_m() + side_margin_m,
+        }
+    }
+}
+
 /// One part of a manoeuvre.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Move {
