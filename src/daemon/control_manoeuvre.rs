@@ -40,9 +40,11 @@ pub(super) struct Manoeuvre {
 
 impl Control {
     /// Held on the way to the place beside the object with no way round:
-    /// a manoeuvre there on the map, begun if one is found (true). It
-    /// keeps clear of `seen_now_base` too (base_link: what the supervisor
-    /// checks a turn on the spot against now).
+    /// a manoeuvre there on the map, or, the place more than
+    /// [`WAY_POINT_M`] off and out of reach, to the map's way that far on;
+    /// begun if one is found (true). It keeps clear of `seen_now_base` too
+    /// (base_link: what the supervisor checks a turn on the spot against
+    /// now).
     pub(super) fn begin_manoeuvre(
         &mut self,
         now: Stamp,
