@@ -224,6 +224,14 @@ const PASS_HELD_BACKS_BEFORE_M: f64 = 0.3;
 /// up to line up again ([`Passage::held_passing`]), rad.
 const PASS_HELD_TURNED_RAD: f64 = 0.1;
 
+/// Held passing with the far corners of the crawl's stop corridor
+/// (`PASS_HELD_REACH_M` ahead of base_link: the front, 0.55 m, and the
+/// crawl's stop distance) within `PASS_HELD_SLACK_M` of using up what the
+/// gap leaves a side, the chair backs up to line up again (in a 0.81 m
+/// doorway 2 cm off the middle line and 1° turned is held), m.
+const PASS_HELD_REACH_M: f64 = 0.7;
+const PASS_HELD_SLACK_M: f64 = 0.01;
+
 /// Backing out towards the doorway stops this far short of the line-up's
 /// point, m.
 const LINE_UP_PAST_M: f64 = 0.05;
@@ -386,8 +394,10 @@ impl Passage {
     /// Held passing with the front at the doorway's wall, before the
     /// chair is in it (base_link more than [`PASS_HELD_BACKS_BEFORE_M`]
     /// before the middle), turned off the axis by more than
-    /// [`PASS_HELD_TURNED_RAD`] or off the middle line by more than the gap
-    /// leaves a side: a corner on a jamb. It backs up, squaring to the
+    /// [`PASS_HELD_TURNED_RAD`], off the middle line by more than the gap
+    /// leaves a side, or, in a narrow doorway, with the stop corridor's
+    /// far corners within [`PASS_HELD_SLACK_M`] of what the gap leaves a
+    /// side: a corner on a jamb. It backs up, squaring to the
     /// axis as it backs, to where there is room to line up again (as
     /// [`Passage::back_up`] does for a chair square to it), while back-ups
     /// are left. Whether it does.
@@ -398,7 +408,9 @@ impl Passage {
         let backs = self.phase == Phase::Pass
             && along < -PASS_HELD_BACKS_BEFORE_M
             && (heading_err.abs() > PASS_HELD_TURNED_RAD
-                || left.abs() > self.passes_off_m() + 0.01)
+                || left.abs() > self.passes_off_m() + 0.01
+                || left.abs() + PASS_HELD_REACH_M * heading_err.abs().sin()
+                    > (self.door.width_m - s.body_m) / 2.0 - PASS_HELD_SLACK_M)
             && self.backed_up < s.back_ups;
         if backs {
             self.backed_up += 1;

@@ -715,6 +715,35 @@ fn a_turn_held_away_from_the_doorway_backs_out_and_turns_again() {
     assert_eq!(p.backed_up, 0);
 }
 
+/// In the narrowest doorways what the gap leaves a side is 2–3 cm: held
+/// passing with its front at the wall 2 cm off the middle line and 1°
+/// turned (scenes 28 and 60 of `opennav sim --seed 1`, 0.81 m), the
+/// chair backs up to line up again; in a 0.85 m doorway, the same pose
+/// leaves room, and it does not (something else holds it).
+#[test]
+fn held_passing_near_the_line_of_a_narrow_doorway_backs_up() {
+    let held_at = Pose2 {
+        x_m: 2.0 - 0.66,
+        y_m: 1.0 + 0.02,
+        theta_rad: 0.017,
+    };
+    let passing = |width_m: f64| {
+        let mut p = Passage::new(door_at_x2(width_m), PassageSettings::default());
+        p.phase = Phase::Pass;
+        p
+    };
+    let mut narrow = passing(0.81);
+    assert!(narrow.held_passing(held_at));
+    assert!(
+        matches!(narrow.phase, Phase::BackUp { squaring: true, .. }),
+        "{:?}",
+        narrow.phase
+    );
+    let mut wider = passing(0.85);
+    assert!(!wider.held_passing(held_at));
+    assert_eq!(wider.phase, Phase::Pass);
+}
+
 /// Passing on arcs (turns held), the chair came onto the middle line at
 /// 0.3 rad and its front corner met a jamb 0.58 m before the middle: it
 /// backs up, squaring as it backs, to where it can line up again (turns
