@@ -668,6 +668,7 @@ impl GoalKeeper {
                     .is_some_and(|t| t.last_seen.age_at(now) <= s.unseen_after)
                 {
                     // seen on the way: as when a search turn finds it
+                    tracing::info!(?target, ?from, "exploring: the word seen on the way");
                     self.state = GoalState::Searching { label };
                     self.new_turn();
                     return self.update(now, tracker, chair, obstacles_odom, visible, fits);
@@ -675,6 +676,12 @@ impl GoalKeeper {
                 let there = (target[0] - from[0]).hypot(target[1] - from[1]) <= EXPLORED_WITHIN_M;
                 if there || since.age_at(now) > EXPLORE_FOR {
                     // look again from here
+                    tracing::info!(
+                        ?target,
+                        ?from,
+                        reached = there,
+                        "exploring: looking again from here"
+                    );
                     self.searched.push(from);
                     self.state = GoalState::Searching { label };
                     self.new_turn();
