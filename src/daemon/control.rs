@@ -491,7 +491,8 @@ impl Control {
         let view = self.view;
         self.tell_goal_what_is_left(pose, view.as_ref());
         // the place beside the object where the chair fits on the map of
-        // everything it has seen (not only what it sees now); the map's
+        // everything it has seen (not only what it sees now), on floor it
+        // has seen (never seen, it may lie behind a wall); the map's
         // distance field brought up to date when the goal keeper first
         // asks (with no track to go to, it does not)
         let map = std::cell::RefCell::new(self.route.as_mut().and_then(|r| r.map.as_mut()));
@@ -504,7 +505,7 @@ impl Control {
             &|p| {
                 map.borrow_mut().as_mut().is_none_or(|m| {
                     m.update_distances();
-                    m.fits(p)
+                    m.fits(p) && m.is_known_at(p)
                 })
             },
         );

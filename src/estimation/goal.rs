@@ -182,6 +182,10 @@ pub struct GoalKeeper {
     refusing: bool,
 }
 
+/// Where no side fits on the map, the place moves only to a side within
+/// this bearing from the object's centre of the place it had, rad (the
+/// sides tried are 15° apart).
+const SAME_SIDE_RAD: f64 = 0.4;
 /// A place beside the object this near one refused is refused too, m
 /// (the places tried are 15° apart about the object).
 const REFUSED_WITHIN_M: f64 = 0.6;
@@ -532,25 +536,35 @@ impl GoalKeeper {
                 .iter()
                 .all(|r| (p[0] - r[0]).hypot(p[1] - r[1]) > REFUSED_WITHIN_M)
         };
+        // where no side fits on the map, a side as without it (what the
+        // chair sees now decides) — but never another side of the object
+        // than `side_of`'s where one is given (a side on floor never seen
+        // may lie behind the wall the object stands against, and the
+        // first side found flips as the chair moves), and none while
+        // looking for another side (it must fit)
+        let refusing_now = self.refusing;
         let place_beside = |t: &Track,
                             from: [f64; 2],
                             standoff_m: f64,
                             obstacles: &[[f64; 2]],
-                            clearance_m: f64| {
+                            clearance_m: f64,
+                            side_of: Option<[f64; 2]>| {
             let body_m = s.front_offset_m;
             approach_pose(t, from, standoff_m, body_m, obstacles, clearance_m, &|p| {
                 fits(p) && not_refused(p)
             })
             .or_else(|| {
-                approach_pose(
-                    t,
-                    from,
-                    standoff_m,
-                    body_m,
-                    obstacles,
-                    clearance_m,
-                    &not_refused,
-                )
+                if refusing_now {
+                    return None;
+                }
+                let bearing = |p: [f64; 2]| (p[1] - t.center_m[1]).atan2(p[0] - t.center_m[0]);
+                let same_side = |p: [f64; 2]| {
+                    side_of
+                        .is_none_or(|q| wrap_angle(bearing(p) - bearing(q)).abs() <= SAME_SIDE_RAD)
+                };
+                approach_pose(t, from, standoff_m, body_m, obstacles, clearance_m, &|p| {
+                    not_refused(p) && same_side(p)
+                })
             })
         };
         let from = [chair.x_m, chair.y_m];
@@ -641,6 +655,7 @@ impl GoalKeeper {
                     s.standoff_m + s.front_offset_m,
                     obstacles_odom,
                     s.clearance_m,
+                    None,
                 ) {
                     Some(approach) => {
                         self.state = GoalState::Tracking {
@@ -711,6 +726,7 @@ impl GoalKeeper {
                                 s.standoff_m + s.front_offset_m,
                                 obstacles_odom,
                                 s.clearance_m,
+                                None,
                             )?;
                             let d = |a: &ApproachPose| (a.x_m - from[0]).hypot(a.y_m - from[1]);
                             (d(&a) + NEARER_BY_M < d(&approach)).then_some((n, a))
@@ -729,13 +745,15 @@ impl GoalKeeper {
                     let track = t.id;
                     self.last_center = Some(t.center_m);
                     self.last_box = Some(SeenBox::of(t));
-                    // re-planned as the track updates
+                    // re-planned as the track updates; where no side fits
+                    // on the map, on the side it is
                     let beside = place_beside(
                         t,
                         from,
                         s.standoff_m + s.front_offset_m,
                         obstacles_odom,
                         s.clearance_m,
+                        Some([approach.x_m, approach.y_m]),
                     );
                     let refusing = std::mem::take(&mut self.refusing);
                     let a = match beside {
@@ -800,6 +818,7 @@ impl GoalKeeper {
                         s.standoff_m + s.front_offset_m,
                         obstacles_odom,
                         s.clearance_m,
+                        None,
                     ) {
                         self.state = GoalState::Tracking {
                             label: label.clone(),

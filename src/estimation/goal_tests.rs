@@ -420,6 +420,59 @@ fn the_place_beside_the_object_is_one_the_map_admits_where_there_is_one() {
     assert!((a.x_m - 1.6).abs() < 1e-6 && a.y_m.abs() < 1e-6, "{a:?}");
 }
 
+/// Once driving to a place, the place moves only to a side the map
+/// admits: with none admitted it keeps to its side (the sides a map
+/// refuses are floor never seen, behind the wall an object stands
+/// against, and the first of them from the chair flips as it moves);
+/// another side, after one was refused, must be admitted.
+#[test]
+fn the_place_moves_only_to_a_side_the_map_admits() {
+    let settings = crate::config::Settings::defaults().goal_settings();
+    let mut g = GoalKeeper::new(settings);
+    g.set_prompt("chair");
+    let mut tracker = see_a_chair_ahead(&mut g, &|_| true, &|_| true);
+    let first = g.approach().expect("an approach");
+    let apart = |a: &ApproachPose, b: &ApproachPose| (a.x_m - b.x_m).hypot(a.y_m - b.y_m);
+    // the chair now beside the object's -y face, 2 m off
+    let beside = Pose2 {
+        x_m: 3.0,
+        y_m: -2.0,
+        theta_rad: std::f64::consts::FRAC_PI_2,
+    };
+    let mut step = |g: &mut GoalKeeper, k: u32, fits: &dyn Fn([f64; 2]) -> bool| {
+        let now = t(1.0 + k as f64 * 0.1);
+        tracker.update(now, &[chair_obj(3.0)], |_| true);
+        g.update(now, &tracker, beside, &[], &|_| true, fits)
+    };
+    // no side admitted: the place keeps to its side (-x), though the
+    // -y side is nearest now
+    step(&mut g, 0, &|_| false);
+    let kept = g.approach().expect("a place");
+    assert!(
+        kept.x_m < 2.0 && apart(&first, &kept) < 0.5,
+        "{first:?} {kept:?}"
+    );
+    // the -y side admitted: the place goes there, the side nearest now
+    let minus_y_face = |p: [f64; 2]| p[1] < -0.5 && (p[0] - 3.0).abs() < 0.3;
+    step(&mut g, 1, &minus_y_face);
+    let moved = g.approach().expect("a place");
+    assert!(
+        moved.y_m < -0.5 && (moved.x_m - 3.0).abs() < 0.3,
+        "{moved:?}"
+    );
+    // that side refused, and only it admitted: no other side, the place
+    // stays
+    assert!(g.refuse_approach());
+    assert_eq!(step(&mut g, 2, &minus_y_face), None);
+    let stayed = g.approach().expect("a place");
+    assert!(apart(&moved, &stayed) < 0.3, "{moved:?} {stayed:?}");
+    // and again, with nothing admitted at all
+    assert!(g.refuse_approach());
+    assert_eq!(step(&mut g, 3, &|_| false), None);
+    let stayed = g.approach().expect("a place");
+    assert!(apart(&moved, &stayed) < 0.3, "{moved:?} {stayed:?}");
+}
+
 /// A search turn ends once the map has nothing left around the chair to
 /// look at, and [`LOOK_SETTLE_RAD`] more; it goes the shorter way to what
 /// is left; with something always left, a whole turn.

@@ -318,6 +318,10 @@ pub fn plan(
     };
     let c0 = cell([start.x_m, start.y_m])?;
     if !to_goal[c0].is_finite() {
+        tracing::debug!(
+            start_passable = passable[c0],
+            "manoeuvre search: no way from the start to the goal for the chair's inscribed disc"
+        );
         return None;
     }
     let k0 = heading_index(start.theta_rad);
@@ -349,6 +353,7 @@ pub fn plan(
         }
         expanded += 1;
         if expanded > MAX_EXPANDED {
+            tracing::debug!(expanded, "manoeuvre search: over its bound of poses");
             return None;
         }
         let (s, co) = node.theta.sin_cos();
@@ -402,6 +407,13 @@ pub fn plan(
             )));
         }
     }
+    tracing::debug!(
+        expanded,
+        turn_at_start = turn_clear([start.x_m, start.y_m]),
+        forward_at_start = straight_clear([start.x_m, start.y_m], start.theta_rad, 1.0),
+        back_at_start = straight_clear([start.x_m, start.y_m], start.theta_rad, -1.0),
+        "manoeuvre search: every pose within its bounds tried"
+    );
     None
 }
 

@@ -237,6 +237,11 @@ impl GridMap {
         self.known[i] || self.camera[i]
     }
 
+    /// Whether odom `p` lies in a cell seen at all (False off the map).
+    pub fn is_known_at(&self, p: [f64; 2]) -> bool {
+        self.cell(p).is_some_and(|i| self.is_known(i))
+    }
+
     /// Something is there (a laser's return, the camera's obstacle or
     /// drop-off).
     pub fn is_blocked(&self, i: usize) -> bool {

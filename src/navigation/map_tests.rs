@@ -102,6 +102,9 @@ fn rays_clear_space_and_mark_what_they_hit() {
         "the hit, 2 m away"
     );
     assert!(!map.is_known(cell([4.0, 1.0])), "beyond the hit");
+    // by odom point: the same, and nothing off the map is seen
+    assert!(map.is_known_at([1.5, 1.0]) && !map.is_known_at([4.0, 1.0]));
+    assert!(!map.is_known_at([1e6, 1.0]));
     // blind rays say nothing
     let mut blind = GridMap::new(MapSettings::default(), [0.0, 0.0]);
     blind.add_scan(pose, &ring(None, true));
