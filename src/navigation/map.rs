@@ -237,7 +237,7 @@ impl GridMap {
         self.known[i] || self.camera[i]
     }
 
-    /// Whether odom `p` lies in a cell seen at all (False off the map).
+    /// Whether odom `p` lies in a cell seen at all (false off the map).
     pub fn is_known_at(&self, p: [f64; 2]) -> bool {
         self.cell(p).is_some_and(|i| self.is_known(i))
     }
