@@ -8,7 +8,10 @@
 //! 2. Seeds: central pixels within `mode_tolerance_m` of the mode.
 //! 3. Grow 4-connected from the seeds while neighbouring depths differ by at
 //!    most `step_m + step_per_m · z` (a relative step, for depth noise that
-//!    grows with range), staying inside the box.
+//!    grows with range), staying inside the box. Seeds chosen by depth
+//!    alone can lie on two surfaces apart (a bin's face before a
+//!    bookshelf seen obliquely): only the grown surface holding the most
+//!    seeds is kept.
 //! 4. A detector's box hugs its object: the region spans the box and stops
 //!    at its edges. A region that spans little of the box or runs on past
 //!    its edges (a chair before the boxed bookshelf, a table before the
@@ -152,7 +155,94 @@ impl DepthBoxSegmenter {
                 .map(|z| self.bin_of(z)),
         )?;
         let mode = self.mode_of(bin);
-        Some(self.grow(depth, mask, [cx0, cy0, cx1, cy1], mode))
+        let grown = self.grow(depth, mask, [cx0, cy0, cx1, cy1], mode);
+        Some(self.seeds_surface(depth, grown, [cx0, cy0, cx1, cy1], mode))
+    }
+
+    /// Of a region grown from seeds at one depth, the one surface (its
+    /// pixels joined by the growth's depth steps) that holds the most of
+    /// them: the seeds are chosen by depth alone, and two surfaces apart
+    /// can share it (a bin's face before a bookshelf seen obliquely, both
+    /// about 1.6 m off at the mode; grown together, the bin came into
+    /// the bookshelf's mask and its box).
+    fn seeds_surface(
+        &self,
+        depth: &DepthImage,
+        mut mask: Mask,
+        seeds: [usize; 4],
+        mode: f32,
+    ) -> Mask {
+        let (x0, y0, bw, bh) = mask.region();
+        let s = &self.settings;
+        let stride = depth.width();
+        let data = depth.data();
+        let tolerance = self.tolerance();
+        let is_seed = |x: usize, y: usize, z: f32| {
+            let (u, v) = (x0 + x, y0 + y);
+            u >= seeds[0]
+                && u < seeds[2]
+                && v >= seeds[1]
+                && v < seeds[3]
+                && (z - mode).abs() <= tolerance
+        };
+        let bits = mask.region_bits_mut();
+        // each surface's label (0: none yet), and its seeds
+        let mut label = vec![0u32; bw * bh];
+        let mut seeds_of: Vec<usize> = vec![0];
+        let mut stack: Vec<usize> = Vec::new();
+        for start in 0..bw * bh {
+            if !bits[start] || label[start] != 0 {
+                continue;
+            }
+            let id = seeds_of.len() as u32;
+            let mut n = 0usize;
+            label[start] = id;
+            stack.push(start);
+            while let Some(i) = stack.pop() {
+                let (x, y) = (i % bw, i / bw);
+                let z = data[(y0 + y) * stride + x0 + x];
+                if is_seed(x, y, z) {
+                    n += 1;
+                }
+                let step = s.step_m + s.step_per_m * z;
+                let mut visit = |j: usize, nx: usize, ny: usize| {
+                    if bits[j]
+                        && label[j] == 0
+                        && (data[(y0 + ny) * stride + x0 + nx] - z).abs() <= step
+                    {
+                        label[j] = id;
+                        stack.push(j);
+                    }
+                };
+                if x > 0 {
+                    visit(i - 1, x - 1, y);
+                }
+                if x + 1 < bw {
+                    visit(i + 1, x + 1, y);
+                }
+                if y > 0 {
+                    visit(i - bw, x, y - 1);
+                }
+                if y + 1 < bh {
+                    visit(i + bw, x, y + 1);
+                }
+            }
+            seeds_of.push(n);
+        }
+        if seeds_of.len() <= 2 {
+            return mask;
+        }
+        // the most seeds (ties: the first found, the topmost)
+        let mut keep = 1u32;
+        for (id, &n) in seeds_of.iter().enumerate().skip(1) {
+            if n > seeds_of[keep as usize] {
+                keep = id as u32;
+            }
+        }
+        for (b, l) in bits.iter_mut().zip(&label) {
+            *b = *b && *l == keep;
+        }
+        mask
     }
 
     fn bin_of(&self, z: f32) -> u32 {

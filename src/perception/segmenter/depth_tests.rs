@@ -322,7 +322,97 @@ fn reference_mask(s: &DepthSegmenterSettings, depth: &DepthImage, xyxy: [f32; 4]
             visit(u, v + 1);
         }
     }
+    // the one surface holding the most seeds (ties: the first found,
+    // row by row); a pixel joins a surface from another as the growing
+    // would reach it
+    let tolerance = s.mode_tolerance_m.max(s.bin_m / 2.0);
+    let is_seed = |u: usize, v: usize, z: f32| {
+        u >= cx0 && u < cx1.min(w) && v >= cy0 && v < cy1.min(h) && (z - mode).abs() <= tolerance
+    };
+    let mut label: std::collections::HashMap<(usize, usize), usize> = Default::default();
+    let mut seeds_of: Vec<usize> = Vec::new();
+    for v in y0..y0 + bh {
+        for u in x0..x0 + bw {
+            if !mask.get(u, v) || label.contains_key(&(u, v)) {
+                continue;
+            }
+            let id = seeds_of.len();
+            let mut n = 0;
+            label.insert((u, v), id);
+            let mut queue = std::collections::VecDeque::from([(u, v)]);
+            while let Some((u, v)) = queue.pop_front() {
+                let Some(z) = depth.at(u, v) else { continue };
+                n += usize::from(is_seed(u, v, z));
+                let step = s.step_m + s.step_per_m * z;
+                let around = [
+                    (u.wrapping_sub(1), v),
+                    (u + 1, v),
+                    (u, v.wrapping_sub(1)),
+                    (u, v + 1),
+                ];
+                for (nu, nv) in around {
+                    if nu < x0 || nu >= x0 + bw || nv < y0 || nv >= y0 + bh {
+                        continue;
+                    }
+                    if !mask.get(nu, nv) || label.contains_key(&(nu, nv)) {
+                        continue;
+                    }
+                    if depth.at(nu, nv).is_some_and(|nz| (nz - z).abs() <= step) {
+                        label.insert((nu, nv), id);
+                        queue.push_back((nu, nv));
+                    }
+                }
+            }
+            seeds_of.push(n);
+        }
+    }
+    if seeds_of.len() > 1 {
+        let mut keep = 0;
+        for (id, &n) in seeds_of.iter().enumerate() {
+            if n > seeds_of[keep] {
+                keep = id;
+            }
+        }
+        for (&(u, v), &id) in &label {
+            if id != keep {
+                mask.set(u, v, false);
+            }
+        }
+    }
     mask
+}
+
+/// Two surfaces at the mode's depth, apart: a bin's face before a
+/// bookshelf seen obliquely (its depth sloping through the bin's). The
+/// mask is the one that holds the most seeds, not both.
+#[test]
+fn seeds_at_one_depth_on_two_surfaces_grow_only_the_one_holding_most() {
+    let (w, h) = (60, 40);
+    // the bookshelf: depth 1.5 m at the left to 2.09 m at the right; the
+    // bin, lower middle, a flat face at 1.6 m, the mode (all its pixels in
+    // one bin), 0.14 m and more nearer than the shelf beside and above it;
+    // the shelf's columns at 1.65–1.67 m seed too
+    let mut d: Vec<f32> = (0..w * h).map(|i| 1.5 + 0.01 * (i % w) as f32).collect();
+    for v in 20..40 {
+        for u in 25..45 {
+            d[v * w + u] = 1.6;
+        }
+    }
+    let depth = DepthImage::new(w, h, d).unwrap();
+    let seg = DepthBoxSegmenter::default();
+    let m = seg
+        .central_region(&depth, [0.0, 0.0, w as f32, h as f32])
+        .unwrap();
+    let bin = m
+        .pixels()
+        .filter(|&(u, v)| (25..45).contains(&u) && v >= 20)
+        .count();
+    let shelf = m.count() - bin;
+    assert_eq!(
+        m,
+        reference_mask(&seg.settings, &depth, [0.0, 0.0, w as f32, h as f32])
+    );
+    assert_eq!((bin, shelf), (400, 0), "the bin's face alone");
 }
 
 #[test]
