@@ -132,13 +132,12 @@ impl SeenBox {
     /// [`approach_pose`] measures the place beside it; else its upright
     /// box, larger than a turned object (most at the corners).
     fn distance_m(&self, p: [f64; 2]) -> f64 {
-        let f = &self.footprint;
-        if f.ground_contains([self.center_m[0], self.center_m[1]]) {
-            return f.ground_distance_m(p);
-        }
-        let gap = |d: f64, half: f64| (d.abs() - half).max(0.0);
-        gap(p[0] - self.center_m[0], self.size_m[0] / 2.0)
-            .hypot(gap(p[1] - self.center_m[1], self.size_m[1] / 2.0))
+        crate::estimation::tracker::outline_distance_m(
+            self.center_m,
+            self.size_m,
+            &self.footprint,
+            p,
+        )
     }
 }
 
@@ -658,6 +657,14 @@ impl GoalKeeper {
                     None,
                 ) {
                     Some(approach) => {
+                        tracing::info!(
+                            track = id,
+                            center_m = ?t.center_m,
+                            size_m = ?t.size_m,
+                            hits = t.hits,
+                            ?approach,
+                            "goal: acquired"
+                        );
                         self.state = GoalState::Tracking {
                             label: label.clone(),
                             track: id,
@@ -778,6 +785,14 @@ impl GoalKeeper {
                     if (a.x_m - chair.x_m).hypot(a.y_m - chair.y_m) <= s.reached_within_m
                         && seen_now
                     {
+                        tracing::info!(
+                            track,
+                            center_m = ?t.center_m,
+                            size_m = ?t.size_m,
+                            footprint = ?t.footprint,
+                            place = ?a,
+                            "goal: reached"
+                        );
                         self.state = GoalState::Reached {
                             label: label.clone(),
                             track,

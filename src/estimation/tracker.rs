@@ -67,6 +67,23 @@ pub struct Track {
     last_update: Stamp,
 }
 
+/// From a point on the ground (odom) to an object's outline, m: its
+/// ground outline (`footprint`, oriented) where the box's centre lies in
+/// it; else its upright box (`center_m`, `size_m`), larger than a turned
+/// object (most at the corners).
+pub fn outline_distance_m(
+    center_m: [f64; 3],
+    size_m: [f64; 3],
+    footprint: &OrientedBox,
+    p: [f64; 2],
+) -> f64 {
+    if footprint.ground_contains([center_m[0], center_m[1]]) {
+        return footprint.ground_distance_m(p);
+    }
+    let gap = |d: f64, half: f64| (d.abs() - half).max(0.0);
+    gap(p[0] - center_m[0], size_m[0] / 2.0).hypot(gap(p[1] - center_m[1], size_m[1] / 2.0))
+}
+
 impl Track {
     pub fn aabb(&self) -> Aabb {
         Aabb {
@@ -317,6 +334,10 @@ pub(crate) fn segment_distance_sq(a: [f64; 2], b: [f64; 2], p: [f64; 2]) -> f64 
     ex * ex + ey * ey
 }
 
+/// The place beside an object may be this much nearer its outline than
+/// the standoff, m.
+const STANDOFF_SLACK_M: f64 = 0.02;
+
 /// Where the chair stops beside `track`: `standoff_m` from its edge,
 /// facing it, on the free side nearest the way from `from`, clear of
 /// `obstacles` by `clearance_m` with the object in sight; only places
@@ -384,10 +405,11 @@ pub fn approach_pose(
             .map(|o| (o[0] - cx) * c + (o[1] - cy) * s)
             .fold(f64::NEG_INFINITY, f64::max);
         let r = footprint_reach(a).map_or(reach(a), |f| f.min(reach(a)));
-        if seen.is_finite() {
-            seen.clamp(0.0, r)
+        // (and whether its own points set it, nearer than the outline)
+        if seen.is_finite() && seen < r {
+            (seen.max(0.0), true)
         } else {
-            r
+            (r, false)
         }
     };
     for k in 0..=12 {
@@ -396,7 +418,22 @@ pub fn approach_pose(
                 continue;
             }
             let a = base + sign * (k as f64) * 15f64.to_radians();
-            let r = edge_along(a) + standoff_m;
+            let (edge_m, own_edge) = edge_along(a);
+            let mut r = edge_m + standoff_m;
+            // off the line from the centre, another part of the object
+            // can lie nearer than its edge on the line (a sofa's corner,
+            // the place at 45° to it): the place moves out until the
+            // whole outline is the standoff away (not where the object's
+            // own points put its edge inside the outline)
+            for _ in 0..if own_edge { 0 } else { 3 } {
+                let (x, y) = (cx + r * a.cos(), cy + r * a.sin());
+                let short_m = standoff_m
+                    - outline_distance_m(track.center_m, track.size_m, &track.footprint, [x, y]);
+                if short_m <= STANDOFF_SLACK_M {
+                    break;
+                }
+                r += short_m;
+            }
             let (x, y) = (cx + r * a.cos(), cy + r * a.sin());
             // (squared distances: this runs for every candidate over
             // every obstacle point, each control step)

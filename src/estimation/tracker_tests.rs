@@ -221,8 +221,10 @@ fn only_the_chairs_body_needs_room_beside_the_line_to_the_object() {
 #[test]
 fn approach_pose_stops_at_a_turned_objects_own_outline() {
     // a desk 1.2 × 0.6 m turned 45° about (3, 0): its upright box is
-    // 1.27 m square, and towards the chair at the origin the desk
-    // ends 0.42 m from its centre, the box 0.64 m
+    // 1.27 m square, and towards the chair at the origin the desk's
+    // long side crosses the line 0.42 m from its centre, the box 0.64 m;
+    // its nearest corner lies off the line, nearer a place 0.6 m on
+    // from the crossing
     let yaw = 45f64.to_radians();
     let mut pts = Vec::new();
     for i in 0..=24 {
@@ -245,20 +247,32 @@ fn approach_pose_stops_at_a_turned_objects_own_outline() {
     tr.update(s(0.0), &[desk], |_| true);
     let t = tr.goal("desk", [0.0, 0.0]).unwrap().clone();
     assert!((t.size_m[0] - 0.9 * 2f64.sqrt()).abs() < 0.01, "{t:?}");
-    let edge = 0.3 * 2f64.sqrt();
-    let p = approach_pose(&t, [0.0, 0.0], 0.6, 0.6, &[], 0.4, &|_| true).unwrap();
-    assert!(
-        (p.x_m - (3.0 - edge - 0.6)).abs() < 0.01 && p.y_m.abs() < 1e-6,
-        "{p:?}"
-    );
+    let crossing = 3.0 - 0.3 * 2f64.sqrt();
+    let upright = 3.0 - 0.45 * 2f64.sqrt();
+    // the desk's outline: the corner, at 1.2 m from the centre along the
+    // line, is 0.6 m off
+    let outline = |p: &ApproachPose| {
+        let [x, y] = t.footprint.ground_local([p.x_m, p.y_m]);
+        ((x.abs() - 0.6).max(0.0)).hypot((y.abs() - 0.3).max(0.0))
+    };
+    let check = |p: &ApproachPose| {
+        assert!(p.y_m.abs() < 1e-6, "{p:?}");
+        assert!(
+            outline(p) >= 0.6 - STANDOFF_SLACK_M - 0.005 && outline(p) <= 0.6 + 0.005,
+            "{p:?}: {} m from the desk",
+            outline(p)
+        );
+        // further than the crossing puts it, nearer than the upright box
+        assert!(
+            p.x_m < crossing - 0.6 - 0.1 && p.x_m > upright - 0.6,
+            "{p:?}"
+        );
+    };
+    check(&approach_pose(&t, [0.0, 0.0], 0.6, 0.6, &[], 0.4, &|_| true).unwrap());
     // something low in front of it, inside its upright box but not in
-    // its outline: the desk's edge all the same
+    // its outline: the desk's outline all the same
     let low = [[2.45, -0.05], [2.45, 0.05]];
-    let p = approach_pose(&t, [0.0, 0.0], 0.6, 0.6, &low, 0.4, &|_| true).unwrap();
-    assert!(
-        (p.x_m - (3.0 - edge - 0.6)).abs() < 0.01 && p.y_m.abs() < 1e-6,
-        "{p:?}"
-    );
+    check(&approach_pose(&t, [0.0, 0.0], 0.6, 0.6, &low, 0.4, &|_| true).unwrap());
 }
 
 #[test]
