@@ -10,9 +10,8 @@
 //!    most `step_m + step_per_m · z` (a relative step, for depth noise that
 //!    grows with range), staying inside the box. Seeds chosen by depth
 //!    alone can lie on two surfaces apart (a bin's face before a
-//!    bookshelf seen obliquely): the grown surface holding the most seeds
-//!    is kept, with the others that do not border it (the object's parts
-//!    either side of what stands before it).
+//!    bookshelf seen obliquely): only the grown surface holding the most
+//!    seeds is kept.
 //! 4. A detector's box hugs its object: the region spans the box and stops
 //!    at its edges. A region that spans little of the box or runs on past
 //!    its edges (a chair before the boxed bookshelf, a table before the
@@ -160,15 +159,12 @@ impl DepthBoxSegmenter {
         Some(self.seeds_surface(depth, grown, [cx0, cy0, cx1, cy1], mode))
     }
 
-    /// Of a region grown from seeds at one depth, the surface (its pixels
-    /// joined by the growth's depth steps, each labelled from the first
-    /// seed, row by row, that reaches it) holding the most seeds, and the
-    /// other seeded surfaces that do not border it: the seeds are chosen
-    /// by depth alone, and a surface apart can share it (a bin's face
-    /// before a bookshelf seen obliquely, both about 1.6 m off at the
-    /// mode; grown together, the bin came into the bookshelf's mask and
-    /// its box), while the parts of one object either side of what stands
-    /// before it do not touch.
+    /// Of a region grown from seeds at one depth, the one surface (its
+    /// pixels joined by the growth's depth steps) that holds the most of
+    /// them: the seeds are chosen by depth alone, and two surfaces apart
+    /// can share it (a bin's face before a bookshelf seen obliquely, both
+    /// about 1.6 m off at the mode; grown together, the bin came into
+    /// the bookshelf's mask and its box).
     fn seeds_surface(
         &self,
         depth: &DepthImage,
@@ -180,24 +176,22 @@ impl DepthBoxSegmenter {
         let s = &self.settings;
         let stride = depth.width();
         let data = depth.data();
-        let z_at = |i: usize| data[(y0 + i / bw) * stride + x0 + i % bw];
         let tolerance = self.tolerance();
-        let bits = mask.region_bits_mut();
-        let is_seed = |i: usize| {
-            let (u, v) = (x0 + i % bw, y0 + i / bw);
-            bits[i]
-                && u >= seeds[0]
+        let is_seed = |x: usize, y: usize, z: f32| {
+            let (u, v) = (x0 + x, y0 + y);
+            u >= seeds[0]
                 && u < seeds[2]
                 && v >= seeds[1]
                 && v < seeds[3]
-                && (z_at(i) - mode).abs() <= tolerance
+                && (z - mode).abs() <= tolerance
         };
+        let bits = mask.region_bits_mut();
         // each surface's label (0: none yet), and its seeds
         let mut label = vec![0u32; bw * bh];
         let mut seeds_of: Vec<usize> = vec![0];
         let mut stack: Vec<usize> = Vec::new();
         for start in 0..bw * bh {
-            if label[start] != 0 || !is_seed(start) {
+            if !bits[start] || label[start] != 0 {
                 continue;
             }
             let id = seeds_of.len() as u32;
@@ -205,26 +199,32 @@ impl DepthBoxSegmenter {
             label[start] = id;
             stack.push(start);
             while let Some(i) = stack.pop() {
-                n += usize::from(is_seed(i));
-                let (x, y, z) = (i % bw, i / bw, z_at(i));
+                let (x, y) = (i % bw, i / bw);
+                let z = data[(y0 + y) * stride + x0 + x];
+                if is_seed(x, y, z) {
+                    n += 1;
+                }
                 let step = s.step_m + s.step_per_m * z;
-                let mut visit = |j: usize| {
-                    if bits[j] && label[j] == 0 && (z_at(j) - z).abs() <= step {
+                let mut visit = |j: usize, nx: usize, ny: usize| {
+                    if bits[j]
+                        && label[j] == 0
+                        && (data[(y0 + ny) * stride + x0 + nx] - z).abs() <= step
+                    {
                         label[j] = id;
                         stack.push(j);
                     }
                 };
                 if x > 0 {
-                    visit(i - 1);
+                    visit(i - 1, x - 1, y);
                 }
                 if x + 1 < bw {
-                    visit(i + 1);
+                    visit(i + 1, x + 1, y);
                 }
                 if y > 0 {
-                    visit(i - bw);
+                    visit(i - bw, x, y - 1);
                 }
                 if y + 1 < bh {
-                    visit(i + bw);
+                    visit(i + bw, x, y + 1);
                 }
             }
             seeds_of.push(n);
@@ -232,33 +232,15 @@ impl DepthBoxSegmenter {
         if seeds_of.len() <= 2 {
             return mask;
         }
-        // the most seeds (ties: the first found)
+        // the most seeds (ties: the first found, the topmost)
         let mut keep = 1u32;
         for (id, &n) in seeds_of.iter().enumerate().skip(1) {
             if n > seeds_of[keep as usize] {
                 keep = id as u32;
             }
         }
-        // the surfaces bordering it (and any pixel no seed reached)
-        let mut drop = vec![false; seeds_of.len()];
-        drop[0] = true;
-        for i in (0..bw * bh).filter(|&i| label[i] == keep) {
-            let (x, y) = (i % bw, i / bw);
-            let around = [
-                (x > 0).then(|| i - 1),
-                (x + 1 < bw).then(|| i + 1),
-                (y > 0).then(|| i - bw),
-                (y + 1 < bh).then(|| i + bw),
-            ];
-            for j in around.into_iter().flatten() {
-                if label[j] != keep {
-                    drop[label[j] as usize] = true;
-                }
-            }
-        }
-        drop[keep as usize] = false;
         for (b, l) in bits.iter_mut().zip(&label) {
-            *b = *b && !drop[*l as usize];
+            *b = *b && *l == keep;
         }
         mask
     }
