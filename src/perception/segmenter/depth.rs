@@ -177,57 +177,60 @@ impl DepthBoxSegmenter {
         let stride = depth.width();
         let data = depth.data();
         let tolerance = self.tolerance();
+        // the seeds' rectangle in region coordinates
+        let (sx0, sy0) = (seeds[0].saturating_sub(x0), seeds[1].saturating_sub(y0));
+        let (sx1, sy1) = (
+            seeds[2].saturating_sub(x0).min(bw),
+            seeds[3].saturating_sub(y0).min(bh),
+        );
         let is_seed = |x: usize, y: usize, z: f32| {
-            let (u, v) = (x0 + x, y0 + y);
-            u >= seeds[0]
-                && u < seeds[2]
-                && v >= seeds[1]
-                && v < seeds[3]
-                && (z - mode).abs() <= tolerance
+            x >= sx0 && x < sx1 && y >= sy0 && y < sy1 && (z - mode).abs() <= tolerance
         };
         let bits = mask.region_bits_mut();
         // each surface's label (0: none yet), and its seeds
         let mut label = vec![0u32; bw * bh];
         let mut seeds_of: Vec<usize> = vec![0];
-        let mut stack: Vec<usize> = Vec::new();
-        for start in 0..bw * bh {
-            if !bits[start] || label[start] != 0 {
-                continue;
-            }
-            let id = seeds_of.len() as u32;
-            let mut n = 0usize;
-            label[start] = id;
-            stack.push(start);
-            while let Some(i) = stack.pop() {
-                let (x, y) = (i % bw, i / bw);
-                let z = data[(y0 + y) * stride + x0 + x];
-                if is_seed(x, y, z) {
-                    n += 1;
+        let mut stack: Vec<(u32, u32, f32)> = Vec::new();
+        for y in 0..bh {
+            let row = (y0 + y) * stride + x0;
+            for x in 0..bw {
+                let i = y * bw + x;
+                if !bits[i] || label[i] != 0 {
+                    continue;
                 }
-                let step = s.step_m + s.step_per_m * z;
-                let mut visit = |j: usize, nx: usize, ny: usize| {
-                    if bits[j]
-                        && label[j] == 0
-                        && (data[(y0 + ny) * stride + x0 + nx] - z).abs() <= step
-                    {
-                        label[j] = id;
-                        stack.push(j);
+                let id = seeds_of.len() as u32;
+                let mut n = 0usize;
+                label[i] = id;
+                stack.push((x as u32, y as u32, data[row + x]));
+                while let Some((x, y, z)) = stack.pop() {
+                    let (x, y) = (x as usize, y as usize);
+                    n += usize::from(is_seed(x, y, z));
+                    let i = y * bw + x;
+                    let step = s.step_m + s.step_per_m * z;
+                    let mut visit = |j: usize, nx: usize, ny: usize| {
+                        if bits[j] && label[j] == 0 {
+                            let nz = data[(y0 + ny) * stride + x0 + nx];
+                            if (nz - z).abs() <= step {
+                                label[j] = id;
+                                stack.push((nx as u32, ny as u32, nz));
+                            }
+                        }
+                    };
+                    if x > 0 {
+                        visit(i - 1, x - 1, y);
                     }
-                };
-                if x > 0 {
-                    visit(i - 1, x - 1, y);
+                    if x + 1 < bw {
+                        visit(i + 1, x + 1, y);
+                    }
+                    if y > 0 {
+                        visit(i - bw, x, y - 1);
+                    }
+                    if y + 1 < bh {
+                        visit(i + bw, x, y + 1);
+                    }
                 }
-                if x + 1 < bw {
-                    visit(i + 1, x + 1, y);
-                }
-                if y > 0 {
-                    visit(i - bw, x, y - 1);
-                }
-                if y + 1 < bh {
-                    visit(i + bw, x, y + 1);
-                }
+                seeds_of.push(n);
             }
-            seeds_of.push(n);
         }
         if seeds_of.len() <= 2 {
             return mask;
