@@ -216,18 +216,7 @@ impl DepthBoxSegmenter {
                             }
                         }
                     };
-                    if x > 0 {
-                        visit(i - 1, x - 1, y);
-                    }
-                    if x + 1 < bw {
-                        visit(i + 1, x + 1, y);
-                    }
-                    if y > 0 {
-                        visit(i - bw, x, y - 1);
-                    }
-                    if y + 1 < bh {
-                        visit(i + bw, x, y + 1);
-                    }
+                    each_neighbour(i, x, y, bw, bh, &mut visit);
                 }
                 seeds_of.push(n);
             }
@@ -346,18 +335,7 @@ impl DepthBoxSegmenter {
                     stack.push((nx as u32, ny as u32, nz));
                 }
             };
-            if x > 0 {
-                visit(i - 1, x - 1, y);
-            }
-            if x + 1 < bw {
-                visit(i + 1, x + 1, y);
-            }
-            if y > 0 {
-                visit(i - bw, x, y - 1);
-            }
-            if y + 1 < bh {
-                visit(i + bw, x, y + 1);
-            }
+            each_neighbour(i, x, y, bw, bh, &mut visit);
         }
         mask
     }
@@ -436,6 +414,31 @@ impl DepthBoxSegmenter {
             }
         }
         spans * (1.0 - count as f64 / ring_px as f64)
+    }
+}
+
+/// The 4 neighbours of pixel `i`, at (`x`, `y`) in a region `bw` × `bh`
+/// (row-major): `visit(j, nx, ny)` for each within it.
+#[inline(always)]
+fn each_neighbour(
+    i: usize,
+    x: usize,
+    y: usize,
+    bw: usize,
+    bh: usize,
+    visit: &mut impl FnMut(usize, usize, usize),
+) {
+    if x > 0 {
+        visit(i - 1, x - 1, y);
+    }
+    if x + 1 < bw {
+        visit(i + 1, x + 1, y);
+    }
+    if y > 0 {
+        visit(i - bw, x, y - 1);
+    }
+    if y + 1 < bh {
+        visit(i + bw, x, y + 1);
     }
 }
 
