@@ -188,6 +188,41 @@ fn shared() -> PathBuf {
 }
 
 fn bench_whole_view(c: &mut Criterion) {
+    // a filter that names none of this group's benches (`--bench
+    // depth_segmenter_10_boxes`) skips the group and its printed figures,
+    // minutes of model runs on a CPU
+    const NAMES: &str = "whole_view_yolo11n_depth whole_view_pipelined yolo11n_model_only \
+                         yolo11n_detect_prepared letterbox_mrpt";
+    // (criterion's options that take a value, whose value is no filter)
+    const VALUED: [&str; 15] = [
+        "--save-baseline",
+        "--baseline",
+        "--load-baseline",
+        "--sample-size",
+        "--warm-up-time",
+        "--measurement-time",
+        "--nresamples",
+        "--noise-threshold",
+        "--confidence-level",
+        "--significance-level",
+        "--plotting-backend",
+        "--output-format",
+        "--color",
+        "--profile-time",
+        "--format",
+    ];
+    let mut filter = None;
+    let mut args = std::env::args().skip(1);
+    while let Some(a) = args.next() {
+        if VALUED.contains(&a.as_str()) {
+            args.next();
+        } else if !a.starts_with('-') {
+            filter = Some(a);
+        }
+    }
+    if filter.as_deref().is_some_and(|f| !NAMES.contains(f)) {
+        return;
+    }
     // a provider that fails to register is logged (and the view runs on
     // the CPU): show it
     let _ = tracing_subscriber::fmt()

@@ -155,16 +155,42 @@ impl DepthBoxSegmenter {
                 .map(|z| self.bin_of(z)),
         )?;
         let mode = self.mode_of(bin);
-        let grown = self.grow(depth, mask, [cx0, cy0, cx1, cy1], mode);
-        Some(self.seeds_surface(depth, grown, [cx0, cy0, cx1, cy1], mode))
+        let seeds = [cx0, cy0, cx1, cy1];
+        // most often every seed lies on the first one's surface: grown
+        // from it alone, the region is then that surface (one growth, no
+        // labels)
+        let tolerance = self.tolerance();
+        let is_seed = |u: usize, v: usize| {
+            depth
+                .at(u, v)
+                .is_some_and(|z| (z - mode).abs() <= tolerance && self.above(u, v, z))
+        };
+        let (rx1, ry1) = ((x0 + bw).min(cx1), (y0 + bh).min(cy1));
+        let mut in_seeds = (cy0..ry1).flat_map(|v| (cx0..rx1).map(move |u| (u, v)));
+        let Some((u, v)) = in_seeds.find(|&(u, v)| is_seed(u, v)) else {
+            return Some(mask);
+        };
+        let first = self.grow_where(depth, mask.clone(), [u, v, u + 1, v + 1], mode, |_, _| true);
+        if in_seeds.all(|(u, v)| first.get(u, v) || !is_seed(u, v)) {
+            return Some(first);
+        }
+        Some(self.seeds_surface(depth, mask, seeds, mode))
     }
 
-    /// Of a region grown from seeds at one depth, the one surface (its
-    /// pixels joined by the growth's depth steps) that holds the most of
-    /// them: the seeds are chosen by depth alone, and two surfaces apart
-    /// can share it (a bin's face before a bookshelf seen obliquely, both
-    /// about 1.6 m off at the mode; grown together, the bin came into
-    /// the bookshelf's mask and its box).
+    /// Steps 2 and 3 with the surfaces told apart: the region grown from
+    /// the seeds of `seeds` (image coordinates, clipped to the mask's
+    /// region) within the tolerance of `mode`, kept only on the one
+    /// surface (its pixels joined by the growth's depth steps) that holds
+    /// the most of them. The seeds are chosen by depth alone, and two
+    /// surfaces apart can share it (a bin's face before a bookshelf seen
+    /// obliquely, both about 1.6 m off at the mode; grown together, the
+    /// bin came into the bookshelf's mask and its box).
+    ///
+    /// One growth does both: each seed not yet reached starts a surface of
+    /// its own, grown to all it reaches, and each seed counts for the
+    /// surface that holds it. As the growth's step holds either way
+    /// between two pixels (up to the step's own slope with depth), the
+    /// surfaces are those of the whole region whatever the seeds' order.
     fn seeds_surface(
         &self,
         depth: &DepthImage,
@@ -177,62 +203,60 @@ impl DepthBoxSegmenter {
         let stride = depth.width();
         let data = depth.data();
         let tolerance = self.tolerance();
-        // the seeds' rectangle in region coordinates
-        let (sx0, sy0) = (seeds[0].saturating_sub(x0), seeds[1].saturating_sub(y0));
-        let (sx1, sy1) = (
-            seeds[2].saturating_sub(x0).min(bw),
-            seeds[3].saturating_sub(y0).min(bh),
-        );
-        let is_seed = |x: usize, y: usize, z: f32| {
-            x >= sx0 && x < sx1 && y >= sy0 && y < sy1 && (z - mode).abs() <= tolerance
-        };
-        let bits = mask.region_bits_mut();
-        // each surface's label (0: none yet), and its seeds
+        // each pixel's surface (0: none), and each surface's seeds
         let mut label = vec![0u32; bw * bh];
-        let mut seeds_of: Vec<usize> = vec![0];
+        let mut seeds_of: Vec<u32> = vec![0];
         let mut stack: Vec<(u32, u32, f32)> = Vec::new();
-        for y in 0..bh {
-            let row = (y0 + y) * stride + x0;
-            for x in 0..bw {
-                let i = y * bw + x;
-                if !bits[i] || label[i] != 0 {
+        for v in seeds[1].max(y0)..seeds[3].min(y0 + bh) {
+            for u in seeds[0].max(x0)..seeds[2].min(x0 + bw) {
+                let Some(z) = depth.at(u, v) else { continue };
+                if (z - mode).abs() > tolerance || !self.above(u, v, z) {
                     continue;
                 }
-                let id = seeds_of.len() as u32;
-                let mut n = 0usize;
-                label[i] = id;
-                stack.push((x as u32, y as u32, data[row + x]));
-                while let Some((x, y, z)) = stack.pop() {
-                    let (x, y) = (x as usize, y as usize);
-                    n += usize::from(is_seed(x, y, z));
-                    let i = y * bw + x;
-                    let step = s.step_m + s.step_per_m * z;
-                    let mut visit = |j: usize, nx: usize, ny: usize| {
-                        if bits[j] && label[j] == 0 {
-                            let nz = data[(y0 + ny) * stride + x0 + nx];
-                            if (nz - z).abs() <= step {
-                                label[j] = id;
-                                stack.push((nx as u32, ny as u32, nz));
+                let (x, y) = (u - x0, v - y0);
+                let i = y * bw + x;
+                if label[i] == 0 {
+                    let id = seeds_of.len() as u32;
+                    seeds_of.push(0);
+                    label[i] = id;
+                    stack.push((x as u32, y as u32, z));
+                    while let Some((x, y, z)) = stack.pop() {
+                        let (x, y) = (x as usize, y as usize);
+                        let i = y * bw + x;
+                        let step = s.step_m + s.step_per_m * z;
+                        each_neighbour!(i, x, y, bw, bh, |j, nx, ny| {
+                            if label[j] == 0 {
+                                let nz = data[(y0 + ny) * stride + x0 + nx];
+                                if crate::msg::is_valid_depth(nz)
+                                    && (nz - z).abs() <= step
+                                    && self.above(x0 + nx, y0 + ny, nz)
+                                {
+                                    label[j] = id;
+                                    stack.push((nx as u32, ny as u32, nz));
+                                }
                             }
-                        }
-                    };
-                    each_neighbour(i, x, y, bw, bh, &mut visit);
+                        });
+                    }
                 }
-                seeds_of.push(n);
+                seeds_of[label[i] as usize] += 1;
             }
         }
+        // the most seeds (ties: the surface of the first seed, row by row)
+        let bits = mask.region_bits_mut();
         if seeds_of.len() <= 2 {
+            for (b, &l) in bits.iter_mut().zip(&label) {
+                *b = l != 0;
+            }
             return mask;
         }
-        // the most seeds (ties: the first found, the topmost)
         let mut keep = 1u32;
         for (id, &n) in seeds_of.iter().enumerate().skip(1) {
             if n > seeds_of[keep as usize] {
                 keep = id as u32;
             }
         }
-        for (b, l) in bits.iter_mut().zip(&label) {
-            *b = *b && *l == keep;
+        for (b, &l) in bits.iter_mut().zip(&label) {
+            *b = l == keep;
         }
         mask
     }
@@ -280,16 +304,11 @@ impl DepthBoxSegmenter {
             .filter_map(move |(u, v)| depth.at(u, v).filter(|&z| self.above(u, v, z)))
     }
 
-    /// Steps 2 and 3: the seeds are the pixels of `seeds` (image
-    /// coordinates, clipped to the mask's region) within the tolerance of
-    /// `mode`, grown over region indices. A pixel joins once and is grown
-    /// from once, so the mask is every pixel reachable from the seeds
-    /// whatever the order (a stack here).
-    fn grow(&self, depth: &DepthImage, mask: Mask, seeds: [usize; 4], mode: f32) -> Mask {
-        self.grow_where(depth, mask, seeds, mode, |_, _| true)
-    }
-
-    /// [`Self::grow`] seeded only where `seed` holds.
+    /// The region grown from the pixels of `seeds` (image coordinates,
+    /// clipped to the mask's region) within the tolerance of `mode` and
+    /// where `seed` holds, over region indices. A pixel joins once and is
+    /// grown from once, so the mask is every pixel reachable from the
+    /// seeds whatever the order (a stack here).
     fn grow_where(
         &self,
         depth: &DepthImage,
@@ -322,20 +341,18 @@ impl DepthBoxSegmenter {
             let (x, y) = (x as usize, y as usize);
             let i = y * bw + x;
             let step = s.step_m + s.step_per_m * z;
-            let mut visit = |j: usize, nx: usize, ny: usize| {
-                if bits[j] {
-                    return;
+            each_neighbour!(i, x, y, bw, bh, |j, nx, ny| {
+                if !bits[j] {
+                    let nz = data[(y0 + ny) * stride + x0 + nx];
+                    if crate::msg::is_valid_depth(nz)
+                        && (nz - z).abs() <= step
+                        && self.above(x0 + nx, y0 + ny, nz)
+                    {
+                        bits[j] = true;
+                        stack.push((nx as u32, ny as u32, nz));
+                    }
                 }
-                let nz = data[(y0 + ny) * stride + x0 + nx];
-                if crate::msg::is_valid_depth(nz)
-                    && (nz - z).abs() <= step
-                    && self.above(x0 + nx, y0 + ny, nz)
-                {
-                    bits[j] = true;
-                    stack.push((nx as u32, ny as u32, nz));
-                }
-            };
-            each_neighbour(i, x, y, bw, bh, &mut visit);
+            });
         }
         mask
     }
@@ -377,12 +394,25 @@ impl DepthBoxSegmenter {
         let data = depth.data();
         let mut reached = vec![false; rw * rh];
         let mut stack: Vec<(usize, usize, f32)> = Vec::new();
-        // from the mask's pixels on the box's edges
-        for (u, v) in mask.pixels() {
-            if u == x0 || v == y0 || u + 1 == x0 + bw || v + 1 == y0 + bh {
-                if let Some(z) = depth.at(u, v) {
-                    stack.push((u, v, z));
+        // from the mask's pixels on the box's edges (the region's first
+        // and last rows and columns; it holds a pixel, so it is not empty)
+        let mut from_edge = |x: usize, y: usize| {
+            if mask.region_row(y)[x] {
+                if let Some(z) = depth.at(x0 + x, y0 + y) {
+                    stack.push((x0 + x, y0 + y, z));
                 }
+            }
+        };
+        for x in 0..bw {
+            from_edge(x, 0);
+            if bh > 1 {
+                from_edge(x, bh - 1);
+            }
+        }
+        for y in 1..bh.saturating_sub(1) {
+            from_edge(0, y);
+            if bw > 1 {
+                from_edge(bw - 1, y);
             }
         }
         let mut count = 0usize;
@@ -418,29 +448,33 @@ impl DepthBoxSegmenter {
 }
 
 /// The 4 neighbours of pixel `i`, at (`x`, `y`) in a region `bw` × `bh`
-/// (row-major): `visit(j, nx, ny)` for each within it.
-#[inline(always)]
-fn each_neighbour(
-    i: usize,
-    x: usize,
-    y: usize,
-    bw: usize,
-    bh: usize,
-    visit: &mut impl FnMut(usize, usize, usize),
-) {
-    if x > 0 {
-        visit(i - 1, x - 1, y);
-    }
-    if x + 1 < bw {
-        visit(i + 1, x + 1, y);
-    }
-    if y > 0 {
-        visit(i - bw, x, y - 1);
-    }
-    if y + 1 < bh {
-        visit(i + bw, x, y + 1);
-    }
+/// (row-major): `body` with `j`, `nx`, `ny` bound to each one's index and
+/// coordinates, for each within the region. A macro, not a function
+/// taking a closure: the body is written out four times in place (as a
+/// closure it was called, not inlined, and the calls were a fifth of the
+/// growing's time).
+macro_rules! each_neighbour {
+    ($i:expr, $x:expr, $y:expr, $bw:expr, $bh:expr, |$j:ident, $nx:ident, $ny:ident| $body:block) => {{
+        let (i, x, y, bw, bh): (usize, usize, usize, usize, usize) = ($i, $x, $y, $bw, $bh);
+        if x > 0 {
+            let ($j, $nx, $ny) = (i - 1, x - 1, y);
+            $body
+        }
+        if x + 1 < bw {
+            let ($j, $nx, $ny) = (i + 1, x + 1, y);
+            $body
+        }
+        if y > 0 {
+            let ($j, $nx, $ny) = (i - bw, x, y - 1);
+            $body
+        }
+        if y + 1 < bh {
+            let ($j, $nx, $ny) = (i + bw, x, y + 1);
+            $body
+        }
+    }};
 }
+use each_neighbour;
 
 /// A region fitting its box this well is kept without looking further.
 const GOOD_BOX_FIT: f64 = 0.6;

@@ -322,9 +322,9 @@ fn reference_mask(s: &DepthSegmenterSettings, depth: &DepthImage, xyxy: [f32; 4]
             visit(u, v + 1);
         }
     }
-    // the one surface holding the most seeds (ties: the first found,
-    // row by row); a pixel joins a surface from another as the growing
-    // would reach it
+    // the one surface holding the most seeds (ties: the one whose first
+    // seed comes first, row by row); a pixel joins a surface from another
+    // as the growing would reach it
     let tolerance = s.mode_tolerance_m.max(s.bin_m / 2.0);
     let is_seed = |u: usize, v: usize, z: f32| {
         u >= cx0 && u < cx1.min(w) && v >= cy0 && v < cy1.min(h) && (z - mode).abs() <= tolerance
@@ -367,9 +367,22 @@ fn reference_mask(s: &DepthSegmenterSettings, depth: &DepthImage, xyxy: [f32; 4]
         }
     }
     if seeds_of.len() > 1 {
-        let mut keep = 0;
-        for (id, &n) in seeds_of.iter().enumerate() {
-            if n > seeds_of[keep] {
+        // the surfaces in the order of their first seeds, row by row
+        let mut order: Vec<usize> = Vec::new();
+        for v in cy0..cy1.min(h) {
+            for u in cx0..cx1.min(w) {
+                let Some(&id) = label.get(&(u, v)) else {
+                    continue;
+                };
+                let seed = depth.at(u, v).is_some_and(|z| is_seed(u, v, z));
+                if seed && !order.contains(&id) {
+                    order.push(id);
+                }
+            }
+        }
+        let mut keep = *order.first().expect("a region holds its seeds");
+        for &id in &order {
+            if seeds_of[id] > seeds_of[keep] {
                 keep = id;
             }
         }
