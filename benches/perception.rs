@@ -40,10 +40,12 @@ use opennav::msg::{DepthImage, RgbImage};
 use opennav::msg::{Intrinsics, RgbdCalibration};
 use opennav::perception::detector::{open_detector, Detection, DetectorSettings, PreparedImage};
 use opennav::perception::image::{letterbox_chw, letterbox_hwc_u8};
-use opennav::perception::pipeline::{objects_from_masks, GeometrySettings, Pipeline, Timing};
+use opennav::perception::pipeline::{
+    depth_in_color, floor_in_image, objects_from_masks, GeometrySettings, Pipeline, Timing,
+};
 use opennav::perception::registration::register_depth_to_color;
 use opennav::perception::runtime::ExecutionProviderKind;
-use opennav::perception::segmenter::DepthBoxSegmenter;
+use opennav::perception::segmenter::{DepthBoxSegmenter, Segmenter};
 use serde::de::IntoDeserializer;
 use serde::Deserialize;
 
@@ -192,7 +194,7 @@ fn bench_whole_view(c: &mut Criterion) {
     // depth_segmenter_10_boxes`) skips the group and its printed figures,
     // minutes of model runs on a CPU
     const NAMES: &str = "whole_view_yolo11n_depth whole_view_pipelined yolo11n_model_only \
-                         yolo11n_detect_prepared letterbox_mrpt";
+                         yolo11n_detect_prepared letterbox_mrpt segmenter_mrpt_boxes";
     // (criterion's options that take a value, whose value is no filter)
     const VALUED: [&str; 15] = [
         "--save-baseline",
@@ -223,6 +225,11 @@ fn bench_whole_view(c: &mut Criterion) {
     if filter.as_deref().is_some_and(|f| !NAMES.contains(f)) {
         return;
     }
+    // the printed figures after the group: with no filter, or one naming
+    // the whole view
+    let prints = filter
+        .as_deref()
+        .is_none_or(|f| "whole_view_yolo11n_depth whole_view_pipelined".contains(f));
     // a provider that fails to register is logged (and the view runs on
     // the CPU): show it
     let _ = tracing_subscriber::fmt()
@@ -294,7 +301,7 @@ fn bench_whole_view(c: &mut Criterion) {
     let mut p = Pipeline::new(
         det,
         Box::new(DepthBoxSegmenter::default()),
-        cal,
+        cal.clone(),
         GeometrySettings::default(),
     );
     p.set_prompts(&["book".into(), "chair".into(), "person".into()])
@@ -346,7 +353,30 @@ fn bench_whole_view(c: &mut Criterion) {
     group.bench_function("letterbox_mrpt", |b| {
         b.iter(|| PreparedImage::letterboxed(&color, 640, layout))
     });
+    // the segmenter's stage alone on this frame: YOLO11n's boxes (made
+    // once), the depth registered into the colour camera, one box after
+    // another on this thread (`taskset -c 1 … -- segmenter_mrpt_boxes`)
+    let boxes: Vec<[f32; 4]> = detector
+        .detect_prepared(prepared.clone())
+        .expect("detections")
+        .iter()
+        .map(|d| d.box_xyxy)
+        .collect();
+    let registered = depth_in_color(&cal, &color, &depth).expect("registration");
+    let mut seg = DepthBoxSegmenter::default();
+    seg.set_floor(floor_in_image(&cal));
+    group.bench_function("segmenter_mrpt_boxes", |b| {
+        b.iter(|| {
+            boxes
+                .iter()
+                .map(|b| seg.segment_box(&registered, *b))
+                .collect::<Vec<_>>()
+        })
+    });
     group.finish();
+    if !prints {
+        return;
+    }
     // where the view's time goes: each stage's median over 50 views, one
     // view at a time
     let views: Vec<Timing> = (0..50)

@@ -98,6 +98,12 @@ impl Mask {
         &mut self.bits
     }
 
+    /// The region's pixels, row-major (region coordinates).
+    #[inline]
+    pub fn region_bits(&self) -> &[bool] {
+        &self.bits
+    }
+
     /// Row `y` of the region (region coordinates) as booleans.
     #[inline]
     pub fn region_row(&self, y: usize) -> &[bool] {

@@ -96,17 +96,15 @@ impl DepthBoxSegmenter {
         // so far, grown from those pixels, a few times
         let whole = [x0, y0, x0 + bw, y0 + bh];
         let mut taken = primary.clone();
-        let total = self.depths_in(depth, whole).count();
+        let mut free: Vec<u32> = Vec::new();
+        self.free_bins(depth, &mask, &mut free);
+        let total = free.len();
         let mut best = (primary_fit, primary);
         // (the free pixels' bins gathered once a round: one pass over the
         // box, not one for the count, the largest and the histogram each)
-        let mut free: Vec<u32> = Vec::new();
         for _ in 0..OTHER_MODES {
             free.clear();
-            free.extend(
-                self.depths_in_where(depth, whole, |u, v| !taken.get(u, v))
-                    .map(|z| self.bin_of(z)),
-            );
+            self.free_bins(depth, &taken, &mut free);
             if (free.len() as f64) < OTHER_MODE_SHARE * total as f64 {
                 break;
             }
@@ -116,8 +114,9 @@ impl DepthBoxSegmenter {
             let other = self.mode_of(bin);
             let grown = self.grow_where(depth, mask.clone(), whole, other, |u, v| !taken.get(u, v));
             let fit = self.box_fit(depth, &grown);
-            for (u, v) in grown.pixels() {
-                taken.set(u, v, true);
+            // (both over the box's region)
+            for (t, &g) in taken.region_bits_mut().iter_mut().zip(grown.region_bits()) {
+                *t |= g;
             }
             if fit > best.0 + BETTER_BOX_FIT {
                 best = (fit, grown);
@@ -150,10 +149,9 @@ impl DepthBoxSegmenter {
         // 1. mode of the central depths: bins counted in a flat table
         // (nearest first; a bin width so small that the table would be
         // huge counts in an ordered map instead)
-        let bin = fullest_bin(
-            self.depths_in(depth, [cx0, cy0, cx1, cy1])
-                .map(|z| self.bin_of(z)),
-        )?;
+        let mut bins = Vec::new();
+        self.bins_in(depth, [cx0, cy0, cx1, cy1], &mut bins);
+        let bin = fullest_bin(bins.iter().copied())?;
         let mode = self.mode_of(bin);
         let seeds = [cx0, cy0, cx1, cy1];
         // most often every seed lies on the first one's surface: grown
@@ -261,6 +259,21 @@ impl DepthBoxSegmenter {
         mask
     }
 
+    /// The bins of the valid depths above the floor at the pixels of
+    /// `taken`'s region that it does not hold, row by row.
+    fn free_bins(&self, depth: &DepthImage, taken: &Mask, out: &mut Vec<u32>) {
+        let (x0, y0, bw, bh) = taken.region();
+        let (w, data) = (depth.width(), depth.data());
+        for y in 0..bh {
+            let row = &data[(y0 + y) * w + x0..][..bw];
+            for (x, (&held, &z)) in taken.region_row(y).iter().zip(row).enumerate() {
+                if !held && crate::msg::is_valid_depth(z) && self.above(x0 + x, y0 + y, z) {
+                    out.push(self.bin_of(z));
+                }
+            }
+        }
+    }
+
     fn bin_of(&self, z: f32) -> u32 {
         (z / self.settings.bin_m) as u32
     }
@@ -281,27 +294,21 @@ impl DepthBoxSegmenter {
             .is_none_or(|f| f.height_m(u, v, z) > self.settings.floor_band_m)
     }
 
-    /// The valid depths above the floor in `[x0, y0, x1, y1)` (clipped).
-    fn depths_in<'a>(
-        &'a self,
-        depth: &'a DepthImage,
-        area: [usize; 4],
-    ) -> impl Iterator<Item = f32> + Clone + 'a {
-        self.depths_in_where(depth, area, |_, _| true)
-    }
-
-    /// [`Self::depths_in`] at the pixels where `keep` holds.
-    fn depths_in_where<'a>(
-        &'a self,
-        depth: &'a DepthImage,
-        [x0, y0, x1, y1]: [usize; 4],
-        keep: impl Fn(usize, usize) -> bool + Clone + 'a,
-    ) -> impl Iterator<Item = f32> + Clone + 'a {
-        let (w, h) = (depth.width(), depth.height());
-        (y0..y1.min(h))
-            .flat_map(move |v| (x0..x1.min(w)).map(move |u| (u, v)))
-            .filter(move |&(u, v)| keep(u, v))
-            .filter_map(move |(u, v)| depth.at(u, v).filter(|&z| self.above(u, v, z)))
+    /// The bins of the valid depths above the floor in `[x0, y0, x1, y1)`
+    /// (clipped to the image), row by row.
+    fn bins_in(&self, depth: &DepthImage, [x0, y0, x1, y1]: [usize; 4], out: &mut Vec<u32>) {
+        let (w, h, data) = (depth.width(), depth.height(), depth.data());
+        let (x1, y1) = (x1.min(w), y1.min(h));
+        if x0 >= x1 {
+            return;
+        }
+        for v in y0..y1 {
+            for (x, &z) in data[v * w + x0..v * w + x1].iter().enumerate() {
+                if crate::msg::is_valid_depth(z) && self.above(x0 + x, v, z) {
+                    out.push(self.bin_of(z));
+                }
+            }
+        }
     }
 
     /// The region grown from the pixels of `seeds` (image coordinates,
@@ -389,17 +396,22 @@ impl DepthBoxSegmenter {
         if ring_px == 0 {
             return spans;
         }
-        let inside = |u: usize, v: usize| u >= x0 && u < x0 + bw && v >= y0 && v < y0 + bh;
         let s = &self.settings;
         let data = depth.data();
+        // the ring's pixels reached, over the ring's bounds; the box's own
+        // are marked reached beforehand, so the growth never enters it
         let mut reached = vec![false; rw * rh];
-        let mut stack: Vec<(usize, usize, f32)> = Vec::new();
+        let (bx, by) = (x0 - rx0, y0 - ry0);
+        for y in by..by + bh {
+            reached[y * rw + bx..y * rw + bx + bw].fill(true);
+        }
+        let mut stack: Vec<(u32, u32, f32)> = Vec::new();
         // from the mask's pixels on the box's edges (the region's first
         // and last rows and columns; it holds a pixel, so it is not empty)
         let mut from_edge = |x: usize, y: usize| {
             if mask.region_row(y)[x] {
                 if let Some(z) = depth.at(x0 + x, y0 + y) {
-                    stack.push((x0 + x, y0 + y, z));
+                    stack.push(((bx + x) as u32, (by + y) as u32, z));
                 }
             }
         };
@@ -416,32 +428,22 @@ impl DepthBoxSegmenter {
             }
         }
         let mut count = 0usize;
-        while let Some((u, v, z)) = stack.pop() {
+        while let Some((x, y, z)) = stack.pop() {
+            let (x, y) = (x as usize, y as usize);
             let step = s.step_m + s.step_per_m * z;
-            let neighbours = [
-                (u.wrapping_sub(1), v),
-                (u + 1, v),
-                (u, v.wrapping_sub(1)),
-                (u, v + 1),
-            ];
-            for (nu, nv) in neighbours {
-                if nu < rx0 || nu >= rx1 || nv < ry0 || nv >= ry1 || inside(nu, nv) {
-                    continue;
+            each_neighbour!(y * rw + x, x, y, rw, rh, |j, nx, ny| {
+                if !reached[j] {
+                    let nz = data[(ry0 + ny) * w + rx0 + nx];
+                    if crate::msg::is_valid_depth(nz)
+                        && (nz - z).abs() <= step
+                        && self.above(rx0 + nx, ry0 + ny, nz)
+                    {
+                        reached[j] = true;
+                        count += 1;
+                        stack.push((nx as u32, ny as u32, nz));
+                    }
                 }
-                let j = (nv - ry0) * rw + (nu - rx0);
-                if reached[j] {
-                    continue;
-                }
-                let nz = data[nv * w + nu];
-                if crate::msg::is_valid_depth(nz)
-                    && (nz - z).abs() <= step
-                    && self.above(nu, nv, nz)
-                {
-                    reached[j] = true;
-                    count += 1;
-                    stack.push((nu, nv, nz));
-                }
-            }
+            });
         }
         spans * (1.0 - count as f64 / ring_px as f64)
     }
