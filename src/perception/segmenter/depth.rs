@@ -197,9 +197,6 @@ impl DepthBoxSegmenter {
         mode: f32,
     ) -> Mask {
         let (x0, y0, bw, bh) = mask.region();
-        let s = &self.settings;
-        let stride = depth.width();
-        let data = depth.data();
         let tolerance = self.tolerance();
         // each pixel's surface (0: none), and each surface's seeds
         let mut label = vec![0u32; bw * bh];
@@ -218,23 +215,7 @@ impl DepthBoxSegmenter {
                     seeds_of.push(0);
                     label[i] = id;
                     stack.push((x as u32, y as u32, z));
-                    while let Some((x, y, z)) = stack.pop() {
-                        let (x, y) = (x as usize, y as usize);
-                        let i = y * bw + x;
-                        let step = s.step_m + s.step_per_m * z;
-                        each_neighbour!(i, x, y, bw, bh, |j, nx, ny| {
-                            if label[j] == 0 {
-                                let nz = data[(y0 + ny) * stride + x0 + nx];
-                                if crate::msg::is_valid_depth(nz)
-                                    && (nz - z).abs() <= step
-                                    && self.above(x0 + nx, y0 + ny, nz)
-                                {
-                                    label[j] = id;
-                                    stack.push((nx as u32, ny as u32, nz));
-                                }
-                            }
-                        });
-                    }
+                    self.flood(depth, [x0, y0], bw, bh, &mut label, id, &mut stack);
                 }
                 seeds_of[label[i] as usize] += 1;
             }
@@ -325,9 +306,6 @@ impl DepthBoxSegmenter {
         seed: impl Fn(usize, usize) -> bool,
     ) -> Mask {
         let (x0, y0, bw, bh) = mask.region();
-        let s = &self.settings;
-        let stride = depth.width();
-        let data = depth.data();
         let mut stack: Vec<(u32, u32, f32)> = Vec::new();
         let tolerance = self.tolerance();
         for v in seeds[1].max(y0)..seeds[3].min(y0 + bh) {
@@ -343,25 +321,58 @@ impl DepthBoxSegmenter {
                 }
             }
         }
-        let bits = mask.region_bits_mut();
+        self.flood(
+            depth,
+            [x0, y0],
+            bw,
+            bh,
+            mask.region_bits_mut(),
+            true,
+            &mut stack,
+        );
+        mask
+    }
+
+    /// The growing itself, over a region of the image (`origin` its top
+    /// left pixel, `rw` × `rh`, row-major `marks`): from the pixels on
+    /// `stack` (region coordinates, depth), a 4-neighbour joins where it
+    /// is not marked yet (`T::default()`), its depth is valid and above the
+    /// floor and within the step of the pixel it is reached from; it is
+    /// marked `id` and grown from in turn. Returns how many joined.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn flood<T: Copy + Default + PartialEq>(
+        &self,
+        depth: &DepthImage,
+        [ox, oy]: [usize; 2],
+        rw: usize,
+        rh: usize,
+        marks: &mut [T],
+        id: T,
+        stack: &mut Vec<(u32, u32, f32)>,
+    ) -> usize {
+        let s = &self.settings;
+        let (stride, data) = (depth.width(), depth.data());
+        let unmarked = T::default();
+        let mut joined = 0usize;
         while let Some((x, y, z)) = stack.pop() {
             let (x, y) = (x as usize, y as usize);
-            let i = y * bw + x;
             let step = s.step_m + s.step_per_m * z;
-            each_neighbour!(i, x, y, bw, bh, |j, nx, ny| {
-                if !bits[j] {
-                    let nz = data[(y0 + ny) * stride + x0 + nx];
+            each_neighbour!(y * rw + x, x, y, rw, rh, |j, nx, ny| {
+                if marks[j] == unmarked {
+                    let nz = data[(oy + ny) * stride + ox + nx];
                     if crate::msg::is_valid_depth(nz)
                         && (nz - z).abs() <= step
-                        && self.above(x0 + nx, y0 + ny, nz)
+                        && self.above(ox + nx, oy + ny, nz)
                     {
-                        bits[j] = true;
+                        marks[j] = id;
+                        joined += 1;
                         stack.push((nx as u32, ny as u32, nz));
                     }
                 }
             });
         }
-        mask
+        joined
     }
 
     /// How well a grown mask fits its box, 0–1: the share of the box its
@@ -396,8 +407,6 @@ impl DepthBoxSegmenter {
         if ring_px == 0 {
             return spans;
         }
-        let s = &self.settings;
-        let data = depth.data();
         // the ring's pixels reached, over the ring's bounds; the box's own
         // are marked reached beforehand, so the growth never enters it
         let mut reached = vec![false; rw * rh];
@@ -427,24 +436,7 @@ impl DepthBoxSegmenter {
                 from_edge(bw - 1, y);
             }
         }
-        let mut count = 0usize;
-        while let Some((x, y, z)) = stack.pop() {
-            let (x, y) = (x as usize, y as usize);
-            let step = s.step_m + s.step_per_m * z;
-            each_neighbour!(y * rw + x, x, y, rw, rh, |j, nx, ny| {
-                if !reached[j] {
-                    let nz = data[(ry0 + ny) * w + rx0 + nx];
-                    if crate::msg::is_valid_depth(nz)
-                        && (nz - z).abs() <= step
-                        && self.above(rx0 + nx, ry0 + ny, nz)
-                    {
-                        reached[j] = true;
-                        count += 1;
-                        stack.push((nx as u32, ny as u32, nz));
-                    }
-                }
-            });
-        }
+        let count = self.flood(depth, [rx0, ry0], rw, rh, &mut reached, true, &mut stack);
         spans * (1.0 - count as f64 / ring_px as f64)
     }
 }
