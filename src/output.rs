@@ -1,5 +1,5 @@
-//! What `opennav detect` writes: the JSON report (stable schema, see the
-//! README), an overlay PNG and a PLY cloud per object.
+//! What `opennav detect` writes: the JSON report (stable schema, see
+//! docs/perception.md), an overlay PNG and a PLY cloud per object.
 
 use std::io::Write;
 use std::path::Path;

@@ -166,7 +166,7 @@ pub fn open_realsense(
     _config: Option<&std::path::Path>,
 ) -> Result<Box<dyn opennav::sensors::camera::CameraSource>, Failure> {
     Err(failed(anyhow::anyhow!(
-        "no camera: this build has no RealSense support (build with --features realsense; see the README); read a recording with --replay DIR"
+        "no camera: this build has no RealSense support (build with --features realsense; see docs/sensors.md); read a recording with --replay DIR"
     )))
 }
 

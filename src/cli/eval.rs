@@ -21,7 +21,7 @@ pub enum EvalCommand {
         #[arg(long, value_enum, default_value = "detector")]
         score_mode: ScoreModeArg,
     },
-    /// The paper's Replica protocol on a dataset in Replica's layout (see the README).
+    /// The paper's Replica protocol on a dataset in Replica's layout (see docs/evaluation.md).
     Replica {
         /// Dataset root (cam_params.json, <scene>/traj.txt, <scene>/results/, ground_truth/).
         #[arg(long)]

@@ -1,6 +1,6 @@
 //! RGB-D cameras: a trait, a replay source (TUM RGB-D layout), colour /
 //! depth pairing by timestamp, and the RealSense source behind the
-//! `realsense` cargo feature (it links librealsense2; see the README).
+//! `realsense` cargo feature (it links librealsense2; see docs/sensors.md).
 
 #[cfg(feature = "realsense")]
 pub mod realsense;

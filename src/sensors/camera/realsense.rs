@@ -1,5 +1,5 @@
 //! The RealSense D435/D455 source (cargo feature `realsense`, links
-//! librealsense2 through `realsense-rust`; see the README for installing
+//! librealsense2 through `realsense-rust`; see docs/sensors.md for installing
 //! the library on the chair's laptop).
 //!
 //! Colour and depth come from one pipeline, depth aligned to colour by
