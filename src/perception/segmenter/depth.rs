@@ -95,31 +95,45 @@ impl DepthBoxSegmenter {
         // the fullest depth mode of the box's pixels in no region grown
         // so far, grown from those pixels, a few times
         let whole = [x0, y0, x0 + bw, y0 + bh];
+        // the free pixels' bins counted once; each growth's new pixels
+        // are taken off as they join `taken`
+        let mut bins = Vec::new();
+        let total = self.bins_in(depth, whole, Some(&primary), &mut bins);
+        let mut free = BinCounts::of(&bins);
+        let mut free_px = bins.len();
         let mut taken = primary.clone();
-        let mut free: Vec<u32> = Vec::new();
-        self.free_bins(depth, &mask, &mut free);
-        let total = free.len();
         let mut best = (primary_fit, primary);
-        // (the free pixels' bins gathered once a round: one pass over the
-        // box, not one for the count, the largest and the histogram each)
         for _ in 0..OTHER_MODES {
-            free.clear();
-            self.free_bins(depth, &taken, &mut free);
-            if (free.len() as f64) < OTHER_MODE_SHARE * total as f64 {
+            if (free_px as f64) < OTHER_MODE_SHARE * total as f64 {
                 break;
             }
-            let Some(bin) = fullest_bin(free.iter().copied()) else {
+            let Some(bin) = free.fullest() else {
                 break;
             };
             let other = self.mode_of(bin);
-            let grown = self.grow_where(depth, mask.clone(), whole, other, |u, v| !taken.get(u, v));
-            let fit = self.box_fit(depth, &grown);
-            // (both over the box's region)
-            for (t, &g) in taken.region_bits_mut().iter_mut().zip(grown.region_bits()) {
-                *t |= g;
+            let grown = self.grow_where(depth, mask.clone(), whole, other, Some(&taken));
+            // (both over the box's region; a grown pixel's depth is valid
+            // and above the floor)
+            let w = depth.width();
+            for y in 0..bh {
+                let row = &depth.data()[(y0 + y) * w + x0..][..bw];
+                let (t, g) = (
+                    &mut taken.region_bits_mut()[y * bw..][..bw],
+                    grown.region_row(y),
+                );
+                for ((t, &g), &z) in t.iter_mut().zip(g).zip(row) {
+                    if g && !*t {
+                        *t = true;
+                        free.remove(self.bin_of(z));
+                        free_px -= 1;
+                    }
+                }
             }
-            if fit > best.0 + BETTER_BOX_FIT {
-                best = (fit, grown);
+            let better = best.0 + BETTER_BOX_FIT;
+            if let Some(fit) = self.box_fit_over(depth, &grown, better) {
+                if fit > better {
+                    best = (fit, grown);
+                }
             }
         }
         best.1
@@ -150,25 +164,21 @@ impl DepthBoxSegmenter {
         // (nearest first; a bin width so small that the table would be
         // huge counts in an ordered map instead)
         let mut bins = Vec::new();
-        self.bins_in(depth, [cx0, cy0, cx1, cy1], &mut bins);
-        let bin = fullest_bin(bins.iter().copied())?;
+        self.bins_in(depth, [cx0, cy0, cx1, cy1], None, &mut bins);
+        let bin = BinCounts::of(&bins).fullest()?;
         let mode = self.mode_of(bin);
         let seeds = [cx0, cy0, cx1, cy1];
         // most often every seed lies on the first one's surface: grown
         // from it alone, the region is then that surface (one growth, no
         // labels)
-        let tolerance = self.tolerance();
-        let is_seed = |u: usize, v: usize| {
-            depth
-                .at(u, v)
-                .is_some_and(|z| (z - mode).abs() <= tolerance && self.above(u, v, z))
-        };
+        let seeds_at = self.seeds_at(mode);
+        let is_seed = |u: usize, v: usize| depth.at(u, v).is_some_and(|z| seeds_at(u, v, z));
         let (rx1, ry1) = ((x0 + bw).min(cx1), (y0 + bh).min(cy1));
         let mut in_seeds = (cy0..ry1).flat_map(|v| (cx0..rx1).map(move |u| (u, v)));
         let Some((u, v)) = in_seeds.find(|&(u, v)| is_seed(u, v)) else {
             return Some(mask);
         };
-        let first = self.grow_where(depth, mask.clone(), [u, v, u + 1, v + 1], mode, |_, _| true);
+        let first = self.grow_where(depth, mask.clone(), [u, v, u + 1, v + 1], mode, None);
         if in_seeds.all(|(u, v)| first.get(u, v) || !is_seed(u, v)) {
             return Some(first);
         }
@@ -197,7 +207,7 @@ impl DepthBoxSegmenter {
         mode: f32,
     ) -> Mask {
         let (x0, y0, bw, bh) = mask.region();
-        let tolerance = self.tolerance();
+        let seeds_at = self.seeds_at(mode);
         // each pixel's surface (0: none), and each surface's seeds
         let mut label = vec![0u32; bw * bh];
         let mut seeds_of: Vec<u32> = vec![0];
@@ -205,7 +215,7 @@ impl DepthBoxSegmenter {
         for v in seeds[1].max(y0)..seeds[3].min(y0 + bh) {
             for u in seeds[0].max(x0)..seeds[2].min(x0 + bw) {
                 let Some(z) = depth.at(u, v) else { continue };
-                if (z - mode).abs() > tolerance || !self.above(u, v, z) {
+                if !seeds_at(u, v, z) {
                     continue;
                 }
                 let (x, y) = (u - x0, v - y0);
@@ -215,7 +225,16 @@ impl DepthBoxSegmenter {
                     seeds_of.push(0);
                     label[i] = id;
                     stack.push((x as u32, y as u32, z));
-                    self.flood(depth, [x0, y0], bw, bh, &mut label, id, &mut stack);
+                    self.flood::<_, false>(
+                        depth,
+                        [x0, y0],
+                        bw,
+                        bh,
+                        &mut label,
+                        id,
+                        &mut stack,
+                        usize::MAX,
+                    );
                 }
                 seeds_of[label[i] as usize] += 1;
             }
@@ -240,21 +259,6 @@ impl DepthBoxSegmenter {
         mask
     }
 
-    /// The bins of the valid depths above the floor at the pixels of
-    /// `taken`'s region that it does not hold, row by row.
-    fn free_bins(&self, depth: &DepthImage, taken: &Mask, out: &mut Vec<u32>) {
-        let (x0, y0, bw, bh) = taken.region();
-        let (w, data) = (depth.width(), depth.data());
-        for y in 0..bh {
-            let row = &data[(y0 + y) * w + x0..][..bw];
-            for (x, (&held, &z)) in taken.region_row(y).iter().zip(row).enumerate() {
-                if !held && crate::msg::is_valid_depth(z) && self.above(x0 + x, y0 + y, z) {
-                    out.push(self.bin_of(z));
-                }
-            }
-        }
-    }
-
     fn bin_of(&self, z: f32) -> u32 {
         (z / self.settings.bin_m) as u32
     }
@@ -263,9 +267,13 @@ impl DepthBoxSegmenter {
         (bin as f32 + 0.5) * self.settings.bin_m
     }
 
-    fn tolerance(&self) -> f32 {
+    /// Whether a pixel (`u`, `v`) at depth `z` (valid) seeds a region of
+    /// depth `mode`: within the tolerance of the mode, above the floor.
+    #[inline]
+    fn seeds_at(&self, mode: f32) -> impl Fn(usize, usize, f32) -> bool + '_ {
         let s = &self.settings;
-        s.mode_tolerance_m.max(s.bin_m / 2.0)
+        let tolerance = s.mode_tolerance_m.max(s.bin_m / 2.0);
+        move |u, v, z| (z - mode).abs() <= tolerance && self.above(u, v, z)
     }
 
     /// Above the floor's band (everything when the floor is not known).
@@ -276,52 +284,81 @@ impl DepthBoxSegmenter {
     }
 
     /// The bins of the valid depths above the floor in `[x0, y0, x1, y1)`
-    /// (clipped to the image), row by row.
-    fn bins_in(&self, depth: &DepthImage, [x0, y0, x1, y1]: [usize; 4], out: &mut Vec<u32>) {
+    /// (clipped to the image), row by row, leaving out the pixels `taken`
+    /// holds (a mask whose region is that rectangle). Returns how many
+    /// valid depths above the floor the rectangle holds, taken or not.
+    #[inline(always)]
+    fn bins_in(
+        &self,
+        depth: &DepthImage,
+        [x0, y0, x1, y1]: [usize; 4],
+        taken: Option<&Mask>,
+        out: &mut Vec<u32>,
+    ) -> usize {
         let (w, h, data) = (depth.width(), depth.height(), depth.data());
         let (x1, y1) = (x1.min(w), y1.min(h));
+        let mut all = 0;
         if x0 >= x1 {
-            return;
+            return all;
         }
         for v in y0..y1 {
-            for (x, &z) in data[v * w + x0..v * w + x1].iter().enumerate() {
+            let row = &data[v * w + x0..v * w + x1];
+            // (the pixels `taken` holds, or none: the central histogram's
+            // row stays the plain loop it was)
+            let held = taken.map_or(&[][..], |m| m.region_row(v - y0));
+            for (x, &z) in row.iter().enumerate() {
                 if crate::msg::is_valid_depth(z) && self.above(x0 + x, v, z) {
-                    out.push(self.bin_of(z));
+                    all += 1;
+                    if held.is_empty() || !held[x] {
+                        out.push(self.bin_of(z));
+                    }
                 }
             }
         }
+        all
     }
 
     /// The region grown from the pixels of `seeds` (image coordinates,
     /// clipped to the mask's region) within the tolerance of `mode` and
-    /// where `seed` holds, over region indices. A pixel joins once and is
-    /// grown from once, so the mask is every pixel reachable from the
-    /// seeds whatever the order (a stack here).
+    /// not held by `taken` (a mask over the same region), over region
+    /// indices. A pixel joins once and is grown from once, so the mask is
+    /// every pixel reachable from the seeds whatever the order (a stack
+    /// here).
     fn grow_where(
         &self,
         depth: &DepthImage,
         mut mask: Mask,
         seeds: [usize; 4],
         mode: f32,
-        seed: impl Fn(usize, usize) -> bool,
+        taken: Option<&Mask>,
     ) -> Mask {
         let (x0, y0, bw, bh) = mask.region();
+        debug_assert!(taken.is_none_or(|m| m.region() == mask.region()));
+        let seeds_at = self.seeds_at(mode);
         let mut stack: Vec<(u32, u32, f32)> = Vec::new();
-        let tolerance = self.tolerance();
+        // row by row over slices: the seeds' columns in the region
+        let (sx0, sx1) = (seeds[0].max(x0), seeds[2].min(x0 + bw));
+        let (w, data) = (depth.width(), depth.data());
         for v in seeds[1].max(y0)..seeds[3].min(y0 + bh) {
-            for u in seeds[0].max(x0)..seeds[2].min(x0 + bw) {
-                if let Some(z) = depth.at(u, v) {
-                    if (z - mode).abs() <= tolerance
-                        && self.above(u, v, z)
-                        && seed(u, v)
-                        && mask.set(u, v, true)
-                    {
-                        stack.push(((u - x0) as u32, (v - y0) as u32, z));
-                    }
+            if sx0 >= sx1 {
+                break;
+            }
+            let y = v - y0;
+            let row = &data[v * w + sx0..v * w + sx1];
+            let held = taken.map_or(&[][..], |m| &m.region_row(y)[sx0 - x0..sx1 - x0]);
+            let bits = &mut mask.region_bits_mut()[y * bw + sx0 - x0..y * bw + sx1 - x0];
+            for (k, (&z, bit)) in row.iter().zip(bits).enumerate() {
+                if crate::msg::is_valid_depth(z)
+                    && seeds_at(sx0 + k, v, z)
+                    && (held.is_empty() || !held[k])
+                    && !*bit
+                {
+                    *bit = true;
+                    stack.push(((sx0 - x0 + k) as u32, y as u32, z));
                 }
             }
         }
-        self.flood(
+        self.flood::<_, false>(
             depth,
             [x0, y0],
             bw,
@@ -329,6 +366,7 @@ impl DepthBoxSegmenter {
             mask.region_bits_mut(),
             true,
             &mut stack,
+            usize::MAX,
         );
         mask
     }
@@ -338,10 +376,12 @@ impl DepthBoxSegmenter {
     /// `stack` (region coordinates, depth), a 4-neighbour joins where it
     /// is not marked yet (`T::default()`), its depth is valid and above the
     /// floor and within the step of the pixel it is reached from; it is
-    /// marked `id` and grown from in turn. Returns how many joined.
+    /// marked `id` and grown from in turn. Returns how many joined; when
+    /// `BOUNDED`, stops as soon as more than `at_most` have (the check is
+    /// left out of the other floods' inner loop).
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
-    fn flood<T: Copy + Default + PartialEq>(
+    fn flood<T: Copy + Default + PartialEq, const BOUNDED: bool>(
         &self,
         depth: &DepthImage,
         [ox, oy]: [usize; 2],
@@ -350,6 +390,7 @@ impl DepthBoxSegmenter {
         marks: &mut [T],
         id: T,
         stack: &mut Vec<(u32, u32, f32)>,
+        at_most: usize,
     ) -> usize {
         let s = &self.settings;
         let (stride, data) = (depth.width(), depth.data());
@@ -368,6 +409,9 @@ impl DepthBoxSegmenter {
                         marks[j] = id;
                         joined += 1;
                         stack.push((nx as u32, ny as u32, nz));
+                        if BOUNDED && joined > at_most {
+                            return joined;
+                        }
                     }
                 }
             });
@@ -383,6 +427,13 @@ impl DepthBoxSegmenter {
     /// front spans part of it or runs on past it, and a wall behind runs
     /// on all round.
     fn box_fit(&self, depth: &DepthImage, mask: &Mask) -> f64 {
+        self.box_fit_over(depth, mask, f64::NEG_INFINITY)
+            .unwrap_or(0.0)
+    }
+
+    /// [`Self::box_fit`] where it may exceed `over`; None where it cannot
+    /// (the ring's growth stops as soon as it has reached too far).
+    fn box_fit_over(&self, depth: &DepthImage, mask: &Mask, over: f64) -> Option<f64> {
         let (x0, y0, bw, bh) = mask.region();
         let (mut lo, mut hi) = ([usize::MAX; 2], [0usize; 2]);
         for y in 0..bh {
@@ -394,9 +445,13 @@ impl DepthBoxSegmenter {
             }
         }
         if lo[0] == usize::MAX {
-            return 0.0;
+            return (0.0 > over).then_some(0.0);
         }
         let spans = ((hi[0] - lo[0]) * (hi[1] - lo[1])) as f64 / (bw * bh) as f64;
+        // the fit is at most `spans`
+        if spans <= over {
+            return None;
+        }
         // the ring, clipped to the image
         let (w, h) = (depth.width(), depth.height());
         let m = ((RING_FRACTION * bw.min(bh) as f64).ceil() as usize).max(2);
@@ -405,8 +460,15 @@ impl DepthBoxSegmenter {
         let (rw, rh) = (rx1 - rx0, ry1 - ry0);
         let ring_px = rw * rh - bw * bh;
         if ring_px == 0 {
-            return spans;
+            return Some(spans);
         }
+        // the fit, spans · (1 − reached / ring), exceeds `over` only with
+        // reached < ring · (1 − over / spans): one more is never needed
+        let at_most = if over.is_finite() {
+            ((ring_px as f64 * (1.0 - over / spans)).max(0.0) as usize).saturating_add(1)
+        } else {
+            usize::MAX
+        };
         // the ring's pixels reached, over the ring's bounds; the box's own
         // are marked reached beforehand, so the growth never enters it
         let mut reached = vec![false; rw * rh];
@@ -436,8 +498,30 @@ impl DepthBoxSegmenter {
                 from_edge(bw - 1, y);
             }
         }
-        let count = self.flood(depth, [rx0, ry0], rw, rh, &mut reached, true, &mut stack);
-        spans * (1.0 - count as f64 / ring_px as f64)
+        let count = if at_most == usize::MAX {
+            self.flood::<_, false>(
+                depth,
+                [rx0, ry0],
+                rw,
+                rh,
+                &mut reached,
+                true,
+                &mut stack,
+                at_most,
+            )
+        } else {
+            self.flood::<_, true>(
+                depth,
+                [rx0, ry0],
+                rw,
+                rh,
+                &mut reached,
+                true,
+                &mut stack,
+                at_most,
+            )
+        };
+        (count <= at_most).then(|| spans * (1.0 - count as f64 / ring_px as f64))
     }
 }
 
@@ -483,36 +567,74 @@ const OTHER_MODE_SHARE: f64 = 0.05;
 /// it: this share of the box's smaller side.
 const RING_FRACTION: f64 = 0.2;
 
-/// The fullest bin of these (ties: the lowest, the nearer depth); None
-/// when there are none.
-fn fullest_bin(bins: impl Iterator<Item = u32> + Clone) -> Option<u32> {
-    const FLAT_BINS: u32 = 1 << 16;
-    let max = bins.clone().max()?;
-    if max < FLAT_BINS {
-        let mut counts = vec![0u32; max as usize + 1];
-        for b in bins {
-            counts[b as usize] += 1;
+/// Counts of depth bins: a flat table, or an ordered map where a bin width
+/// so small would make the table huge.
+enum BinCounts {
+    Flat(Vec<u32>),
+    Map(std::collections::BTreeMap<u32, u32>),
+}
+
+impl BinCounts {
+    fn of(bins: &[u32]) -> BinCounts {
+        const FLAT_BINS: u32 = 1 << 16;
+        let max = bins.iter().copied().max().unwrap_or(0);
+        if max < FLAT_BINS {
+            let mut counts = vec![0u32; max as usize + 1];
+            for &b in bins {
+                counts[b as usize] += 1;
+            }
+            BinCounts::Flat(counts)
+        } else {
+            let mut counts = std::collections::BTreeMap::new();
+            for &b in bins {
+                *counts.entry(b).or_default() += 1;
+            }
+            BinCounts::Map(counts)
         }
-        let mut best = (0, 0);
-        for (b, &n) in counts.iter().enumerate() {
-            if n > best.1 {
-                best = (b as u32, n);
+    }
+
+    /// One pixel of `bin` (counted) taken off.
+    fn remove(&mut self, bin: u32) {
+        match self {
+            BinCounts::Flat(counts) => {
+                if let Some(n) = counts.get_mut(bin as usize) {
+                    debug_assert!(*n > 0, "bin {bin} taken off more often than counted");
+                    *n = n.saturating_sub(1);
+                }
+            }
+            BinCounts::Map(counts) => {
+                if let Some(n) = counts.get_mut(&bin) {
+                    debug_assert!(*n > 0, "bin {bin} taken off more often than counted");
+                    *n = n.saturating_sub(1);
+                }
             }
         }
-        return Some(best.0);
     }
-    let mut counts: std::collections::BTreeMap<u32, usize> = Default::default();
-    for b in bins {
-        *counts.entry(b).or_default() += 1;
-    }
-    // iterated near to far: strict > keeps the nearer on ties
-    let mut best: Option<(u32, usize)> = None;
-    for (&b, &n) in &counts {
-        if best.is_none_or(|(_, bn)| n > bn) {
-            best = Some((b, n));
+
+    /// The fullest bin (ties: the lowest, the nearer depth); None when
+    /// every count is 0.
+    fn fullest(&self) -> Option<u32> {
+        // near to far: strict > keeps the nearer on ties
+        let mut best: Option<(u32, u32)> = None;
+        let mut see = |b: u32, n: u32| {
+            if n > 0 && best.is_none_or(|(_, bn)| n > bn) {
+                best = Some((b, n));
+            }
+        };
+        match self {
+            BinCounts::Flat(counts) => {
+                for (b, &n) in counts.iter().enumerate() {
+                    see(b as u32, n);
+                }
+            }
+            BinCounts::Map(counts) => {
+                for (&b, &n) in counts {
+                    see(b, n);
+                }
+            }
         }
+        best.map(|(b, _)| b)
     }
-    best.map(|(b, _)| b)
 }
 
 impl Segmenter for DepthBoxSegmenter {
