@@ -498,29 +498,18 @@ impl DepthBoxSegmenter {
                 from_edge(bw - 1, y);
             }
         }
-        let count = if at_most == usize::MAX {
-            self.flood::<_, false>(
-                depth,
-                [rx0, ry0],
-                rw,
-                rh,
-                &mut reached,
-                true,
-                &mut stack,
-                at_most,
-            )
-        } else {
-            self.flood::<_, true>(
-                depth,
-                [rx0, ry0],
-                rw,
-                rh,
-                &mut reached,
-                true,
-                &mut stack,
-                at_most,
-            )
-        };
+        // (bounded for the primary too, at usize::MAX: one compare a
+        // pixel reached)
+        let count = self.flood::<_, true>(
+            depth,
+            [rx0, ry0],
+            rw,
+            rh,
+            &mut reached,
+            true,
+            &mut stack,
+            at_most,
+        );
         (count <= at_most).then(|| spans * (1.0 - count as f64 / ring_px as f64))
     }
 }

@@ -255,6 +255,17 @@ fn box_without_depth_gives_an_empty_mask() {
     assert_eq!(m.count(), 0);
 }
 
+/// The 4 neighbours of (`u`, `v`); one left of or above 0 wraps to
+/// `usize::MAX`, outside every region.
+fn around(u: usize, v: usize) -> [(usize, usize); 4] {
+    [
+        (u.wrapping_sub(1), v),
+        (u + 1, v),
+        (u, v.wrapping_sub(1)),
+        (u, v + 1),
+    ]
+}
+
 /// The region growing as first written (a BTreeMap histogram and a
 /// breadth-first queue through the mask's own accessors): the faster
 /// one must give its masks pixel for pixel.
@@ -344,13 +355,7 @@ fn reference_mask(s: &DepthSegmenterSettings, depth: &DepthImage, xyxy: [f32; 4]
                 let Some(z) = depth.at(u, v) else { continue };
                 n += usize::from(is_seed(u, v, z));
                 let step = s.step_m + s.step_per_m * z;
-                let around = [
-                    (u.wrapping_sub(1), v),
-                    (u + 1, v),
-                    (u, v.wrapping_sub(1)),
-                    (u, v + 1),
-                ];
-                for (nu, nv) in around {
+                for (nu, nv) in around(u, v) {
                     if nu < x0 || nu >= x0 + bw || nv < y0 || nv >= y0 + bh {
                         continue;
                     }
@@ -518,13 +523,7 @@ fn reference_fit(s: &DepthSegmenterSettings, depth: &DepthImage, mask: &Mask) ->
         .collect();
     while let Some((u, v, z)) = queue.pop_front() {
         let step = s.step_m + s.step_per_m * z;
-        let around = [
-            (u.wrapping_sub(1), v),
-            (u + 1, v),
-            (u, v.wrapping_sub(1)),
-            (u, v + 1),
-        ];
-        for (nu, nv) in around {
+        for (nu, nv) in around(u, v) {
             if nu < rx0 || nu >= rx1 || nv < ry0 || nv >= ry1 || in_box(nu, nv) {
                 continue;
             }
@@ -591,12 +590,7 @@ fn reference_segment_box(seg: &DepthBoxSegmenter, depth: &DepthImage, b: [f32; 4
         }
         while let Some((u, v, z)) = queue.pop_front() {
             let step = s.step_m + s.step_per_m * z;
-            for (nu, nv) in [
-                (u.wrapping_sub(1), v),
-                (u + 1, v),
-                (u, v.wrapping_sub(1)),
-                (u, v + 1),
-            ] {
+            for (nu, nv) in around(u, v) {
                 if nu < x0 || nu >= x0 + bw || nv < y0 || nv >= y0 + bh || grown.get(nu, nv) {
                     continue;
                 }
