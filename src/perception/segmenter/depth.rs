@@ -584,19 +584,17 @@ impl BinCounts {
 
     /// One pixel of `bin` (counted) taken off.
     fn remove(&mut self, bin: u32) {
-        match self {
-            BinCounts::Flat(counts) => {
-                if let Some(n) = counts.get_mut(bin as usize) {
-                    debug_assert!(*n > 0, "bin {bin} taken off more often than counted");
-                    *n = n.saturating_sub(1);
-                }
-            }
-            BinCounts::Map(counts) => {
-                if let Some(n) = counts.get_mut(&bin) {
-                    debug_assert!(*n > 0, "bin {bin} taken off more often than counted");
-                    *n = n.saturating_sub(1);
-                }
-            }
+        let n = match self {
+            BinCounts::Flat(counts) => counts.get_mut(bin as usize),
+            BinCounts::Map(counts) => counts.get_mut(&bin),
+        };
+        // (a pixel is taken off only once, and only one that was counted)
+        debug_assert!(
+            n.as_ref().is_some_and(|n| **n > 0),
+            "bin {bin} taken off but not counted"
+        );
+        if let Some(n) = n {
+            *n = n.saturating_sub(1);
         }
     }
 
