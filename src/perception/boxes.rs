@@ -162,8 +162,9 @@ impl OrientedBox {
 /// x, y, x+y, x−y), or on its edges between vertices, cannot be; they are
 /// dropped in one pass after the sweep, eight points at a time, leaving few
 /// points for the hull's sort; with the sweep's [`Ground`], a block of
-/// points whose bounds lie inside is dropped without a look at its points.
-/// Exact.
+/// points whose bounds lie inside is dropped without a look at its points,
+/// and another's points are tested only against the edges its bounds
+/// cross. Exact.
 fn hull_candidates(points: &[Point3<f32>], sweep: &Sweep, ground: Option<Ground>) -> Vec<u64> {
     let all = || points.iter().map(|p| ground_key(p.x, p.y)).collect();
     if points.len() < 64 {
@@ -198,48 +199,68 @@ fn hull_candidates(points: &[Point3<f32>], sweep: &Sweep, ground: Option<Ground>
         edges.push([(ex / len) as f32, (ey / len) as f32, c as f32]);
     }
     let edges8: Vec<[f32x8; 3]> = edges.iter().map(|e| e.map(f32x8::splat)).collect();
-    // a block's points lie within its bounds, and the rectangle of the
-    // bounds within the (convex) octagon when its corners do, beyond the
-    // margin: then none of them is a hull vertex
-    let inside = |x: f32, y: f32| edges.iter().all(|&[nx, ny, c]| nx * x + ny * y >= c);
-    let bounds_inside = |[x0, x1, y0, y1]: [f32; 4]| {
-        inside(x0, y0) && inside(x1, y0) && inside(x0, y1) && inside(x1, y1)
-    };
     let mut out: Vec<u64> = poly
         .iter()
         .map(|p| ground_key(p[0] as f32, p[1] as f32))
         .collect();
-    // eight points: those outside some edge (a NaN lane is outside none)
-    let mut test = |[x, y]: [f32x8; 2]| {
-        let mut outside = f32x8::ZERO;
-        for [nx, ny, c] in &edges8 {
-            outside |= (*nx * x + *ny * y).simd_lt(*c);
-        }
-        let outside = outside.to_bitmask();
+    // eight points: those outside some edge of `edges` (a NaN lane is
+    // outside none)
+    let mut test = |edges: &[[f32x8; 3]], [x, y]: [f32x8; 2]| {
+        let mut outside = outside_of(edges, x, y);
         if outside != 0 {
             let (x, y) = (x.to_array(), y.to_array());
-            for l in 0..8 {
-                if (outside >> l) & 1 == 1 {
-                    out.push(ground_key(x[l], y[l]));
-                }
+            while outside != 0 {
+                let l = outside.trailing_zeros() as usize;
+                out.push(ground_key(x[l], y[l]));
+                outside &= outside - 1;
             }
         }
     };
     match ground {
         Some(g) => {
+            // a block's points lie within its bounds; along an edge's
+            // normal the rectangle of the bounds is least at the corner the
+            // normal's signs pick, and rounding keeps that order, so a
+            // point of the block can lie outside only the edges that
+            // corner lies outside: its points are tested against those
+            // alone, and a block inside every edge is dropped whole
+            let mut failing = [[f32x8::ZERO; 3]; 8];
             for b in 0..g.blocks.len() {
-                match g.block_bounds(b) {
-                    Some(bounds) if !bounds_inside(bounds) => {
-                        g.block_lanes(b).iter().copied().for_each(&mut test)
+                let Some([x0, x1, y0, y1]) = g.block_bounds(b) else {
+                    continue;
+                };
+                let mut n = 0;
+                for (&[nx, ny, c], e8) in edges.iter().zip(&edges8) {
+                    let x = if nx >= 0.0 { x0 } else { x1 };
+                    let y = if ny >= 0.0 { y0 } else { y1 };
+                    if nx * x + ny * y < c {
+                        failing[n] = *e8;
+                        n += 1;
                     }
-                    // no point, or all inside
-                    _ => {}
+                }
+                if n > 0 {
+                    for &lanes in g.block_lanes(b) {
+                        test(&failing[..n], lanes);
+                    }
                 }
             }
         }
-        None => ground_lanes(points).into_iter().for_each(&mut test),
+        None => ground_lanes(points)
+            .into_iter()
+            .for_each(|lanes| test(&edges8, lanes)),
     }
     out
+}
+
+/// The lanes of eight ground points (x, y) lying outside some edge
+/// (n·p < c; a NaN lane lies outside none), as a bit mask.
+#[inline(always)]
+fn outside_of(edges: &[[f32x8; 3]], x: f32x8, y: f32x8) -> u32 {
+    let mut outside = f32x8::ZERO;
+    for [nx, ny, c] in edges {
+        outside |= (*nx * x + *ny * y).simd_lt(*c);
+    }
+    outside.to_bitmask()
 }
 
 /// A ground point (finite `f32` coordinates) as one integer whose order
@@ -598,8 +619,21 @@ mod tests {
                 blocks: &blocks,
             };
             let every = convex_hull(points.iter().map(|p| ground_key(p.x, p.y)).collect());
-            let from_blocks = convex_hull(hull_candidates(&points, &sweep, Some(ground)));
-            let from_points = convex_hull(hull_candidates(&points, &sweep, None));
+            // the blocks' candidates are exactly the point-by-point test's
+            let set = |mut keys: Vec<u64>| {
+                keys.sort_unstable();
+                keys.dedup();
+                keys
+            };
+            let by_blocks = hull_candidates(&points, &sweep, Some(ground));
+            let by_points = hull_candidates(&points, &sweep, None);
+            assert_eq!(
+                set(by_blocks.clone()),
+                set(by_points.clone()),
+                "case {case}"
+            );
+            let from_blocks = convex_hull(by_blocks);
+            let from_points = convex_hull(by_points);
             assert_eq!(from_blocks, every, "case {case}");
             assert_eq!(from_points, every, "case {case}");
         }

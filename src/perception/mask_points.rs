@@ -17,12 +17,12 @@
 use std::cell::RefCell;
 
 use nalgebra::{Isometry3, Point3};
-use wide::f32x8;
+use wide::{f32x4, f32x8};
 
 use super::boxes::Object3D;
 use super::cloud::depth_stats_of;
 use super::masks::Mask;
-use super::sweep::{Ground, Sweep, SweepLanes, SWEEP_LANES};
+use super::sweep::{BlockValues, Ground, Sweep, SweepLanes, BLOCK_VECTORS, SWEEP_LANES};
 use crate::msg::{DepthImage, Frame, Intrinsics};
 
 /// The depth samples of one mask, as three arrays (pixel column, row and
@@ -37,7 +37,7 @@ struct Samples {
     /// [`kept_points`].
     ground: Vec<[f32x8; 2]>,
     /// The sweep's blocks (see [`SweepLanes`]).
-    blocks: Vec<[f32x8; 8]>,
+    blocks: Vec<[f32x4; 8]>,
 }
 
 impl Samples {
@@ -306,7 +306,7 @@ fn kept_depths(zs: &[f32], tau: f64) -> (f32, f32) {
 fn kept_points(
     samples: &Samples,
     ground: &mut Vec<[f32x8; 2]>,
-    blocks: &mut Vec<[f32x8; 8]>,
+    blocks: &mut Vec<[f32x4; 8]>,
     g: &MaskGeometry,
 ) -> (Vec<Point3<f32>>, Option<Sweep>) {
     const L: usize = SWEEP_LANES;
@@ -321,7 +321,6 @@ fn kept_points(
     let mut sweep = SweepLanes::new(std::mem::take(blocks));
     ground.clear();
     ground.reserve(n.div_ceil(L));
-    let nan = f32x8::splat(f32::NAN);
     // eight samples; past the end a NaN depth, never kept
     let load = |a: &[f32], i: usize, pad: f32| match a.get(i..i + L) {
         Some(c) => f32x8::new(std::array::from_fn(|l| c[l])),
@@ -331,25 +330,35 @@ fn kept_points(
     };
     let mut i = 0usize;
     while i < n {
-        let (u, v, z) = (load(us, i, 0.0), load(vs, i, 0.0), load(zs, i, f32::NAN));
-        let kept = z.simd_ge(lo) & z.simd_le(hi);
-        let [x, y, zt] = p.point8(u, v, z);
-        let (gx, gy) = (kept.select(x, nan), kept.select(y, nan));
-        sweep.add(gx, gy, kept.select(zt, nan));
-        ground.push([gx, gy]);
-        let keep = kept.to_bitmask();
-        let (x, y, zt) = (x.to_array(), y.to_array(), zt.to_array());
-        if keep == 0xff {
-            let block: [Point3<f32>; L] = std::array::from_fn(|l| Point3::new(x[l], y[l], zt[l]));
-            points.extend_from_slice(&block);
-        } else {
-            for l in 0..L {
-                if (keep >> l) & 1 == 1 {
-                    points.push(Point3::new(x[l], y[l], zt[l]));
+        // a block of the sweep at a time, its values kept in registers
+        let mut block = BlockValues::EMPTY;
+        let block_end = n.min(i + L * BLOCK_VECTORS);
+        let vectors = (block_end - i).div_ceil(L);
+        while i < block_end {
+            let (u, v, z) = (load(us, i, 0.0), load(vs, i, 0.0), load(zs, i, f32::NAN));
+            let kept = z.simd_ge(lo) & z.simd_le(hi);
+            let [x, y, zt] = p.point8(u, v, z);
+            // a lane not kept as all ones, a NaN: no point
+            let dropped = !kept;
+            let (gx, gy) = (x | dropped, y | dropped);
+            block.add(gx, gy, zt | dropped);
+            ground.push([gx, gy]);
+            let keep = kept.to_bitmask();
+            let (x, y, zt) = (x.to_array(), y.to_array(), zt.to_array());
+            if keep == 0xff {
+                let block: [Point3<f32>; L] =
+                    std::array::from_fn(|l| Point3::new(x[l], y[l], zt[l]));
+                points.extend_from_slice(&block);
+            } else {
+                for l in 0..L {
+                    if (keep >> l) & 1 == 1 {
+                        points.push(Point3::new(x[l], y[l], zt[l]));
+                    }
                 }
             }
+            i += L;
         }
-        i += L;
+        sweep.add_block(block, vectors);
     }
     let (sweep, spent) = sweep.finish(ground);
     *blocks = spent;

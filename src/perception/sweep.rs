@@ -3,7 +3,7 @@
 //! box's hull starts from them), eight points at a time.
 
 use nalgebra::Point3;
-use wide::f32x8;
+use wide::{f32x4, f32x8};
 
 use super::boxes::Aabb;
 
@@ -27,7 +27,7 @@ impl Sweep {
     pub(crate) fn of_lanes(
         points: &[Point3<f32>],
         lanes: &[[f32x8; 2]],
-    ) -> (Option<Sweep>, Vec<[f32x8; 8]>) {
+    ) -> (Option<Sweep>, Vec<[f32x4; 8]>) {
         let mut sweep = SweepLanes::new(Vec::new());
         for (c, xy) in points.chunks(SWEEP_LANES).zip(lanes) {
             let z = f32x8::new(std::array::from_fn(|l| c.get(l).map_or(f32::NAN, |p| p.z)));
@@ -65,17 +65,18 @@ fn ground_lanes_of(chunk: &[Point3<f32>]) -> [f32x8; 2] {
 pub(crate) const SWEEP_LANES: usize = 8;
 
 /// Vectors of [`SWEEP_LANES`] points in one block of a [`SweepLanes`].
-const BLOCK_VECTORS: usize = 8;
+pub(crate) const BLOCK_VECTORS: usize = 8;
 
 /// An object's points' ground coordinates as a [`SweepLanes`] took them:
 /// `lanes`, (x, y) eight at a time in the points' order, a lane that is
 /// no point NaN in both; `blocks`, what the sweep kept of each block of
-/// [`BLOCK_VECTORS`] vectors (each lane's greatest values along x, x+y, y
-/// and y−x, then its least).
+/// [`BLOCK_VECTORS`] vectors (greatest values along x, x+y, y and y−x,
+/// then least, each over the lanes of both halves of a vector that four
+/// lanes keep).
 #[derive(Clone, Copy)]
 pub(crate) struct Ground<'a> {
     pub(crate) lanes: &'a [[f32x8; 2]],
-    pub(crate) blocks: &'a [[f32x8; 8]],
+    pub(crate) blocks: &'a [[f32x4; 8]],
 }
 
 impl Ground<'_> {
@@ -108,7 +109,7 @@ fn directions(x: f32x8, y: f32x8) -> [f32x8; 4] {
 
 /// The greatest of the lanes, the first lane's of equal ones (−∞ when
 /// every lane is NaN or −∞).
-fn greatest(v: f32x8) -> f32 {
+fn greatest(v: f32x4) -> f32 {
     v.to_array()
         .into_iter()
         .fold(f32::NEG_INFINITY, |m, x| if x > m { x } else { m })
@@ -116,17 +117,23 @@ fn greatest(v: f32x8) -> f32 {
 
 /// The least of the lanes, the first lane's of equal ones (+∞ when every
 /// lane is NaN or +∞).
-fn least(v: f32x8) -> f32 {
+fn least(v: f32x4) -> f32 {
     v.to_array()
         .into_iter()
         .fold(f32::INFINITY, |m, x| if x < m { x } else { m })
+}
+
+/// Eight lanes as their two halves of four.
+#[inline(always)]
+fn halves(v: f32x8) -> [f32x4; 2] {
+    bytemuck::cast(v)
 }
 
 /// `s > acc ? s : acc` lane by lane: a NaN in `s` (no point) keeps `acc`,
 /// as does a tie. On x86-64 one instruction: MAXPS returns its second
 /// operand unless the first is greater, which `fast_max(s, acc)` is.
 #[inline(always)]
-fn raise(s: f32x8, acc: f32x8) -> f32x8 {
+fn raise(s: f32x4, acc: f32x4) -> f32x4 {
     #[cfg(target_arch = "x86_64")]
     {
         s.fast_max(acc)
@@ -139,7 +146,7 @@ fn raise(s: f32x8, acc: f32x8) -> f32x8 {
 
 /// `s < acc ? s : acc` lane by lane (see [`raise`]).
 #[inline(always)]
-fn lower(s: f32x8, acc: f32x8) -> f32x8 {
+fn lower(s: f32x4, acc: f32x4) -> f32x4 {
     #[cfg(target_arch = "x86_64")]
     {
         s.fast_min(acc)
@@ -150,82 +157,130 @@ fn lower(s: f32x8, acc: f32x8) -> f32x8 {
     }
 }
 
-/// A [`Sweep`] made [`SWEEP_LANES`] points at a time, each lane keeping
-/// its own greatest and least value along x, x+y, y and y−x and its z
-/// bounds (a compare-and-keep per value, no index). The values are kept
-/// per block of [`BLOCK_VECTORS`] vectors as well, so that
-/// [`finish`](Self::finish) finds the first point holding each extreme by
-/// looking into the first block that holds it — the first point furthest,
-/// as a point-by-point sweep finds it. The x and y bounds are the
-/// extremes along x and y.
+/// [`raise`] by both halves of eight lanes.
+#[inline(always)]
+fn raise8(s: f32x8, acc: f32x4) -> f32x4 {
+    let [a, b] = halves(s);
+    raise(b, raise(a, acc))
+}
+
+/// [`lower`] by both halves of eight lanes.
+#[inline(always)]
+fn lower8(s: f32x8, acc: f32x4) -> f32x4 {
+    let [a, b] = halves(s);
+    lower(b, lower(a, acc))
+}
+
+/// One block's values while it is filled: four lanes keeping the
+/// greatest and least value of both halves' lanes along x, x+y, y and y−x,
+/// and the z bounds (a compare-and-keep per value, no index; four lanes, so
+/// that a loop filling a block keeps them all in the registers of a plain
+/// x86-64).
+#[derive(Clone, Copy)]
+pub(crate) struct BlockValues {
+    hi: [f32x4; 4],
+    lo: [f32x4; 4],
+    z_min: f32x4,
+    z_max: f32x4,
+}
+
+impl BlockValues {
+    /// No point yet.
+    pub(crate) const EMPTY: BlockValues = BlockValues {
+        hi: [f32x4::splat(f32::NEG_INFINITY); 4],
+        lo: [f32x4::splat(f32::INFINITY); 4],
+        z_min: f32x4::splat(f32::INFINITY),
+        z_max: f32x4::splat(f32::NEG_INFINITY),
+    };
+
+    /// The next eight points (finite coordinates). A lane whose
+    /// coordinates are NaN is no point: NaN is neither greater nor less
+    /// than anything.
+    #[inline(always)]
+    pub(crate) fn add(&mut self, x: f32x8, y: f32x8, z: f32x8) {
+        for (d, s) in directions(x, y).into_iter().enumerate() {
+            self.hi[d] = raise8(s, self.hi[d]);
+            self.lo[d] = lower8(s, self.lo[d]);
+        }
+        self.z_min = lower8(z, self.z_min);
+        self.z_max = raise8(z, self.z_max);
+    }
+}
+
+/// A [`Sweep`] made [`SWEEP_LANES`] points at a time, a block of
+/// [`BLOCK_VECTORS`] vectors at a time ([`BlockValues`]). Each block's
+/// values are kept as well, so that [`finish`](Self::finish) finds the
+/// first point holding each extreme by looking into the first block that
+/// holds it — the first point furthest, as a point-by-point sweep finds
+/// it. The x and y bounds are the extremes along x and y.
 pub(crate) struct SweepLanes {
-    hi: [f32x8; 4],
-    lo: [f32x8; 4],
-    z_min: f32x8,
-    z_max: f32x8,
-    /// This block's values; `hi` and `lo` take them when it is full.
-    block_hi: [f32x8; 4],
-    block_lo: [f32x8; 4],
-    /// Vectors added so far.
-    vectors: usize,
-    /// Each full block's values: greatest along the four directions, then
+    all: BlockValues,
+    /// This block's values; `all` takes them when it is full.
+    block: BlockValues,
+    /// Vectors in this block so far.
+    in_block: usize,
+    /// Each block's values: greatest along the four directions, then
     /// least.
-    blocks: Vec<[f32x8; 8]>,
+    blocks: Vec<[f32x4; 8]>,
 }
 
 impl SweepLanes {
     /// An empty sweep keeping its blocks in `blocks` (cleared; handed back
     /// by [`finish`](Self::finish) for the next one).
-    pub(crate) fn new(mut blocks: Vec<[f32x8; 8]>) -> SweepLanes {
+    pub(crate) fn new(mut blocks: Vec<[f32x4; 8]>) -> SweepLanes {
         blocks.clear();
         SweepLanes {
-            hi: [f32x8::splat(f32::NEG_INFINITY); 4],
-            lo: [f32x8::splat(f32::INFINITY); 4],
-            z_min: f32x8::splat(f32::INFINITY),
-            z_max: f32x8::splat(f32::NEG_INFINITY),
-            block_hi: [f32x8::splat(f32::NEG_INFINITY); 4],
-            block_lo: [f32x8::splat(f32::INFINITY); 4],
-            vectors: 0,
+            all: BlockValues::EMPTY,
+            block: BlockValues::EMPTY,
+            in_block: 0,
             blocks,
         }
     }
 
-    /// The next eight points (finite coordinates), in order. A lane whose
-    /// coordinates are NaN is no point: NaN is neither greater nor less
-    /// than anything.
+    /// The next eight points, in order (see [`BlockValues::add`]).
     #[inline]
     pub(crate) fn add(&mut self, x: f32x8, y: f32x8, z: f32x8) {
-        for (d, s) in directions(x, y).into_iter().enumerate() {
-            self.block_hi[d] = raise(s, self.block_hi[d]);
-            self.block_lo[d] = lower(s, self.block_lo[d]);
+        self.block.add(x, y, z);
+        self.in_block += 1;
+        if self.in_block == BLOCK_VECTORS {
+            self.close_block();
         }
-        self.z_min = lower(z, self.z_min);
-        self.z_max = raise(z, self.z_max);
-        self.vectors += 1;
-        if self.vectors.is_multiple_of(BLOCK_VECTORS) {
+    }
+
+    /// The next block, filled apart: `block`'s values of `vectors`
+    /// vectors (at most [`BLOCK_VECTORS`]; fewer only for the last block),
+    /// the vectors before it whole blocks.
+    #[inline]
+    pub(crate) fn add_block(&mut self, block: BlockValues, vectors: usize) {
+        debug_assert!(self.in_block == 0 && vectors <= BLOCK_VECTORS);
+        if vectors > 0 {
+            self.block = block;
             self.close_block();
         }
     }
 
     /// The block's values into the sweep's and the list of blocks.
     fn close_block(&mut self) {
-        let mut kept = [f32x8::ZERO; 8];
+        let (b, all) = (&self.block, &mut self.all);
+        let mut kept = [f32x4::ZERO; 8];
         for d in 0..4 {
-            self.hi[d] = raise(self.block_hi[d], self.hi[d]);
-            self.lo[d] = lower(self.block_lo[d], self.lo[d]);
-            kept[d] = self.block_hi[d];
-            kept[d + 4] = self.block_lo[d];
+            all.hi[d] = raise(b.hi[d], all.hi[d]);
+            all.lo[d] = lower(b.lo[d], all.lo[d]);
+            kept[d] = b.hi[d];
+            kept[d + 4] = b.lo[d];
         }
+        all.z_min = lower(b.z_min, all.z_min);
+        all.z_max = raise(b.z_max, all.z_max);
         self.blocks.push(kept);
-        self.block_hi = [f32x8::splat(f32::NEG_INFINITY); 4];
-        self.block_lo = [f32x8::splat(f32::INFINITY); 4];
+        self.block = BlockValues::EMPTY;
+        self.in_block = 0;
     }
 
     /// The sweep of every point added (None when there was none), and the
     /// block list back; `lanes[i]` are the ground lanes (x, y) of the
     /// `i`-th vector added.
-    pub(crate) fn finish(mut self, lanes: &[[f32x8; 2]]) -> (Option<Sweep>, Vec<[f32x8; 8]>) {
-        if !self.vectors.is_multiple_of(BLOCK_VECTORS) {
+    pub(crate) fn finish(mut self, lanes: &[[f32x8; 2]]) -> (Option<Sweep>, Vec<[f32x4; 8]>) {
+        if self.in_block > 0 {
             self.close_block();
         }
         let sweep = self.sweep(lanes);
@@ -237,11 +292,11 @@ impl SweepLanes {
         // value is `best`: in the first block holding it, its first
         // vector holding it, its first lane
         let first = |k: usize, best: f32| -> Option<([f32; 2], f32)> {
-            let wanted = f32x8::splat(best);
             let block = self
                 .blocks
                 .iter()
-                .position(|b| b[k].simd_eq(wanted).to_bitmask() != 0)?;
+                .position(|b| b[k].simd_eq(f32x4::splat(best)).to_bitmask() != 0)?;
+            let wanted = f32x8::splat(best);
             let from = block * BLOCK_VECTORS;
             let to = (from + BLOCK_VECTORS).min(lanes.len());
             lanes.get(from..to)?.iter().find_map(|&[x, y]| {
@@ -256,8 +311,8 @@ impl SweepLanes {
         let mut extreme = [[0.0f32; 2]; 8];
         let mut value = [0.0f32; 8];
         for d in 0..4 {
-            let best_hi = greatest(self.hi[d]);
-            let best_lo = least(self.lo[d]);
+            let best_hi = greatest(self.all.hi[d]);
+            let best_lo = least(self.all.lo[d]);
             if !best_hi.is_finite() || !best_lo.is_finite() {
                 return None;
             }
@@ -265,8 +320,8 @@ impl SweepLanes {
             (extreme[d + 4], value[d + 4]) = first(d + 4, best_lo)?;
         }
         Some(Sweep {
-            min: [value[4], value[6], least(self.z_min)],
-            max: [value[0], value[2], greatest(self.z_max)],
+            min: [value[4], value[6], least(self.all.z_min)],
+            max: [value[0], value[2], greatest(self.all.z_max)],
             extreme,
         })
     }
