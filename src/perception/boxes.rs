@@ -206,13 +206,13 @@ fn hull_candidates(points: &[Point3<f32>], sweep: &Sweep, ground: Option<Ground>
     // eight points: those outside some edge of `edges` (a NaN lane is
     // outside none)
     let mut test = |edges: &[[f32x8; 3]], [x, y]: [f32x8; 2]| {
-        let mut outside = outside_of(edges, x, y);
+        let outside = outside_of(edges, x, y);
         if outside != 0 {
             let (x, y) = (x.to_array(), y.to_array());
-            while outside != 0 {
-                let l = outside.trailing_zeros() as usize;
-                out.push(ground_key(x[l], y[l]));
-                outside &= outside - 1;
+            for l in 0..8 {
+                if (outside >> l) & 1 == 1 {
+                    out.push(ground_key(x[l], y[l]));
+                }
             }
         }
     };
@@ -238,9 +238,15 @@ fn hull_candidates(points: &[Point3<f32>], sweep: &Sweep, ground: Option<Ground>
                         n += 1;
                     }
                 }
+                // every edge crossed (thin strips): the edges as they are
+                let crossed = if n == edges8.len() {
+                    &edges8[..]
+                } else {
+                    &failing[..n]
+                };
                 if n > 0 {
                     for &lanes in g.block_lanes(b) {
-                        test(&failing[..n], lanes);
+                        test(crossed, lanes);
                     }
                 }
             }
