@@ -10,6 +10,7 @@ pub mod boxes;
 pub mod cloud;
 pub mod depth_obstacles;
 pub mod detector;
+pub(crate) mod hull;
 pub mod image;
 pub mod mask_points;
 pub mod masks;
