@@ -346,9 +346,9 @@ fn kept_points(
             let keep = kept.to_bitmask();
             let (x, y, zt) = (x.to_array(), y.to_array(), zt.to_array());
             if keep == 0xff {
-                let block: [Point3<f32>; L] =
+                let eight: [Point3<f32>; L] =
                     std::array::from_fn(|l| Point3::new(x[l], y[l], zt[l]));
-                points.extend_from_slice(&block);
+                points.extend_from_slice(&eight);
             } else {
                 for l in 0..L {
                     if (keep >> l) & 1 == 1 {
