@@ -333,7 +333,6 @@ fn kept_points(
         // a block of the sweep at a time, its values kept in registers
         let mut block = BlockValues::EMPTY;
         let block_end = n.min(i + L * BLOCK_VECTORS);
-        let vectors = (block_end - i).div_ceil(L);
         while i < block_end {
             let (u, v, z) = (load(us, i, 0.0), load(vs, i, 0.0), load(zs, i, f32::NAN));
             let kept = z.simd_ge(lo) & z.simd_le(hi);
@@ -358,7 +357,7 @@ fn kept_points(
             }
             i += L;
         }
-        sweep.add_block(block, vectors);
+        sweep.add_block(block);
     }
     let (sweep, spent) = sweep.finish(ground);
     *blocks = spent;

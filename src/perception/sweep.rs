@@ -29,9 +29,14 @@ impl Sweep {
         lanes: &[[f32x8; 2]],
     ) -> (Option<Sweep>, Vec<[f32x4; 8]>) {
         let mut sweep = SweepLanes::new(Vec::new());
-        for (c, xy) in points.chunks(SWEEP_LANES).zip(lanes) {
-            let z = f32x8::new(std::array::from_fn(|l| c.get(l).map_or(f32::NAN, |p| p.z)));
-            sweep.add(xy[0], xy[1], z);
+        let block_points = SWEEP_LANES * BLOCK_VECTORS;
+        for (b, block_lanes) in points.chunks(block_points).zip(lanes.chunks(BLOCK_VECTORS)) {
+            let mut block = BlockValues::EMPTY;
+            for (c, xy) in b.chunks(SWEEP_LANES).zip(block_lanes) {
+                let z = f32x8::new(std::array::from_fn(|l| c.get(l).map_or(f32::NAN, |p| p.z)));
+                block.add(xy[0], xy[1], z);
+            }
+            sweep.add_block(block);
         }
         sweep.finish(lanes)
     }
@@ -207,18 +212,15 @@ impl BlockValues {
     }
 }
 
-/// A [`Sweep`] made [`SWEEP_LANES`] points at a time, a block of
-/// [`BLOCK_VECTORS`] vectors at a time ([`BlockValues`]). Each block's
+/// A [`Sweep`] made a block of [`BLOCK_VECTORS`] vectors of
+/// [`SWEEP_LANES`] points at a time ([`BlockValues`]: each block filled
+/// apart, its values in registers). Each block's
 /// values are kept as well, so that [`finish`](Self::finish) finds the
 /// first point holding each extreme by looking into the first block that
 /// holds it — the first point furthest, as a point-by-point sweep finds
 /// it. The x and y bounds are the extremes along x and y.
 pub(crate) struct SweepLanes {
     all: BlockValues,
-    /// This block's values; `all` takes them when it is full.
-    block: BlockValues,
-    /// Vectors in this block so far.
-    in_block: usize,
     /// Each block's values: greatest along the four directions, then
     /// least.
     blocks: Vec<[f32x4; 8]>,
@@ -231,37 +233,14 @@ impl SweepLanes {
         blocks.clear();
         SweepLanes {
             all: BlockValues::EMPTY,
-            block: BlockValues::EMPTY,
-            in_block: 0,
             blocks,
         }
     }
 
-    /// The next eight points, in order (see [`BlockValues::add`]).
-    #[inline]
-    pub(crate) fn add(&mut self, x: f32x8, y: f32x8, z: f32x8) {
-        self.block.add(x, y, z);
-        self.in_block += 1;
-        if self.in_block == BLOCK_VECTORS {
-            self.close_block();
-        }
-    }
-
-    /// The next block, filled apart: `block`'s values of `vectors`
-    /// vectors (at most [`BLOCK_VECTORS`]; fewer only for the last block),
-    /// the vectors before it whole blocks.
-    #[inline]
-    pub(crate) fn add_block(&mut self, block: BlockValues, vectors: usize) {
-        debug_assert!(self.in_block == 0 && vectors <= BLOCK_VECTORS);
-        if vectors > 0 {
-            self.block = block;
-            self.close_block();
-        }
-    }
-
-    /// The block's values into the sweep's and the list of blocks.
-    fn close_block(&mut self) {
-        let (b, all) = (&self.block, &mut self.all);
+    /// The next block's values, filled apart (see [`BlockValues`]): a
+    /// whole block of [`BLOCK_VECTORS`] vectors, or fewer for the last one.
+    pub(crate) fn add_block(&mut self, b: BlockValues) {
+        let all = &mut self.all;
         let mut kept = [f32x4::ZERO; 8];
         for d in 0..4 {
             all.hi[d] = raise(b.hi[d], all.hi[d]);
@@ -272,17 +251,12 @@ impl SweepLanes {
         all.z_min = lower(b.z_min, all.z_min);
         all.z_max = raise(b.z_max, all.z_max);
         self.blocks.push(kept);
-        self.block = BlockValues::EMPTY;
-        self.in_block = 0;
     }
 
     /// The sweep of every point added (None when there was none), and the
     /// block list back; `lanes[i]` are the ground lanes (x, y) of the
     /// `i`-th vector added.
-    pub(crate) fn finish(mut self, lanes: &[[f32x8; 2]]) -> (Option<Sweep>, Vec<[f32x4; 8]>) {
-        if self.in_block > 0 {
-            self.close_block();
-        }
+    pub(crate) fn finish(self, lanes: &[[f32x8; 2]]) -> (Option<Sweep>, Vec<[f32x4; 8]>) {
         let sweep = self.sweep(lanes);
         (sweep, self.blocks)
     }
@@ -403,8 +377,12 @@ mod tests {
             };
             let lanes: Vec<[f32x8; 2]> = all.chunks(8).map(|c| [lane(c, 0), lane(c, 1)]).collect();
             let mut sweep = SweepLanes::new(Vec::new());
-            for c in all.chunks(8) {
-                sweep.add(lane(c, 0), lane(c, 1), lane(c, 2));
+            for b in all.chunks(8 * BLOCK_VECTORS) {
+                let mut block = BlockValues::EMPTY;
+                for c in b.chunks(8) {
+                    block.add(lane(c, 0), lane(c, 1), lane(c, 2));
+                }
+                sweep.add_block(block);
             }
             let (got, blocks) = sweep.finish(&lanes);
             assert_eq!(got, sweep_point_by_point(&kept), "{n} samples");
