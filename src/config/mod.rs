@@ -134,6 +134,7 @@ pub struct GoalSection {
     pub search_turn_radps: f64,
     pub give_up_held_s: f64,
     pub search_at_most_s: f64,
+    pub search_held_s: f64,
 }
 
 /// The control step's period (the daemon's control task): part of the
@@ -441,6 +442,7 @@ impl Settings {
             search_turn_radps: g.search_turn_radps,
             give_up_held_after: std::time::Duration::from_secs_f64(g.give_up_held_s),
             search_at_most: std::time::Duration::from_secs_f64(g.search_at_most_s),
+            search_held_for: std::time::Duration::from_secs_f64(g.search_held_s),
         }
     }
 

@@ -250,6 +250,7 @@ impl Settings {
         // beyond the moment the person is told (daemon::control::SAY_HELD_AFTER)
         finite_range("goal.give_up_held_s", g.give_up_held_s, 15.0, 600.0)?;
         finite_range("goal.search_at_most_s", g.search_at_most_s, 20.0, 1200.0)?;
+        finite_range("goal.search_held_s", g.search_held_s, 30.0, 1200.0)?;
         let m = &self.mpc;
         range("mpc.horizon", m.horizon, 5, 60)?;
         finite_range("mpc.dt_s", m.dt_s, 0.02, 0.5)?;

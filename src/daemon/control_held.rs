@@ -237,8 +237,9 @@ pub(super) enum Held {
 pub(super) struct StandStill {
     since: Option<(Stamp, crate::msg::Pose2)>,
     /// Turning on the spot is standing still too, and creeping within
-    /// [`IN_PLACE_WITHIN_M`] ([`StandStill::in_place`]).
-    any_heading: bool,
+    /// this, m ([`StandStill::in_place`]); None: standing still is within
+    /// [`STILL_WITHIN_M`] and [`STILL_WITHIN_RAD`].
+    any_heading: Option<f64>,
 }
 
 /// Staying within this of one place is staying in place (m).
@@ -254,9 +255,14 @@ impl StandStill {
     /// detour turning on the spot where the way on stays held, a drop-off
     /// before it) is getting nowhere.
     pub(super) fn in_place() -> Self {
+        Self::in_place_within(IN_PLACE_WITHIN_M)
+    }
+
+    /// Staying within `within_m` of one place, whatever the heading.
+    pub(super) fn in_place_within(within_m: f64) -> Self {
         StandStill {
             since: None,
-            any_heading: true,
+            any_heading: Some(within_m),
         }
     }
 
@@ -277,12 +283,8 @@ impl StandStill {
         match self.since {
             Some((t, p))
                 if (p.x_m - pose.x_m).hypot(p.y_m - pose.y_m)
-                    <= if self.any_heading {
-                        IN_PLACE_WITHIN_M
-                    } else {
-                        STILL_WITHIN_M
-                    }
-                    && (self.any_heading
+                    <= self.any_heading.unwrap_or(STILL_WITHIN_M)
+                    && (self.any_heading.is_some()
                         || crate::msg::wrap_angle(p.theta_rad - pose.theta_rad).abs()
                             <= STILL_WITHIN_RAD) =>
             {

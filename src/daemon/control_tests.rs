@@ -440,3 +440,6 @@ mod held_on_the_way;
 
 #[path = "control_floor_tests.rs"]
 mod floor;
+
+#[path = "control_search_tests.rs"]
+mod search_held;

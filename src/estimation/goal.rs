@@ -39,6 +39,9 @@ pub struct GoalSettings {
     /// A search (turns on the spot and the places between) ends "not
     /// found" after this.
     pub search_at_most: Duration,
+    /// A search that keeps the chair in one place this long (turning or
+    /// not, held there) ends: the chair stops and says it is held.
+    pub search_held_for: Duration,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -434,6 +437,20 @@ impl GoalKeeper {
         }
         self.state = GoalState::None;
         Some(GoalEvent::GaveUp { label, held_s })
+    }
+
+    /// A search (turning to look, or driving to a place to look from)
+    /// that kept the chair in one place for `held_s` (the caller times it:
+    /// held there, every place to look from lies the way that is held):
+    /// given up, the chair stops. None in any other state.
+    pub fn give_up_search(&mut self, held_s: f64) -> Option<GoalEvent> {
+        let (GoalState::Searching { label } | GoalState::Exploring { label, .. }) = &self.state
+        else {
+            return None;
+        };
+        let label = label.clone();
+        self.state = GoalState::None;
+        Some(GoalEvent::SearchHeld { label, held_s })
     }
 
     /// Whether a trip held for good with the chair at `chair` would end

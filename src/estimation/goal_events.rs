@@ -62,6 +62,13 @@ pub enum GoalEvent {
         label: String,
         held_s: f64,
     },
+    /// Searching, the chair stayed held in one place for `held_s`
+    /// ([`super::GoalKeeper::give_up_search`]): the search is dropped, the
+    /// chair stops.
+    SearchHeld {
+        label: String,
+        held_s: f64,
+    },
     /// A turn to look around is done: what is known around, nearest first.
     LookedAround {
         seen: Vec<String>,
@@ -100,6 +107,10 @@ impl GoalEvent {
             GoalEvent::GaveUp { label, held_s } => format!(
                 "I cannot get to the {label}: my way has been blocked for {held_s:.0} seconds. \
                  Stopped."
+            ),
+            GoalEvent::SearchHeld { label, held_s } => format!(
+                "I cannot look further for a {label}: I have been held in this place for \
+                 {held_s:.0} seconds. Stopped."
             ),
             GoalEvent::LookingFurther { label } => {
                 format!("I cannot see a {label} from here. Looking further.")
