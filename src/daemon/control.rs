@@ -207,11 +207,6 @@ pub const REFUSED_TURN_WITHIN_M: f64 = 0.15;
 /// way and that, is held too (the hold's time counts from then).
 pub const IN_PLACE_FOR: std::time::Duration = std::time::Duration::from_secs(10);
 
-/// Searching, the chair staying within this of one place (turning or not)
-/// for `goal.search_held_s` is held there for good, m: it is getting
-/// nowhere (a back-off, a doorway tried again, move it further).
-pub const SEARCH_HELD_WITHIN_M: f64 = 0.05;
-
 /// Held on the way this long without a break (no detour, no room to back
 /// off): the person is told, once per hold; the chair keeps trying.
 pub const SAY_HELD_AFTER: std::time::Duration = std::time::Duration::from_secs(10);
@@ -263,7 +258,7 @@ impl Control {
             goal_held_since: None,
             stand_still: held::StandStill::default(),
             in_place: held::StandStill::in_place(),
-            search_in_place: held::StandStill::in_place_within(SEARCH_HELD_WITHIN_M),
+            search_in_place: held::StandStill::in_place_within(search::SEARCH_HELD_WITHIN_M),
             planned_path: Vec::new(),
             asked_goal: None,
             acknowledged: false,
@@ -518,23 +513,7 @@ impl Control {
             },
         );
         let event = self.search_further(now, pose, event);
-        // searching, held in one place for good: the search ends there
-        let searching = matches!(
-            self.goal.state(),
-            GoalState::Searching { .. } | GoalState::Exploring { .. }
-        );
-        let held_for = self.goal.settings.search_held_for;
-        let boxed_in = self.search_in_place.update(now, pose, searching, held_for);
-        let event = match event {
-            None if boxed_in => {
-                tracing::warn!(
-                    ?pose,
-                    "searching: held in one place too long; the search ends here"
-                );
-                self.goal.give_up_search(held_for.as_secs_f64())
-            }
-            e => e,
-        };
+        let event = self.end_search_if_held(now, pose, event);
         // held on the way, close to the place beside the object: as near
         // as it safely goes
         // (for something in the way, or asked whether it is clear behind

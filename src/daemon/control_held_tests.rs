@@ -29,35 +29,17 @@ fn step_facing(
     theta_rad: f64,
     points_base: Vec<[f32; 2]>,
 ) -> ControlOutput {
-    let now = at(ms_);
-    let (mut o, mut odo) = fresh(now);
-    o.value.points_base = points_base;
-    odo.value.pose.theta_rad = theta_rad;
-    c.step(
-        now,
-        ControlInputs {
-            obstacles: Some(&o),
-            odometry: Some(&odo),
-            tracker,
-            camera: None,
-        },
-    )
-}
-
-/// A control asked for "chair" and searching a place 2 m ahead, with an
-/// empty tracker.
-fn searching_two_metres_ahead() -> (Control, Tracker) {
-    let mut c = control(false);
-    c.on_input(UserInput::Goto("chair".into()));
-    step_empty(&mut c, 0);
-    c.goal.explore(at(0), Some([2.0, 0.0]));
-    (c, Tracker::new(crate::config::Settings::defaults().tracker))
+    let pose = Pose2 {
+        theta_rad,
+        ..Pose2::default()
+    };
+    step_at_pose(c, ms_, tracker, pose, points_base)
 }
 
 #[test]
 fn held_by_something_ahead_on_the_way_it_backs_off_a_little_then_tries_again() {
     // a place to search 2 m ahead, a box 0.7 m ahead in the way
-    let (mut c, tracker) = searching_two_metres_ahead();
+    let (mut c, tracker) = searching_two_metres_ahead(false);
     // a chair that never moved does not back onto floor it has not stood
     // on (a step down behind is seen by nothing)
     let mut still = control(false);
@@ -146,7 +128,7 @@ fn a_turn_with_something_remembered_behind_just_outside_the_crawl_margin_crawls(
 #[test]
 fn held_with_the_rear_unseen_it_asks_before_backing_off() {
     let asked_after = |answer: UserInput, turn_refused_here: bool| {
-        let (mut c, tracker) = searching_two_metres_ahead();
+        let (mut c, tracker) = searching_two_metres_ahead(false);
         c.supervisor.limits.turn_needs_seen_rear = true;
         if turn_refused_here {
             c.turn_refused_at = Some(crate::msg::Pose2::default());
@@ -274,7 +256,7 @@ fn held_near_the_place_beside_the_object_it_arrives_as_near_as_it_safely_goes() 
 fn held_by_something_beside_the_way_it_drives_a_detour_the_supervisor_admits() {
     // a place to search 2 m ahead; a post ahead on the left, inside the
     // stop corridor of the straight way
-    let (mut c, tracker) = searching_two_metres_ahead();
+    let (mut c, tracker) = searching_two_metres_ahead(false);
     let mut moved = 0;
     for k in 1..=40u64 {
         let out = step_with_points(&mut c, 50 * k, &tracker, vec![[0.68, 0.2], [4.0, 0.0]]);
@@ -309,7 +291,7 @@ fn held_by_something_beside_the_way_it_drives_a_detour_the_supervisor_admits() {
 #[test]
 fn a_detour_is_followed_for_its_horizon_then_the_planner_drives_again() {
     use crate::navigation::detour::HORIZON_S;
-    let (mut c, tracker) = searching_two_metres_ahead();
+    let (mut c, tracker) = searching_two_metres_ahead(false);
     step_with_points(&mut c, 50, &tracker, vec![[0.68, 0.2], [4.0, 0.0]]);
     let (since, detour) = c.detour_since.expect("held by the post: a detour");
     assert_eq!(since, at(50));
@@ -342,7 +324,7 @@ fn a_detour_is_followed_for_its_horizon_then_the_planner_drives_again() {
 
 #[test]
 fn held_on_the_way_with_no_way_round_it_says_so_once_and_goes_on_when_clear() {
-    let (mut c, tracker) = searching_two_metres_ahead();
+    let (mut c, tracker) = searching_two_metres_ahead(false);
     let told = |said: &[String]| {
         said.iter()
             .filter(|s| s.contains("cannot find a way round"))

@@ -13,7 +13,40 @@ use crate::msg::{Pose2, Stamp, SupervisorState};
 /// this of the chair's heading, rad.
 const TURN_ELSEWHERE_AHEAD_RAD: f64 = std::f64::consts::FRAC_PI_3;
 
+/// Searching, the chair staying within this of one place (turning or not)
+/// for `goal.search_held_s` is held there for good, m: it is getting
+/// nowhere (a back-off, a doorway tried again, move it further).
+pub const SEARCH_HELD_WITHIN_M: f64 = 0.05;
+
 impl Control {
+    /// After the goal's update (`event`, its event): a search that kept
+    /// the chair in one place ([`SEARCH_HELD_WITHIN_M`]) for
+    /// `goal.search_held_s` ends there, held (every place to look from
+    /// lies the way that is held); the event to say, else `event`.
+    pub(super) fn end_search_if_held(
+        &mut self,
+        now: Stamp,
+        pose: Pose2,
+        event: Option<GoalEvent>,
+    ) -> Option<GoalEvent> {
+        let searching = matches!(
+            self.goal.state(),
+            GoalState::Searching { .. } | GoalState::Exploring { .. }
+        );
+        let held_for = self.goal.settings.search_held_for;
+        let held = self.search_in_place.update(now, pose, searching, held_for);
+        match event {
+            None if held => {
+                tracing::warn!(
+                    ?pose,
+                    "searching: held in one place too long; the search ends here"
+                );
+                self.goal.give_up_search(held_for.as_secs_f64())
+            }
+            e => e,
+        }
+    }
+
     /// Before the goal's update: what is left for the camera to look at
     /// around the chair, while searching (the turn's end and its way).
     pub(super) fn tell_goal_what_is_left(&mut self, pose: Pose2, view: Option<&CameraView>) {

@@ -11,52 +11,18 @@ fn wall_ahead() -> Vec<[f32; 2]> {
     points_base
 }
 
-/// One step at `ms_`, the chair at rest at `x_m` on odom's x axis facing
-/// along it, the lasers seeing `points_base`.
-fn step_at(
-    c: &mut Control,
-    ms_: u64,
-    tracker: &Tracker,
-    x_m: f64,
-    points_base: Vec<[f32; 2]>,
-) -> ControlOutput {
-    let now = at(ms_);
-    let (mut o, mut odo) = fresh(now);
-    o.value.points_base = points_base;
-    odo.value.pose.x_m = x_m;
-    c.step(
-        now,
-        ControlInputs {
-            obstacles: Some(&o),
-            odometry: Some(&odo),
-            tracker,
-            camera: None,
-        },
-    )
-}
-
-/// Searching for "chair" (a trip that ends on its outcome), a place to
-/// look from 2 m ahead.
-fn searching() -> (Control, Tracker) {
-    let mut c = control(true);
-    c.on_input(UserInput::Goto("chair".into()));
-    step_empty(&mut c, 0);
-    c.goal.explore(at(0), Some([2.0, 0.0]));
-    (c, Tracker::new(crate::config::Settings::defaults().tracker))
-}
-
 /// Held by a wall across its way to every place to look from, the chair
 /// stays where it is: after `goal.search_held_s` there, and not
 /// before, the search ends — it stops and says it is held, not that the
 /// word is nowhere to be found.
 #[test]
 fn searching_held_in_one_place_the_search_ends_after_its_time() {
-    let (mut c, tracker) = searching();
+    let (mut c, tracker) = searching_two_metres_ahead(true);
     let limit_ms = c.goal.settings.search_held_for.as_millis() as u64;
     let mut said = Vec::new();
     let mut ended = None;
     for k in 1..=(limit_ms + 2_000) / 50 {
-        let out = step_at(&mut c, 50 * k, &tracker, 0.0, wall_ahead());
+        let out = step_at_pose(&mut c, 50 * k, &tracker, Pose2::default(), wall_ahead());
         // each new place to look from is held too: the search goes on
         // looking (the keeper's own time, 240 s, is far off)
         if c.goal.state() == &GoalState::None && ended.is_none() {
@@ -88,12 +54,16 @@ fn searching_held_in_one_place_the_search_ends_after_its_time() {
 /// more than the 5 cm that is one place): no end for being held.
 #[test]
 fn a_search_that_gets_on_is_not_ended_for_being_held() {
-    let (mut c, tracker) = searching();
+    let (mut c, tracker) = searching_two_metres_ahead(true);
     let limit_ms = c.goal.settings.search_held_for.as_millis() as u64;
     let mut said = Vec::new();
     for k in 1..=(2 * limit_ms) / 50 {
         let x_m = 0.1 * ((50 * k) / 10_000) as f64;
-        let out = step_at(&mut c, 50 * k, &tracker, x_m, wall_ahead());
+        let pose = Pose2 {
+            x_m,
+            ..Pose2::default()
+        };
+        let out = step_at_pose(&mut c, 50 * k, &tracker, pose, wall_ahead());
         assert_eq!(out.done, None, "step {k}: {said:?}");
         said.extend(out.said);
     }

@@ -56,6 +56,40 @@ fn step_seeing(
     )
 }
 
+/// One step at `ms_`, the chair at rest at `pose` (odom), the lasers
+/// seeing `points_base`.
+fn step_at_pose(
+    c: &mut Control,
+    ms_: u64,
+    tracker: &Tracker,
+    pose: Pose2,
+    points_base: Vec<[f32; 2]>,
+) -> ControlOutput {
+    let now = at(ms_);
+    let (mut o, mut odo) = fresh(now);
+    o.value.points_base = points_base;
+    odo.value.pose = pose;
+    c.step(
+        now,
+        ControlInputs {
+            obstacles: Some(&o),
+            odometry: Some(&odo),
+            tracker,
+            camera: None,
+        },
+    )
+}
+
+/// A control asked for "chair" and searching a place 2 m ahead, with an
+/// empty tracker (`exit_on_arrival`: the trip ends on its outcome).
+fn searching_two_metres_ahead(exit_on_arrival: bool) -> (Control, Tracker) {
+    let mut c = control(exit_on_arrival);
+    c.on_input(UserInput::Goto("chair".into()));
+    step_empty(&mut c, 0);
+    c.goal.explore(at(0), Some([2.0, 0.0]));
+    (c, Tracker::new(crate::config::Settings::defaults().tracker))
+}
+
 fn at(ms: u64) -> Stamp {
     Stamp(Duration::from_millis(ms))
 }
