@@ -236,10 +236,11 @@ pub(super) enum Held {
 #[derive(Debug, Clone, Default)]
 pub(super) struct StandStill {
     since: Option<(Stamp, crate::msg::Pose2)>,
-    /// Turning on the spot is standing still too, and creeping within
-    /// this, m ([`StandStill::in_place`]); None: standing still is within
+    /// Staying in place: within this of one place, m, whatever the
+    /// heading (turning on the spot and creeping count,
+    /// [`StandStill::in_place`]); None: standing still, within
     /// [`STILL_WITHIN_M`] and [`STILL_WITHIN_RAD`].
-    any_heading: Option<f64>,
+    in_place_within_m: Option<f64>,
 }
 
 /// Staying within this of one place is staying in place (m).
@@ -262,7 +263,7 @@ impl StandStill {
     pub(super) fn in_place_within(within_m: f64) -> Self {
         StandStill {
             since: None,
-            any_heading: Some(within_m),
+            in_place_within_m: Some(within_m),
         }
     }
 
@@ -283,8 +284,8 @@ impl StandStill {
         match self.since {
             Some((t, p))
                 if (p.x_m - pose.x_m).hypot(p.y_m - pose.y_m)
-                    <= self.any_heading.unwrap_or(STILL_WITHIN_M)
-                    && (self.any_heading.is_some()
+                    <= self.in_place_within_m.unwrap_or(STILL_WITHIN_M)
+                    && (self.in_place_within_m.is_some()
                         || crate::msg::wrap_angle(p.theta_rad - pose.theta_rad).abs()
                             <= STILL_WITHIN_RAD) =>
             {
