@@ -134,7 +134,9 @@ impl Control {
     /// holding it: the planner's commands came to nothing) for
     /// [`SAY_HELD_AFTER`] without a break: said once (a carer can move
     /// what is in the way; the chair goes on by itself when the way
-    /// clears, or stays on "stop"). Held for the goal's
+    /// clears, or stays on "stop"), with how long it will wait: driving
+    /// to an object, until the goal is given up; searching, until the
+    /// search ends for staying in one place. Held for the goal's
     /// `give_up_held_after` without a break, driving to an object: the
     /// goal is given up (the event to say and end the trip with).
     pub(super) fn tell_if_held(
@@ -172,18 +174,27 @@ impl Control {
         }
         if held_for >= SAY_HELD_AFTER && !self.said_held {
             self.said_held = true;
-            // driving to an object, the wait has an end
-            let until = match self.goal.state() {
-                crate::estimation::goal::GoalState::Tracking { .. } => format!(
-                    " for {:.0} more seconds",
+            // driving to an object, the wait has an end; searching, so
+            // has staying in this one place (`end_search_if_held`)
+            use crate::estimation::goal::GoalState;
+            let left = match self.goal.state() {
+                GoalState::Tracking { .. } => Some(
                     self.goal
                         .settings
                         .give_up_held_after
-                        .saturating_sub(held_for)
-                        .as_secs_f64()
+                        .saturating_sub(held_for),
                 ),
-                _ => String::new(),
+                GoalState::Searching { .. } | GoalState::Exploring { .. } => Some(
+                    self.goal
+                        .settings
+                        .search_held_for
+                        .saturating_sub(self.search_in_place.for_how_long(now)),
+                ),
+                _ => None,
             };
+            let until = left
+                .map(|d| format!(" for {:.0} more seconds", d.as_secs_f64()))
+                .unwrap_or_default();
             match held {
                 Held::Supervisor => {
                     tracing::warn!("held on the way with no way round");
@@ -265,6 +276,12 @@ impl StandStill {
             since: None,
             in_place_within_m: Some(within_m),
         }
+    }
+
+    /// How long the chair has stood (or stayed in place) so far, as of
+    /// the last [`update`](Self::update); zero when it has not.
+    pub(super) fn for_how_long(&self, now: Stamp) -> std::time::Duration {
+        self.since.map(|(t, _)| t.age_at(now)).unwrap_or_default()
     }
 
     /// Whether the chair, `driving` to a goal, has stood within

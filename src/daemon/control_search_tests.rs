@@ -21,8 +21,20 @@ fn searching_held_in_one_place_the_search_ends_after_its_time() {
     let limit_ms = c.goal.settings.search_held_for.as_millis() as u64;
     let mut said = Vec::new();
     let mut ended = None;
+    // when the chair said it is held, and the wait it named (s)
+    let mut told = None;
     for k in 1..=(limit_ms + 2_000) / 50 {
         let out = step_at_pose(&mut c, 50 * k, &tracker, Pose2::default(), wall_ahead());
+        for s in &out.said {
+            if let Some(wait) = s
+                .split(" more seconds")
+                .next()
+                .filter(|_| s.contains(" more seconds"))
+                .and_then(|head| head.rsplit(' ').next())
+            {
+                told.get_or_insert((50 * k, wait.to_string()));
+            }
+        }
         // each new place to look from is held too: the search goes on
         // looking (the keeper's own time, 240 s, is far off)
         if c.goal.state() == &GoalState::None && ended.is_none() {
@@ -47,6 +59,21 @@ fn searching_held_in_one_place_the_search_ends_after_its_time() {
     assert!(
         !said.iter().any(|s| s.contains("cannot find a chair")),
         "{said:?}"
+    );
+    // told it is held, with how long it will wait there: the search's end
+    // within a second of that
+    assert!(
+        !said.iter().any(|s| s.contains("go on when it is clear")),
+        "{said:?}"
+    );
+    let (told_ms, wait) = told.unwrap_or_else(|| panic!("no wait named: {said:?}"));
+    let wait_s: u64 = wait
+        .parse()
+        .unwrap_or_else(|_| panic!("the wait {wait:?} is no number: {said:?}"));
+    let named_end_ms = told_ms + 1_000 * wait_s;
+    assert!(
+        named_end_ms.abs_diff(ended) <= 1_000,
+        "said at {told_ms} ms it would wait {wait_s} s, ended at {ended} ms: {said:?}"
     );
 }
 
