@@ -16,13 +16,11 @@ use crate::msg::{
     FaultReason, MapObstacles, Obstacles, Odometry, SafeCmd, Stamp, Stamped, SupervisorState,
     UserInput, VelocityCmd,
 };
-use crate::navigation::doorway::PassageCmd;
 use crate::navigation::map::MapSettings;
-use crate::navigation::mpc::UnicycleState;
 use crate::navigation::planner::Planner;
 use rear_question::before_unseen;
 
-use super::route::{Router, CRAWL_MPS, TURN_FIRST_RAD, TURN_FIRST_RADPS};
+use super::route::Router;
 use crate::safety::rear::{RearSettings, RearWatch};
 use crate::safety::{Supervisor, SupervisorInputs};
 
@@ -442,116 +440,18 @@ impl Control {
     ) {
         self.planned_path.clear();
         self.aim_odom = None;
-        // everything the chair must not enter, in base_link: the lasers'
-        // points, the camera's obstacles and its drop-offs (those that may
-        // lie out of its view too)
-        let mut points_base = lasers.value.points_base.clone();
-        if let Some(c) = camera {
-            points_base.extend(&c.value.points_base);
-            points_base.extend(&c.value.drop_offs_base);
-            points_base.extend(&c.value.drop_offs_unseen_base);
-        }
-        let o = Obstacles {
-            points_base,
-            ..Default::default()
-        };
-        // a turn on the spot the person said is clear all around: the
-        // drop-offs that may lie out of the camera's view do not hold it
-        let o_turn = camera
-            .filter(|c| {
-                !c.value.drop_offs_unseen_base.is_empty()
-                    && self.rear.around_vouched_at(now, &odo.value.pose)
-            })
-            .map(|c| {
-                let mut points_base = lasers.value.points_base.clone();
-                points_base.extend(&c.value.points_base);
-                points_base.extend(&c.value.drop_offs_base);
-                points_base
-            });
-        // and the rear the lasers saw before, which the supervisor checks
-        // a turn against too
-        let mut o_turn = o_turn.unwrap_or_else(|| o.points_base.clone());
-        o_turn.extend(rear_points_base);
-        let o_turn = &Obstacles {
-            points_base: o_turn,
-            ..Default::default()
-        };
         let Odometry {
             pose,
             v_mps,
             omega_radps,
             ..
         } = odo.value;
-        let odom_from_base = pose.to_isometry3();
-        let obstacles_odom: Vec<[f64; 2]> = o
-            .points_base
-            .iter()
-            .map(|q| {
-                let p = odom_from_base * nalgebra::Point3::new(q[0] as f64, q[1] as f64, 0.0);
-                [p.x, p.y]
-            })
-            .collect();
-        let view = self.view;
-        self.tell_goal_what_is_left(pose, view.as_ref());
-        // the place beside the object where the chair fits on the map of
-        // everything it has seen (not only what it sees now), on floor it
-        // has seen (never seen, it may lie behind a wall); the map's
-        // distance field brought up to date when the goal keeper first
-        // asks (with no track to go to, it does not)
-        let map = std::cell::RefCell::new(self.route.as_mut().and_then(|r| r.map.as_mut()));
-        let event = self.goal.update(
-            now,
-            tracker,
-            pose,
-            &obstacles_odom,
-            &|t| t.expected_seen && view.is_some_and(|v| v.sees(&pose, &t.center_m)),
-            &|p| {
-                map.borrow_mut().as_mut().is_none_or(|m| {
-                    m.update_distances();
-                    m.fits(p) && m.is_known_at(p)
-                })
-            },
-        );
-        let event = self.search_further(now, pose, event);
-        let event = self.end_search_if_held(now, pose, event);
-        // held on the way, close to the place beside the object: as near
-        // as it safely goes
-        // (for something in the way, or asked whether it is clear behind
-        // and not answered: the last turn to face the object could wait
-        // for a "yes" that never comes)
-        let tracking = matches!(self.goal.state(), GoalState::Tracking { .. });
-        let stood_still = self
-            .stand_still
-            .update(now, pose, tracking, STAND_STILL_FOR);
-        let goal_held = tracking
-            && (self.supervisor.state()
-                == SupervisorState::Stopped(crate::msg::StopReason::Obstacle)
-                || self.asked_rear.is_some()
-                || stood_still);
-        if !goal_held {
-            self.goal_held_since = None;
-        }
-        let event = match event {
-            None if goal_held
-                && self.goal_held_since.get_or_insert(now).age_at(now) >= ARRIVE_HELD_AFTER =>
-            {
-                self.goal.arrive_near(pose, NEAR_ENOUGH_M)
-            }
-            e => e,
-        };
-        if let Some(e) = &event {
-            tracing::debug!(event = ?e, approach = ?self.goal.approach(), ?pose, "goal");
-            self.say(e.say());
-        }
-        match self.goal.state() {
-            GoalState::Tracking { .. }
-            | GoalState::Searching { .. }
-            | GoalState::LookingAround
-            | GoalState::Exploring { .. } => self.supervisor.goal_active(),
-            GoalState::Holding { .. } => self.supervisor.goal_holding(),
-            GoalState::None | GoalState::Reached { .. } => self.supervisor.goal_cleared(),
-        }
-        let from = [pose.x_m, pose.y_m];
+        let keep = self.keep_clear_of(now, &pose, lasers, camera, rear_points_base);
+        let plan::GoalStep {
+            event,
+            tracking,
+            stood_still,
+        } = self.goal_step(now, pose, &keep.clear_of, tracker);
         let target = self
             .goal
             .approach()
@@ -567,7 +467,7 @@ impl Control {
         let gave_up = self.tell_if_held(
             now,
             pose,
-            &o_turn.points_base,
+            &keep.turn_clear_of.points_base,
             match (target.is_some(), held, stood_still || in_place) {
                 (false, _, _) => None,
                 (true, true, _) => Some(held::Held::Supervisor),
@@ -604,80 +504,24 @@ impl Control {
             self.planner_cmd = Some(Stamped::new(now, cmd));
             return self.finish_step(event);
         }
-        self.planner_cmd = if let Some((to, within)) = target {
-            let door = self.route.as_mut().and_then(|r| {
-                r.through_doorway(now, pose, to, within, state, &lasers.value.points_base)
-            });
-            let aim = match (door, self.route.as_mut()) {
-                (Some(PassageCmd::Drive(cmd)), _) => {
-                    // through a doorway: its own steering
-                    self.planner_cmd = Some(Stamped::new(now, self.turn_within_room(cmd, o_turn)));
-                    return self.finish_step(event);
-                }
-                (Some(PassageCmd::Aim(p)), _) => p,
-                (_, Some(r)) => r.carrot(now, from, to, within),
-                (_, None) => to,
-            };
-            self.aim_odom = Some(aim);
-            let bearing = crate::msg::wrap_angle(
-                (aim[1] - pose.y_m).atan2(aim[0] - pose.x_m) - pose.theta_rad,
-            );
-            let far = (aim[0] - pose.x_m).hypot(aim[1] - pose.y_m) > 0.3;
-            // somewhere tight the chair lines up more closely before it
-            // moves on
-            let tight = self.route.as_mut().is_some_and(|r| r.tight_ahead(pose));
-            let limit = if tight {
-                TURN_FIRST_RAD / 2.0
-            } else {
-                TURN_FIRST_RAD
-            };
-            // no room to turn on the spot (something in the corners'
-            // circle): the planner's arc instead, which keeps its clearance
-            let crawl_turn = self.supervisor.crawl_turn_radps();
-            let room_to_turn = !self.supervisor.turn_blocked(o_turn, 0.0, crawl_turn);
-            let turn_first = self.route.is_some()
-                && far
-                && bearing.abs() > limit
-                && room_to_turn
-                && !self.turn_refused_here(&pose);
-            let mut out = self.planner.step(
-                UnicycleState {
-                    x_m: pose.x_m,
-                    y_m: pose.y_m,
-                    theta_rad: pose.theta_rad,
+        self.planner_cmd = match target {
+            Some((to, within_m)) => Some(self.drive_to(
+                plan::Drive {
+                    now,
+                    pose,
                     v_mps,
                     omega_radps,
+                    to,
+                    within_m,
+                    state,
+                    lasers_base: &lasers.value.points_base,
                 },
-                aim,
-                &o,
-            );
-            self.planned_path = std::mem::take(&mut out.path_odom);
-            tracing::trace!(
-                ?pose,
-                ?aim,
-                planned = ?out.cmd,
-                source = ?out.source,
-                goal_m = out.goal_distance_m,
-                turn_first,
-                tight,
-                "planner: step"
-            );
-            if turn_first {
-                // the way goes off to the side: face it first, on the spot
-                out.cmd = VelocityCmd {
-                    v_mps: 0.0,
-                    omega_radps: TURN_FIRST_RADPS.copysign(bearing),
-                };
-            } else if tight {
-                // somewhere tight (a doorway): a crawl, whose stop
-                // corridor is the narrow one
-                out.cmd.v_mps = out.cmd.v_mps.min(CRAWL_MPS);
-            }
-            Some(Stamped::new(now, self.turn_within_room(out.cmd, o_turn)))
-        } else {
-            self.goal
+                &keep,
+            )),
+            None => self
+                .goal
                 .search_command()
-                .map(|c| Stamped::new(now, self.turn_within_room(c, o_turn)))
+                .map(|c| Stamped::new(now, self.turn_within_room(c, &keep.turn_clear_of))),
         };
         self.finish_step(event);
     }
@@ -756,6 +600,10 @@ mod held;
 /// A manoeuvre on the map where the way stays held.
 #[path = "control_manoeuvre.rs"]
 mod manoeuvre;
+
+/// The plan's parts: what to keep clear of, the goal's step, the drive.
+#[path = "control_plan.rs"]
+mod plan;
 
 /// The search: its turns and where it goes on.
 #[path = "control_search.rs"]
