@@ -531,5 +531,8 @@ impl GoalKeeper {
 mod update;
 
 #[cfg(test)]
+#[path = "goal_place_tests.rs"]
+mod place_tests;
+#[cfg(test)]
 #[path = "goal_tests.rs"]
 mod tests;

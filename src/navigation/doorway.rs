@@ -566,5 +566,8 @@ impl Passage {
 mod step;
 
 #[cfg(test)]
+#[path = "doorway_passage_tests.rs"]
+mod passage_tests;
+#[cfg(test)]
 #[path = "doorway_tests.rs"]
 mod tests;

@@ -500,4 +500,6 @@ impl Supervisor {
 }
 
 #[cfg(test)]
+mod faults_tests;
+#[cfg(test)]
 mod tests;
