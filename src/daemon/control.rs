@@ -555,9 +555,12 @@ impl Control {
                 }
                 Some(GoalEvent::Lost { .. }) => Some(Outcome::Lost),
                 Some(GoalEvent::NotFound { .. }) => Some(Outcome::NotFound),
-                Some(GoalEvent::GaveUp { .. } | GoalEvent::SearchHeld { .. }) => {
-                    Some(Outcome::GaveUp)
-                }
+                Some(
+                    GoalEvent::GaveUp { .. }
+                    | GoalEvent::SearchHeld { .. }
+                    | GoalEvent::NoOtherFound { .. }
+                    | GoalEvent::AnotherOutOfTime { .. },
+                ) => Some(Outcome::GaveUp),
                 _ => None,
             };
             if let Some(o) = outcome {

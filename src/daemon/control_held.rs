@@ -218,7 +218,7 @@ impl Control {
             }
         }
         if held_for >= self.goal.settings.give_up_held_after {
-            let e = self.goal.give_up(held_for.as_secs_f64(), pose);
+            let e = self.goal.give_up(now, held_for.as_secs_f64(), pose);
             if e.is_some() {
                 self.held_since = None;
                 self.said_held = false;

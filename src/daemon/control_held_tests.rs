@@ -496,6 +496,9 @@ fn held_or_standing_still_on_the_way_is_said_once_after_the_time() {
     assert!(s[0].contains("Something is in my way"), "{s:?}");
 }
 
+/// Held on the way to the only chair in the room for
+/// `give_up_held_after`: the goal is given up and another chair looked
+/// for (a search turn); none found, the chair stops and says so.
 #[test]
 fn held_on_the_way_to_an_object_without_a_break_it_gives_the_goal_up_and_stops() {
     let give_up = crate::config::Settings::defaults()
@@ -509,19 +512,35 @@ fn held_on_the_way_to_an_object_without_a_break_it_gives_the_goal_up_and_stops()
         let chair = chair_at(3.0);
         let mut said = Vec::new();
         let mut gave_up_at = None;
+        let mut stopped_at = None;
         // a box 0.7 m ahead holds the way to the place beside the chair
         // (1.85 m ahead); no floor behind to back onto, no way round
-        for k in 0..=(give_up_ms + 2_000) / 50 {
+        // (the chair turns in place as told: the search turn)
+        let mut theta_rad = 0.0f64;
+        for k in 0..=(give_up_ms + 60_000) / 50 {
             let now = at(50 * k);
             tracker.update(now, std::slice::from_ref(&chair), |_| true);
-            let out = step_with_points(&mut c, 50 * k, &tracker, vec![[0.7, 0.0], [4.0, 0.0]]);
-            // (the search turn's first steps until the track is confirmed)
-            if k > 5 {
+            let seen = [0.7f64, 4.0].map(|x_m| {
+                [
+                    (x_m * theta_rad.cos()) as f32,
+                    (-x_m * theta_rad.sin()) as f32,
+                ]
+            });
+            let out = step_facing(&mut c, 50 * k, &tracker, theta_rad, seen.to_vec());
+            theta_rad += out.cmd.cmd.omega_radps * 0.05;
+            // (the search turn's first steps until the track is confirmed,
+            // and the search turn for another chair after the give-up)
+            if k > 5 && gave_up_at.is_none() || stopped_at.is_some() {
                 assert_eq!(out.cmd.cmd, VelocityCmd::default(), "step {k}");
             }
             if out.said.iter().any(|s| s.contains("blocked for")) {
                 assert!(gave_up_at.is_none(), "given up twice: {said:?}");
                 gave_up_at = Some(50 * k);
+                assert_eq!(out.done, None, "{said:?}");
+            }
+            if out.said.iter().any(|s| s.contains("cannot find another")) {
+                assert!(stopped_at.is_none(), "stopped twice: {said:?}");
+                stopped_at = Some(50 * k);
                 assert_eq!(
                     out.done,
                     exit_on_arrival.then_some(Outcome::GaveUp),
@@ -550,9 +569,18 @@ fn held_on_the_way_to_an_object_without_a_break_it_gives_the_goal_up_and_stops()
             (give_up_ms..=give_up_ms + 500).contains(&at_ms),
             "given up at {at_ms} ms"
         );
+        assert!(
+            said.iter().any(|s| s
+                == "I cannot get to this chair: my way has been blocked for 40 seconds. \
+                    Looking for another chair."),
+            "{said:?}"
+        );
+        // the search turn finds no other chair: stopped, and said so
+        let stopped_ms = stopped_at.unwrap_or_else(|| panic!("not stopped: {said:?}"));
+        assert!(stopped_ms > at_ms, "{stopped_ms} ms");
         assert_eq!(
             said.last().map(String::as_str),
-            Some("I cannot get to the chair: my way has been blocked for 40 seconds. Stopped."),
+            Some("I cannot get to the chair I found, and I cannot find another chair. Stopped."),
             "{said:?}"
         );
         assert_eq!(*c.goal_state(), GoalState::None);

@@ -173,6 +173,10 @@ pub struct GoalKeeper {
     pub searched: Vec<[f64; 2]>,
     /// When the word was given (the search's time limit runs from it).
     search_since: Option<Stamp>,
+    /// When the word was given (the first update after it), never reset by
+    /// a search begun again: another object is looked for only early
+    /// enough in the word's time.
+    word_since: Option<Stamp>,
     /// The track "no free place beside it" was said of.
     said_no_approach: Option<u64>,
     /// Searches begun again for this word after losing sight of it.
@@ -182,6 +186,9 @@ pub struct GoalKeeper {
     refused: Vec<[f64; 2]>,
     /// A place was just refused: the next update looks for another.
     refusing: bool,
+    /// Objects of the word given up, held on the way to them (their
+    /// centres, odom): not the goal again for this word.
+    given_up: Vec<[f64; 2]>,
 }
 
 /// Where no side fits on the map, the place moves only to a side within
@@ -212,6 +219,17 @@ pub const AT_STANDOFF_WITHIN_M: f64 = 0.2;
 pub const BESIDE_AT_GIVE_UP_M: f64 = 0.35;
 /// At most this many places refused a word (the object's other sides).
 pub const REFUSED_AT_MOST: usize = 3;
+
+/// Held on the way to an object of the word for good, the chair looks for
+/// another one (a "chair" is any chair), at most this many times a word.
+pub const GIVEN_UP_AT_MOST: usize = 2;
+/// A track this near an object given up is that object, m (chairs about a
+/// table stand further apart).
+const GIVEN_UP_WITHIN_M: f64 = 0.5;
+/// Another object is looked for only while this much of the word's search
+/// time is left (a search turn takes about 21 s, a doorway up to a
+/// minute).
+const ANOTHER_WITH_SEARCH_LEFT: Duration = Duration::from_secs(60);
 
 /// A word's object lost from sight (held out of view for
 /// [`GoalSettings::hold_for`]) is looked for again this many times before
@@ -257,10 +275,12 @@ impl GoalKeeper {
             explores: false,
             searched: Vec::new(),
             search_since: None,
+            word_since: None,
             said_no_approach: None,
             searched_again: 0,
             refused: Vec::new(),
             refusing: false,
+            given_up: Vec::new(),
         }
     }
 
@@ -281,10 +301,12 @@ impl GoalKeeper {
         self.new_turn();
         self.searched.clear();
         self.search_since = None;
+        self.word_since = None;
         self.said_no_approach = None;
         self.searched_again = 0;
         self.refused.clear();
         self.refusing = false;
+        self.given_up.clear();
         self.state = GoalState::Searching {
             label: label.trim().to_lowercase(),
         };
@@ -420,14 +442,18 @@ impl GoalKeeper {
     }
 
     /// Held on the way for `held_s` (the caller times it against
-    /// [`GoalSettings::give_up_held_after`]), the chair at `chair`: a goal
-    /// being driven to is dropped — unless the chair stands at the
-    /// place's distance from the object's box, give or take
+    /// [`GoalSettings::give_up_held_after`]) at `now`, the chair at
+    /// `chair`: a goal being driven to is dropped — unless the chair
+    /// stands at the place's distance from the object's box, give or take
     /// [`BESIDE_AT_GIVE_UP_M`], on whatever side and however turned (the
     /// object is beside it, and the way on to face it stayed held): then
-    /// the trip ends there, as near as it safely goes. None in any other
-    /// state.
-    pub fn give_up(&mut self, held_s: f64, chair: Pose2) -> Option<GoalEvent> {
+    /// the trip ends there, as near as it safely goes. Dropped, another
+    /// object of the word is searched for ([`GoalEvent::LookingForAnother`];
+    /// never that one again) while [`GIVEN_UP_AT_MOST`] were not given up
+    /// yet and [`ANOTHER_WITH_SEARCH_LEFT`] of the word's search time is
+    /// left; else the chair stops ([`GoalEvent::GaveUp`]). None in any
+    /// other state.
+    pub fn give_up(&mut self, now: Stamp, held_s: f64, chair: Pose2) -> Option<GoalEvent> {
         let GoalState::Tracking { label, .. } = &self.state else {
             return None;
         };
@@ -435,8 +461,31 @@ impl GoalKeeper {
         if self.beside_at_give_up(chair) {
             return self.end_here(chair);
         }
+        let search_left = self.word_since.map_or(self.settings.search_at_most, |s| {
+            self.settings.search_at_most.saturating_sub(s.age_at(now))
+        });
+        if let Some(c) = self.last_center.filter(|_| {
+            self.given_up.len() < GIVEN_UP_AT_MOST && search_left >= ANOTHER_WITH_SEARCH_LEFT
+        }) {
+            self.given_up.push([c[0], c[1]]);
+            self.refused.clear();
+            self.refusing = false;
+            self.said_no_approach = None;
+            self.searched.clear();
+            self.new_turn();
+            self.state = GoalState::Searching {
+                label: label.clone(),
+            };
+            return Some(GoalEvent::LookingForAnother { label, held_s });
+        }
         self.state = GoalState::None;
         Some(GoalEvent::GaveUp { label, held_s })
+    }
+
+    /// Whether an object centred at `center_m` (odom) was given up for this
+    /// word ([`GoalKeeper::give_up`]).
+    pub fn is_given_up(&self, center_m: [f64; 3]) -> bool {
+        given_up_at(&self.given_up, center_m)
     }
 
     /// A search (turning to look, or driving to a place to look from)
@@ -478,9 +527,13 @@ impl GoalKeeper {
                 };
                 Some(GoalEvent::LookingFurther { label })
             }
-            _ => {
+            _ if self.given_up.is_empty() => {
                 self.state = GoalState::None;
                 Some(GoalEvent::NotFound { label })
+            }
+            _ => {
+                self.state = GoalState::None;
+                Some(GoalEvent::NoOtherFound { label })
             }
         }
     }
@@ -536,3 +589,10 @@ mod place_tests;
 #[cfg(test)]
 #[path = "goal_tests.rs"]
 mod tests;
+
+/// Whether `center_m` lies within [`GIVEN_UP_WITHIN_M`] of one of `given_up`.
+fn given_up_at(given_up: &[[f64; 2]], center_m: [f64; 3]) -> bool {
+    given_up
+        .iter()
+        .any(|g| (center_m[0] - g[0]).hypot(center_m[1] - g[1]) <= GIVEN_UP_WITHIN_M)
+}

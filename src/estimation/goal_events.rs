@@ -62,6 +62,25 @@ pub enum GoalEvent {
         label: String,
         held_s: f64,
     },
+    /// Held on the way for [`super::GoalSettings::give_up_held_after`]
+    /// without a break: that object is given up and another of the word
+    /// searched for ([`super::GoalKeeper::give_up`]).
+    LookingForAnother {
+        label: String,
+        held_s: f64,
+    },
+    /// An object of the word was given up and no other was found: the
+    /// chair stops.
+    NoOtherFound {
+        label: String,
+    },
+    /// An object of the word was given up and, `after_s` after the word
+    /// was given (over [`super::GoalSettings::search_at_most`]), the chair
+    /// has not got to another: it stops.
+    AnotherOutOfTime {
+        label: String,
+        after_s: f64,
+    },
     /// Searching, the chair stayed held in one place for `held_s`
     /// ([`super::GoalKeeper::give_up_search`]): the search is dropped, the
     /// chair stops.
@@ -107,6 +126,16 @@ impl GoalEvent {
             GoalEvent::GaveUp { label, held_s } => format!(
                 "I cannot get to the {label}: my way has been blocked for {held_s:.0} seconds. \
                  Stopped."
+            ),
+            GoalEvent::LookingForAnother { label, held_s } => format!(
+                "I cannot get to this {label}: my way has been blocked for {held_s:.0} seconds. \
+                 Looking for another {label}."
+            ),
+            GoalEvent::NoOtherFound { label } => format!(
+                "I cannot get to the {label} I found, and I cannot find another {label}. Stopped."
+            ),
+            GoalEvent::AnotherOutOfTime { label, after_s } => format!(
+                "I cannot get to another {label}: I have tried for {after_s:.0} seconds. Stopped."
             ),
             GoalEvent::SearchHeld { label, held_s } => format!(
                 "I cannot look further for a {label}: I have been held in this place for \

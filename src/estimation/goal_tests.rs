@@ -335,20 +335,153 @@ fn only_a_goal_being_driven_to_is_given_up() {
     let mut g = GoalKeeper::new(crate::config::Settings::defaults().goal_settings());
     let start = Pose2::default();
     // no goal, or searching: nothing to give up
-    assert_eq!(g.give_up(50.0, start), None);
+    assert_eq!(g.give_up(t(50.0), 50.0, start), None);
     g.set_prompt("chair");
-    assert_eq!(g.give_up(50.0, start), None);
+    assert_eq!(g.give_up(t(50.0), 50.0, start), None);
     assert!(matches!(g.state(), GoalState::Searching { .. }));
     see_a_chair_ahead(&mut g, &|_| true, &|_| true);
     assert!(matches!(g.state(), GoalState::Tracking { .. }));
-    let e = g.give_up(41.2, start).expect("given up");
+    // the word's search time nearly spent: no other chair is looked for
+    let search_at_most = g.settings.search_at_most.as_secs_f64();
+    let e = g
+        .give_up(t(search_at_most - 59.0), 41.2, start)
+        .expect("given up");
     assert_eq!(
         e.say(),
         "I cannot get to the chair: my way has been blocked for 41 seconds. Stopped."
     );
     assert_eq!(*g.state(), GoalState::None);
     assert!(g.approach().is_none());
-    assert_eq!(g.give_up(50.0, start), None);
+    assert_eq!(g.give_up(t(50.0), 50.0, start), None);
+}
+
+/// Two chairs, the nearer held for good on the way: the chair looks for
+/// the other and drives to it, and the one given up is never the goal
+/// again, even nearer and in plain view. After [`GIVEN_UP_AT_MOST`]
+/// given up, it stops; with no other in sight, it says it found no other.
+#[test]
+fn held_for_good_another_object_of_the_word_is_sought() {
+    let settings = crate::config::Settings::defaults().goal_settings();
+    let start = Pose2::default();
+    let far_chair = || {
+        let pts = vec![Point3::new(2.75, 2.75, 0.0), Point3::new(3.25, 3.25, 0.9)];
+        Object3D::from_points("chair".into(), 0.9, Frame::Odom, pts, None).expect("object")
+    };
+    let mut g = GoalKeeper::new(settings);
+    g.set_prompt("chair");
+    let mut tracker = see_a_chair_ahead(&mut g, &|_| true, &|_| true);
+    let Some(GoalState::Tracking { .. }) = Some(g.state().clone()) else {
+        panic!("{:?}", g.state())
+    };
+    let e = g.give_up(t(40.0), 40.0, start).expect("given up");
+    assert_eq!(
+        e,
+        GoalEvent::LookingForAnother {
+            label: "chair".into(),
+            held_s: 40.0
+        }
+    );
+    assert_eq!(
+        e.say(),
+        "I cannot get to this chair: my way has been blocked for 40 seconds. \
+         Looking for another chair."
+    );
+    assert!(matches!(g.state(), GoalState::Searching { .. }));
+    assert!(g.is_given_up([3.0, 0.0, 0.45]));
+    assert!(!g.is_given_up([3.0, 3.0, 0.45]));
+    // the chair given up in view alone: never the goal again
+    for k in 0..5 {
+        let now = t(40.1 + 0.1 * k as f64);
+        tracker.update(now, &[chair_obj(3.0)], |_| true);
+        g.update(now, &tracker, start, &[], &|_| true, &|_| true);
+        assert!(
+            !matches!(g.state(), GoalState::Tracking { .. }),
+            "{:?}",
+            g.state()
+        );
+    }
+    // the other chair comes into view: driven to
+    for k in 0..5 {
+        let now = t(41.0 + 0.1 * k as f64);
+        tracker.update(now, &[chair_obj(3.0), far_chair()], |_| true);
+        g.update(now, &tracker, start, &[], &|_| true, &|_| true);
+    }
+    let Some(a) = g.approach() else {
+        panic!("no approach: {:?}", g.state())
+    };
+    assert!(a.y_m > 1.5, "the other chair's place: {a:?}");
+    // held for good again: the last one given up, the chair stops
+    let e = g.give_up(t(90.0), 40.0, start).expect("given up");
+    assert!(matches!(e, GoalEvent::LookingForAnother { .. }), "{e:?}");
+    // both given up: nothing of the word left; not found ends with a
+    // sentence of its own
+    let e = g.explore(t(91.0), None).expect("no place left");
+    assert_eq!(
+        e.say(),
+        "I cannot get to the chair I found, and I cannot find another chair. Stopped."
+    );
+    assert_eq!(*g.state(), GoalState::None);
+    // a third time for the same word: stopped at once
+    let mut g = GoalKeeper::new(settings);
+    g.set_prompt("chair");
+    g.given_up = vec![[9.0, 9.0]; GIVEN_UP_AT_MOST];
+    see_a_chair_ahead(&mut g, &|_| true, &|_| true);
+    let e = g.give_up(t(40.0), 40.0, start).expect("given up");
+    assert!(matches!(e, GoalEvent::GaveUp { .. }), "{e:?}");
+    // a new word forgets what was given up
+    g.set_prompt("chair");
+    assert!(!g.is_given_up([9.0, 9.0, 0.0]));
+}
+
+/// The trip to another object, after one was given up, ends with the
+/// word's search time (`search_at_most`, from when the word was given);
+/// a first object's trip does not.
+#[test]
+fn another_objects_trip_ends_with_the_words_search_time() {
+    let settings = crate::config::Settings::defaults().goal_settings();
+    let limit_s = settings.search_at_most.as_secs_f64();
+    let start = Pose2::default();
+    let far_chair = || {
+        let pts = vec![Point3::new(2.75, 2.75, 0.0), Point3::new(3.25, 3.25, 0.9)];
+        Object3D::from_points("chair".into(), 0.9, Frame::Odom, pts, None).expect("object")
+    };
+    let step = |g: &mut GoalKeeper, tracker: &mut Tracker, at_s: f64| {
+        let now = t(at_s);
+        tracker.update(now, &[chair_obj(3.0), far_chair()], |_| true);
+        g.update(now, tracker, start, &[], &|_| true, &|_| true)
+    };
+    // nothing given up: driven to past the search's time
+    let mut g = GoalKeeper::new(settings);
+    g.set_prompt("chair");
+    let mut tracker = see_a_chair_ahead(&mut g, &|_| true, &|_| true);
+    assert_eq!(step(&mut g, &mut tracker, limit_s + 1.0), None);
+    assert!(
+        matches!(g.state(), GoalState::Tracking { .. }),
+        "{:?}",
+        g.state()
+    );
+    // one given up, the other driven to: stopped once the word's time is over
+    let mut g = GoalKeeper::new(settings);
+    g.set_prompt("chair");
+    let mut tracker = see_a_chair_ahead(&mut g, &|_| true, &|_| true);
+    let e = g.give_up(t(40.0), 40.0, start).expect("given up");
+    assert!(matches!(e, GoalEvent::LookingForAnother { .. }), "{e:?}");
+    for k in 0..5 {
+        step(&mut g, &mut tracker, 41.0 + 0.1 * k as f64);
+    }
+    assert!(g.approach().is_some_and(|a| a.y_m > 1.5), "{:?}", g.state());
+    assert_eq!(step(&mut g, &mut tracker, limit_s - 1.0), None);
+    assert!(
+        matches!(g.state(), GoalState::Tracking { .. }),
+        "{:?}",
+        g.state()
+    );
+    let e = step(&mut g, &mut tracker, limit_s + 0.3).expect("out of time");
+    assert_eq!(
+        e.say(),
+        "I cannot get to another chair: I have tried for 240 seconds. Stopped."
+    );
+    assert_eq!(*g.state(), GoalState::None);
 }
 
 /// Held until the goal would be given up with the object beside the
@@ -371,7 +504,7 @@ fn held_to_the_end_beside_the_object_ends_there() {
             y_m: 0.0,
             theta_rad: std::f64::consts::PI,
         };
-        let e = g.give_up(40.0, held_at);
+        let e = g.give_up(t(40.0), 40.0, held_at);
         (g, e)
     };
     for off_m in [-0.3, 0.0, 0.3] {
@@ -389,9 +522,9 @@ fn held_to_the_end_beside_the_object_ends_there() {
     for off_m in [-0.4, 0.4] {
         let (g, e) = give_up_at(off_m);
         assert!(
-            matches!(e, Some(GoalEvent::GaveUp { .. })),
+            matches!(e, Some(GoalEvent::LookingForAnother { .. })),
             "{off_m}: {e:?}"
         );
-        assert_eq!(*g.state(), GoalState::None);
+        assert!(matches!(g.state(), GoalState::Searching { .. }));
     }
 }

@@ -18,6 +18,7 @@ struct Step<'a> {
     refused: Vec<[f64; 2]>,
     refusing: bool,
     last_center: Option<[f64; 3]>,
+    given_up: Vec<[f64; 2]>,
 }
 
 impl Step<'_> {
@@ -83,11 +84,27 @@ impl Step<'_> {
             })
     }
 
-    /// The nearest track of `label` seen lately.
+    /// The nearest confirmed track of `label` but the objects given up.
+    fn goal(&self, label: &str) -> Option<&Track> {
+        self.tracker.goal_where(label, self.from, |t| {
+            !given_up_at(&self.given_up, t.center_m)
+        })
+    }
+
+    /// The nearest track of `label` seen lately (but the objects given up).
     fn fresh_goal(&self, label: &str) -> Option<&Track> {
-        self.tracker
-            .goal(label, self.from)
+        self.goal(label)
             .filter(|t| t.last_seen.age_at(self.now) <= self.settings.unseen_after)
+    }
+
+    /// The word not found: after an object of it was given up, not found
+    /// again.
+    fn not_found(&self, label: String) -> GoalEvent {
+        if self.given_up.is_empty() {
+            GoalEvent::NotFound { label }
+        } else {
+            GoalEvent::NoOtherFound { label }
+        }
     }
 }
 
@@ -110,6 +127,18 @@ impl GoalKeeper {
         visible: &dyn Fn(&Track) -> bool,
         fits: &dyn Fn([f64; 2]) -> bool,
     ) -> Option<GoalEvent> {
+        let word_s = self.word_since.get_or_insert(now).age_at(now);
+        if !self.given_up.is_empty() && word_s > self.settings.search_at_most {
+            // an object was given up: the next is bounded by the word's
+            // search time (the first one's trip is not)
+            if let Some(label) = self.state.label().map(str::to_owned) {
+                self.state = GoalState::None;
+                return Some(GoalEvent::AnotherOutOfTime {
+                    label,
+                    after_s: word_s.as_secs_f64(),
+                });
+            }
+        }
         let step = Step {
             now,
             tracker,
@@ -121,6 +150,7 @@ impl GoalKeeper {
             refused: self.refused.clone(),
             refusing: self.refusing,
             last_center: self.last_center,
+            given_up: self.given_up.clone(),
         };
         match self.state.clone() {
             GoalState::None | GoalState::Reached { .. } => None,
@@ -128,12 +158,12 @@ impl GoalKeeper {
             GoalState::Searching { label } | GoalState::Exploring { label, .. }
                 if self.search_since.get_or_insert(now).age_at(now)
                     > step.settings.search_at_most
-                    && tracker
-                        .goal(&label, step.from)
+                    && step
+                        .goal(&label)
                         .is_none_or(|t| t.last_seen.age_at(now) > step.settings.unseen_after) =>
             {
                 self.state = GoalState::None;
-                Some(GoalEvent::NotFound { label })
+                Some(step.not_found(label))
             }
             GoalState::Searching { label } => self.searching(&step, chair, label),
             GoalState::Exploring { label, target, .. } if step.fresh_goal(&label).is_some() => {
@@ -207,7 +237,7 @@ impl GoalKeeper {
         let Some(t) = step.fresh_goal(&label) else {
             if self.turned_enough() && !self.explores {
                 self.state = GoalState::None;
-                return Some(GoalEvent::NotFound { label });
+                return Some(step.not_found(label));
             }
             if self.searched.is_empty() {
                 self.searched.push(step.from);
@@ -285,7 +315,7 @@ impl GoalKeeper {
         };
         self.last_confidence = t.confidence;
         if let Some((nearer, a)) = (!self.refusing)
-            .then(|| step.tracker.goal(&label, from))
+            .then(|| step.goal(&label))
             .flatten()
             .filter(|n| {
                 let d = |c: [f64; 3]| (c[0] - from[0]).hypot(c[1] - from[1]);

@@ -282,9 +282,20 @@ impl Tracker {
 
     /// The confirmed track of `label` closest to `from` (odom, x y).
     pub fn goal(&self, label: &str, from: [f64; 2]) -> Option<&Track> {
+        self.goal_where(label, from, |_| true)
+    }
+
+    /// The confirmed track of `label` closest to `from` (odom, x y) among
+    /// those `keep` keeps.
+    pub fn goal_where(
+        &self,
+        label: &str,
+        from: [f64; 2],
+        keep: impl Fn(&Track) -> bool,
+    ) -> Option<&Track> {
         self.tracks
             .iter()
-            .filter(|t| t.confirmed && t.label.eq_ignore_ascii_case(label))
+            .filter(|t| t.confirmed && t.label.eq_ignore_ascii_case(label) && keep(t))
             .min_by(|a, b| {
                 let da = (a.center_m[0] - from[0]).hypot(a.center_m[1] - from[1]);
                 let db = (b.center_m[0] - from[0]).hypot(b.center_m[1] - from[1]);
