@@ -33,8 +33,8 @@ pub struct GoalSettings {
     /// at, [`GoalKeeper::left_to_see`]; one full turn at most).
     pub search_turn_radps: f64,
     /// Held on the way to the object this long without a break (nothing
-    /// it tries gets it nearer): the goal is given up, the chair stops and
-    /// says so.
+    /// it tries gets it nearer): that object is given up, and another of
+    /// the word looked for or the chair stops ([`GoalKeeper::give_up`]).
     pub give_up_held_after: Duration,
     /// A search (turns on the spot and the places between) ends "not
     /// found" after this.
