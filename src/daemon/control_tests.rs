@@ -472,6 +472,9 @@ fn stale_inputs_give_zero_and_a_dead_task_latches_a_fault() {
 #[path = "control_held_tests.rs"]
 mod held_on_the_way;
 
+#[path = "control_manoeuvre_tests.rs"]
+mod manoeuvre;
+
 #[path = "control_floor_tests.rs"]
 mod floor;
 
