@@ -484,6 +484,7 @@ impl GoalKeeper {
 
     /// Whether an object centred at `center_m` (odom) was given up for this
     /// word ([`GoalKeeper::give_up`]).
+    #[cfg(test)]
     pub fn is_given_up(&self, center_m: [f64; 3]) -> bool {
         given_up_at(&self.given_up, center_m)
     }
@@ -527,13 +528,9 @@ impl GoalKeeper {
                 };
                 Some(GoalEvent::LookingFurther { label })
             }
-            _ if self.given_up.is_empty() => {
-                self.state = GoalState::None;
-                Some(GoalEvent::NotFound { label })
-            }
             _ => {
                 self.state = GoalState::None;
-                Some(GoalEvent::NoOtherFound { label })
+                Some(word_not_found(&self.given_up, label))
             }
         }
     }
@@ -589,6 +586,16 @@ mod place_tests;
 #[cfg(test)]
 #[path = "goal_tests.rs"]
 mod tests;
+
+/// The word not found: after an object of it was given up (`given_up`
+/// non-empty), no other one found.
+fn word_not_found(given_up: &[[f64; 2]], label: String) -> GoalEvent {
+    if given_up.is_empty() {
+        GoalEvent::NotFound { label }
+    } else {
+        GoalEvent::NoOtherFound { label }
+    }
+}
 
 /// Whether `center_m` lies within [`GIVEN_UP_WITHIN_M`] of one of `given_up`.
 fn given_up_at(given_up: &[[f64; 2]], center_m: [f64; 3]) -> bool {

@@ -96,16 +96,6 @@ impl Step<'_> {
         self.goal(label)
             .filter(|t| t.last_seen.age_at(self.now) <= self.settings.unseen_after)
     }
-
-    /// The word not found: after an object of it was given up, not found
-    /// again.
-    fn not_found(&self, label: String) -> GoalEvent {
-        if self.given_up.is_empty() {
-            GoalEvent::NotFound { label }
-        } else {
-            GoalEvent::NoOtherFound { label }
-        }
-    }
 }
 
 impl GoalKeeper {
@@ -163,7 +153,7 @@ impl GoalKeeper {
                         .is_none_or(|t| t.last_seen.age_at(now) > step.settings.unseen_after) =>
             {
                 self.state = GoalState::None;
-                Some(step.not_found(label))
+                Some(word_not_found(&step.given_up, label))
             }
             GoalState::Searching { label } => self.searching(&step, chair, label),
             GoalState::Exploring { label, target, .. } if step.fresh_goal(&label).is_some() => {
@@ -237,7 +227,7 @@ impl GoalKeeper {
         let Some(t) = step.fresh_goal(&label) else {
             if self.turned_enough() && !self.explores {
                 self.state = GoalState::None;
-                return Some(step.not_found(label));
+                return Some(word_not_found(&step.given_up, label));
             }
             if self.searched.is_empty() {
                 self.searched.push(step.from);
