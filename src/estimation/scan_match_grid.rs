@@ -245,15 +245,16 @@ impl NearestCache {
             1 => return grid.nearest(q, max_d),
             k => self.ranges[k as usize - 2],
         };
-        let max_d2 = max_d * max_d;
-        let mut best: Option<(u32, f64)> = None;
+        // the candidates are in index order: the first of the nearest is
+        // the lowest index, and it is the answer when within `max_d`
+        let (mut best_i, mut best_d2) = (u32::MAX, f64::INFINITY);
         for (i, p) in &self.candidates[a as usize..b as usize] {
             let d2 = (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2);
-            if d2 <= max_d2 && best.is_none_or(|(bi, bd)| d2 < bd || (d2 == bd && *i < bi)) {
-                best = Some((*i, d2));
+            if d2 < best_d2 {
+                (best_i, best_d2) = (*i, d2);
             }
         }
-        best.map(|(i, d2)| (i as usize, d2))
+        (best_i != u32::MAX && best_d2 <= max_d * max_d).then_some((best_i as usize, best_d2))
     }
 
     /// Cell (ix, iy)'s slot: its candidates are the points no farther
@@ -288,6 +289,9 @@ impl NearestCache {
                 candidates.push((i, *q));
             }
         });
+        // in index order ([`NearestCache::nearest`] takes the first of
+        // the nearest)
+        self.candidates[start as usize..].sort_unstable_by_key(|c| c.0);
         self.ranges.push((start, self.candidates.len() as u32));
         self.ranges.len() as u32 + 1
     }

@@ -172,6 +172,27 @@ fn push_bound_rows(
     }
 }
 
+/// The `max` points of `points` nearest `c`, nearest first, ties in
+/// their order in `points` (as a stable sort by distance, truncated,
+/// without sorting the rest).
+fn nearest_points(points: &[[f64; 2]], c: [f64; 2], max: usize) -> Vec<[f64; 2]> {
+    if max == 0 {
+        return Vec::new();
+    }
+    let mut keyed: Vec<(f64, usize)> = points
+        .iter()
+        .enumerate()
+        .map(|(j, o)| (dist_sq(o, &c), j))
+        .collect();
+    let order = |a: &(f64, usize), b: &(f64, usize)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
+    if keyed.len() > max {
+        keyed.select_nth_unstable_by(max - 1, order);
+        keyed.truncate(max);
+    }
+    keyed.sort_unstable_by(order);
+    keyed.into_iter().map(|(_, j)| points[j]).collect()
+}
+
 /// The squared distance between two points (for comparisons: no root).
 fn dist_sq(a: &[f64; 2], b: &[f64]) -> f64 {
     let (dx, dy) = (a[0] - b[0], a[1] - b[1]);
@@ -393,7 +414,7 @@ fn solve_discs(problem: &MpcProblem, p: &MpcParams) -> Result<MpcPlan, MpcError>
     }
     // obstacles: the nearest points; per step a half-plane through the point
     // pushed out by the clearance, facing the reference position
-    let mut obs: Vec<[f64; 2]> = problem
+    let obs: Vec<[f64; 2]> = problem
         .obstacles
         .iter()
         .copied()
@@ -415,16 +436,9 @@ fn solve_discs(problem: &MpcProblem, p: &MpcParams) -> Result<MpcPlan, MpcError>
         .collect();
     let mut half_planes = vec![Vec::new(); n];
     let mut front_rows = vec![Vec::new(); if discs.len() > 1 { n } else { 0 }];
-    for (i, &d_m) in discs.iter().enumerate() {
+    for &d_m in &discs {
         let c0 = disc_at(&s0, d_m);
-        // the last disc sorts the list itself (no copy with one disc)
-        let mut near = if i + 1 == discs.len() {
-            std::mem::take(&mut obs)
-        } else {
-            obs.clone()
-        };
-        near.sort_by(|a, c| dist_sq(a, &c0).total_cmp(&dist_sq(c, &c0)));
-        near.truncate(p.max_obstacles);
+        let near = nearest_points(&obs, c0, p.max_obstacles);
         for k in 1..=n {
             let th = sbar[k][2];
             let (px, py) = (sbar[k][0], sbar[k][1]);

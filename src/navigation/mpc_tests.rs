@@ -344,3 +344,30 @@ fn plans_with_the_front_disc_keep_its_rows_that_were_left_out() {
     assert!(with_disc > 100, "{with_disc}");
     assert!(rows > 0 && binding > 0, "{rows} {binding}");
 }
+
+#[test]
+fn nearest_points_are_a_stable_sort_by_distance_cut_short() {
+    let mut r = SplitMix64::new(0x4EAC_0002);
+    for case in 0..200 {
+        // points on a coarse lattice: many at the same distance
+        let n = (r.next_u64() % 40) as usize;
+        let pts: Vec<[f64; 2]> = (0..n)
+            .map(|_| {
+                [
+                    r.range(-3.0, 3.0).round() / 2.0,
+                    r.range(-3.0, 3.0).round() / 2.0,
+                ]
+            })
+            .collect();
+        let c = [0.0, if case % 2 == 0 { 0.0 } else { 0.25 }];
+        let max = (r.next_u64() % 15) as usize;
+        let mut want = pts.clone();
+        want.sort_by(|a, b| dist_sq(a, &c).total_cmp(&dist_sq(b, &c)));
+        want.truncate(max);
+        assert_eq!(
+            nearest_points(&pts, c, max),
+            want,
+            "case {case}: {n} points, {max} kept"
+        );
+    }
+}
