@@ -187,6 +187,12 @@ impl Grid {
 /// rings, m.
 const CACHE_REACH_M: f64 = 0.3;
 
+/// The cache's cells are the grid's divided by this each way (fewer
+/// candidates each, so fewer comparisons a query), or by 2 where that
+/// would make more than [`MAX_CACHE_CELLS`] (16 MiB of slots).
+const CACHE_DIVISIONS: usize = 3;
+const MAX_CACHE_CELLS: usize = 1 << 22;
+
 /// The nearest-point searches of one reference, cell by cell: the first
 /// query that falls in a cell gathers every reference point that can be
 /// the nearest to some place in that cell, and every later query there
@@ -196,7 +202,7 @@ const CACHE_REACH_M: f64 = 0.3;
 /// beyond `max_d`.
 #[derive(Clone, Default)]
 pub(super) struct NearestCache {
-    /// Its cells: the grid's halved each way (fewer candidates each), m,
+    /// Its cells: the grid's divided each way ([`CACHE_DIVISIONS`]), m,
     /// and how many across and down.
     pub(super) cell: f64,
     nx: usize,
@@ -210,9 +216,14 @@ pub(super) struct NearestCache {
 
 impl NearestCache {
     pub(super) fn new(grid: &Grid) -> Self {
-        let (nx, ny) = (grid.nx * 2, grid.ny * 2);
+        let k = if (grid.nx * grid.ny).saturating_mul(CACHE_DIVISIONS.pow(2)) <= MAX_CACHE_CELLS {
+            CACHE_DIVISIONS
+        } else {
+            2
+        };
+        let (nx, ny) = (grid.nx * k, grid.ny * k);
         NearestCache {
-            cell: grid.cell / 2.0,
+            cell: grid.cell / k as f64,
             nx,
             ny,
             slot: vec![0; nx * ny],

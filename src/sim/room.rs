@@ -353,13 +353,15 @@ impl Room {
                     inside &= o[a] >= ob.min_m[a] && o[a] <= ob.max_m[a];
                     continue;
                 }
+                // (finite: the nearer face's the smaller along d, the
+                // division rounding monotonically)
                 let ta = (ob.min_m[a] - o[a]) / d[a];
                 let tb = (ob.max_m[a] - o[a]) / d[a];
-                let (lo, hi) = (ta.min(tb), ta.max(tb));
+                let (lo, hi) = if d[a] > 0.0 { (ta, tb) } else { (tb, ta) };
                 let enters_later = lo > t0;
                 t0 = if enters_later { lo } else { t0 };
                 axis = if enters_later { a } else { axis };
-                t1 = t1.min(hi);
+                t1 = if hi < t1 { hi } else { t1 };
             }
             let hit = inside && t0 <= t1;
             if hit && t0 > 0.0 && t0 < best.0 {
