@@ -7,12 +7,13 @@
 //! inside the chair), or when it is farther than the memory radius.
 //! Pure: each frame's cells and the chair's pose at its stamp in.
 
+use std::cmp::Ordering::{self, Greater};
 use std::collections::{BTreeMap, BTreeSet};
 
 use nalgebra::Isometry3;
 
 use crate::estimation::view::CameraView;
-use crate::msg::Pose2;
+use crate::msg::{hypot_cmp, Pose2};
 use crate::perception::depth_obstacles::DepthScan;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -94,7 +95,7 @@ impl MapView {
         camera_from_odom: &Isometry3<f64>,
         p: &[f64; 3],
     ) -> bool {
-        (p[0] - pose.x_m).hypot(p[1] - pose.y_m) <= self.max_range_m
+        hypot_cmp(p[0] - pose.x_m, p[1] - pose.y_m, self.max_range_m).is_some_and(Ordering::is_le)
             && self.camera.sees_from(camera_from_odom, p)
     }
 }
@@ -266,7 +267,7 @@ impl ObstacleMap {
         let r = self.radius_m;
         let keep = |p: &[f64; 3]| {
             let (dx, dy) = (p[0] - pose.x_m, p[1] - pose.y_m);
-            if dx.hypot(dy) > r {
+            if hypot_cmp(dx, dy, r) == Some(Greater) {
                 return false;
             }
             // in base_link
@@ -282,7 +283,7 @@ impl ObstacleMap {
         let cell_m = self.cell_m;
         self.floor_seen.retain(|&k| {
             let [x, y] = centre(cell_m, k);
-            (x - pose.x_m).hypot(y - pose.y_m) <= r
+            hypot_cmp(x - pose.x_m, y - pose.y_m, r).is_some_and(Ordering::is_le)
         });
         // the cells whose centres lie under the footprint
         for k in self.cells_within(&pose, f.corner_reach_m()) {
@@ -306,7 +307,7 @@ impl ObstacleMap {
             .flat_map(|i| (lo.1..=hi.1).map(move |j| (i, j)))
             .filter(|&k| {
                 let [x, y] = centre(cell_m, k);
-                (x - pose.x_m).hypot(y - pose.y_m) <= radius_m
+                hypot_cmp(x - pose.x_m, y - pose.y_m, radius_m).is_some_and(Ordering::is_le)
             })
             .collect()
     }

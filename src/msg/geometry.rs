@@ -62,6 +62,25 @@ impl Pose2 {
     }
 }
 
+/// `dx.hypot(dy).partial_cmp(&r_m)`, bit for bit, with the root taken
+/// only where the squares cannot tell (within a relative 1e-9 of the
+/// boundary, or where the squares would overflow or lose precision): the
+/// hot loops' distance tests. `is_some_and(Ordering::is_le)` is
+/// `hypot <= r_m`, `== Some(Greater)` is `hypot > r_m`.
+pub fn hypot_cmp(dx: f64, dy: f64, r_m: f64) -> Option<std::cmp::Ordering> {
+    const MARGIN: f64 = 1e-9;
+    let (d2, r2) = (dx * dx + dy * dy, r_m * r_m);
+    if r_m >= 0.0 && (1e-200..=1e200).contains(&r2) && d2.is_finite() {
+        if d2 < r2 * (1.0 - MARGIN) {
+            return Some(std::cmp::Ordering::Less);
+        }
+        if d2 > r2 * (1.0 + MARGIN) {
+            return Some(std::cmp::Ordering::Greater);
+        }
+    }
+    dx.hypot(dy).partial_cmp(&r_m)
+}
+
 /// Angle in (−π, π].
 pub fn wrap_angle(a: f64) -> f64 {
     let t = a.rem_euclid(std::f64::consts::TAU);
@@ -80,5 +99,57 @@ impl Pose2 {
             nalgebra::Vector3::new(self.x_m, self.y_m, 0.0),
             nalgebra::Vector3::z() * self.theta_rad,
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::scene::SplitMix64;
+
+    #[test]
+    fn hypot_cmp_answers_as_the_root_does() {
+        let mut rng = SplitMix64::new(0x4790_0001);
+        let mut near_boundary = 0;
+        for k in 0..200_000 {
+            let r = match k % 5 {
+                0 => rng.range(0.0, 5.0),
+                1 => 0.3,
+                2 => rng.range(1e-160, 1e-150),
+                3 => rng.range(1e150, 1e160),
+                _ => -rng.range(0.0, 1.0),
+            };
+            let a = rng.range(0.0, std::f64::consts::TAU);
+            // on the circle, a hair either side, or anywhere
+            let scale = match k % 4 {
+                0 => 1.0,
+                1 => 1.0 + rng.range(-1e-12, 1e-12),
+                2 => 1.0 + rng.range(-1e-8, 1e-8),
+                _ => rng.range(0.0, 3.0),
+            };
+            let (dx, dy) = (r.abs() * scale * a.cos(), r.abs() * scale * a.sin());
+            let want = dx.hypot(dy).partial_cmp(&r);
+            assert_eq!(hypot_cmp(dx, dy, r), want, "({dx}, {dy}) against {r}");
+            near_boundary += usize::from(want == Some(std::cmp::Ordering::Equal));
+        }
+        // the exact boundary was met, not only missed
+        assert!(near_boundary > 0);
+        for (dx, dy, r) in [
+            (f64::NAN, 0.0, 1.0),
+            (0.0, 0.0, f64::NAN),
+            (f64::INFINITY, f64::NAN, 1.0),
+            (f64::INFINITY, 0.0, f64::INFINITY),
+            (1e200, 1e200, 1.0),
+            (0.0, 0.0, 0.0),
+            (-0.0, 0.0, 0.0),
+            (1e-170, 0.0, 1e-170),
+            (3.0, 4.0, 5.0),
+        ] {
+            assert_eq!(
+                hypot_cmp(dx, dy, r),
+                dx.hypot(dy).partial_cmp(&r),
+                "({dx}, {dy}) against {r}"
+            );
+        }
     }
 }

@@ -269,15 +269,30 @@ impl GridMap {
     /// where the ray leaves the map.
     fn ray_cells(&self, o: [f64; 2], d: [f64; 2], len: f64, out: &mut Vec<usize>) {
         out.clear();
+        out.extend(self.ray_walk(o, d, len));
+    }
+
+    /// [`GridMap::ray_cells`] one cell at a time (borrowing nothing of
+    /// the map: a caller may change cells as it walks).
+    fn ray_walk(&self, o: [f64; 2], d: [f64; 2], len: f64) -> RayWalk {
+        let done = RayWalk {
+            i: 0,
+            step: [0; 2],
+            left: [0; 2],
+            t_next: [f64::INFINITY; 2],
+            t_delta: [f64::INFINITY; 2],
+            len,
+            done: true,
+        };
         let r = self.settings.resolution_m;
         let g = [(o[0] - self.origin_m[0]) / r, (o[1] - self.origin_m[1]) / r];
         let n = self.n as i64;
         if !(g[0].is_finite() && g[1].is_finite() && len.is_finite()) {
-            return;
+            return done;
         }
         let c = [g[0].floor() as i64, g[1].floor() as i64];
         if c[0] < 0 || c[1] < 0 || c[0] >= n || c[1] >= n {
-            return;
+            return done;
         }
         // per axis: the index's step, the cells left on the map that way,
         // the ray length to the next boundary, and between boundaries
@@ -299,17 +314,14 @@ impl GridMap {
                 t_delta[a] = r / -d[a];
             }
         }
-        let mut i = c[1] as usize * self.n + c[0] as usize;
-        loop {
-            out.push(i);
-            let a = if t_next[0] < t_next[1] { 0 } else { 1 };
-            // past its length, or the next cell off the map
-            if t_next[a] > len || left[a] == 0 {
-                return;
-            }
-            left[a] -= 1;
-            i = i.wrapping_add_signed(step[a]);
-            t_next[a] += t_delta[a];
+        RayWalk {
+            i: c[1] as usize * self.n + c[0] as usize,
+            step,
+            left,
+            t_next,
+            t_delta,
+            len,
+            done: false,
         }
     }
 
@@ -323,7 +335,6 @@ impl GridMap {
                 pose.y_m + s * p[0] + c * p[1],
             ]
         };
-        let mut cells: Vec<usize> = Vec::new();
         // the cells whose blocked state a nudge changed, with their state
         // before (a cell one ray ends in and others cross can flip back
         // and forth within one scan)
@@ -338,16 +349,12 @@ impl GridMap {
                 Some(m) => (m as f64, true),
                 None => (self.settings.free_range_m, false),
             };
-            // the cells the ray crosses
-            self.ray_cells(o, d, len, &mut cells);
-            // a straight ray: its cells lie in the box of its first and last
-            if let (Some(&a), Some(&b)) = (cells.first(), cells.last()) {
-                self.seen(a);
-                self.seen(b);
-            }
             let end = self.cell([o[0] + d[0] * len, o[1] + d[1] * len]);
             let hit_cell = if hit { end } else { None };
-            for &i in &cells {
+            // the cells the ray crosses
+            let mut ends: Option<(usize, usize)> = None;
+            for i in self.ray_walk(o, d, len) {
+                ends = Some((ends.map_or(i, |e| e.0), i));
                 let by = if Some(i) == hit_cell { HIT } else { -MISS };
                 // a free cell as sure as it gets stays as it is (and is
                 // known: only a nudge gives evidence); most of a ray's
@@ -357,6 +364,11 @@ impl GridMap {
                 if let Some(was) = self.nudge(i, by) {
                     flipped.push((i, was));
                 }
+            }
+            // a straight ray: its cells lie in the box of its first and last
+            if let Some((a, b)) = ends {
+                self.seen(a);
+                self.seen(b);
             }
         }
         // the distance field depends only on which cells are blocked: it
@@ -653,3 +665,40 @@ fn from_row_beside(cur: &mut [f32], beside: &[f32], d1: f32, d2: f32) {
 #[cfg(test)]
 #[path = "map_tests.rs"]
 mod tests;
+
+/// The cells of one ray, in order ([`GridMap::ray_walk`]).
+struct RayWalk {
+    /// The cell to give next (unless `done`).
+    i: usize,
+    step: [isize; 2],
+    left: [i64; 2],
+    t_next: [f64; 2],
+    t_delta: [f64; 2],
+    len: f64,
+    done: bool,
+}
+
+impl Iterator for RayWalk {
+    type Item = usize;
+
+    fn next(&mut self) -> Option<usize> {
+        if self.done {
+            return None;
+        }
+        let i = self.i;
+        let a = if self.t_next[0] < self.t_next[1] {
+            0
+        } else {
+            1
+        };
+        // past its length, or the next cell off the map
+        if self.t_next[a] > self.len || self.left[a] == 0 {
+            self.done = true;
+        } else {
+            self.left[a] -= 1;
+            self.i = i.wrapping_add_signed(self.step[a]);
+            self.t_next[a] += self.t_delta[a];
+        }
+        Some(i)
+    }
+}

@@ -2,7 +2,10 @@
 //! the camera has looked at and what is left for it to look at, the
 //! nearest frontier, places with room to turn.
 
+use std::cmp::Ordering::Less;
+
 use super::{GridMap, LOOK_PAST_UNSEEN_M, UNLOOKED_CELLS};
+use crate::msg::hypot_cmp;
 
 impl GridMap {
     /// The camera at `origin` (odom) looking along `yaw_rad` with a
@@ -21,7 +24,9 @@ impl GridMap {
             for &i in &cells {
                 if !self.is_known(i) {
                     let p = self.center(i);
-                    if (p[0] - origin[0]).hypot(p[1] - origin[1]) < LOOK_PAST_UNSEEN_M {
+                    if hypot_cmp(p[0] - origin[0], p[1] - origin[1], LOOK_PAST_UNSEEN_M)
+                        == Some(Less)
+                    {
                         continue;
                     }
                     break;
@@ -58,7 +63,7 @@ impl GridMap {
                 let mut any_looked = false;
                 for &i in &cells {
                     let p = self.center(i);
-                    if (p[0] - origin[0]).hypot(p[1] - origin[1]) < start_m {
+                    if hypot_cmp(p[0] - origin[0], p[1] - origin[1], start_m) == Some(Less) {
                         continue;
                     }
                     if !self.is_known(i) {

@@ -21,10 +21,11 @@
 //! facing a step down has not seen the floor just before its front.
 //! Pure: scans with the chair's pose and the time in.
 
+use std::cmp::Ordering::Greater;
 use std::collections::VecDeque;
 use std::time::Duration;
 
-use crate::msg::{Pose2, Stamp};
+use crate::msg::{hypot_cmp, Pose2, Stamp};
 
 /// Config `[safety]` (rear keys).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -160,7 +161,7 @@ impl RearWatch {
         let (c, s) = (pose.theta_rad.cos(), pose.theta_rad.sin());
         for q in points_base {
             let (x, y) = (q[0] as f64, q[1] as f64);
-            if x.hypot(y) > self.settings.points_radius_m {
+            if hypot_cmp(x, y, self.settings.points_radius_m) == Some(Greater) {
                 continue;
             }
             let p = [pose.x_m + c * x - s * y, pose.y_m + s * x + c * y];

@@ -334,6 +334,8 @@ impl Room {
                 }
             }
         }
+        // the axes the ray runs along (not parallel to their faces)
+        let along: [bool; 3] = std::array::from_fn(|a| d[a].abs() >= 1e-12);
         for c in candidates {
             if c.dist_m >= best.0 * d_norm {
                 break;
@@ -346,18 +348,24 @@ impl Room {
             // the slabs' entry and exit, all three axes without branches
             // (the entry only grows and the exit only shrinks, so a miss
             // at any axis is a miss at the end)
+            // (the six divisions side by side: one at a time they would
+            // wait for each other)
+            let ta: [f64; 3] = std::array::from_fn(|a| (ob.min_m[a] - o[a]) / d[a]);
+            let tb: [f64; 3] = std::array::from_fn(|a| (ob.max_m[a] - o[a]) / d[a]);
             let (mut t0, mut t1, mut axis) = (0.0f64, f64::INFINITY, 0usize);
             let mut inside = true;
             for a in 0..3 {
-                if d[a].abs() < 1e-12 {
+                if !along[a] {
                     inside &= o[a] >= ob.min_m[a] && o[a] <= ob.max_m[a];
                     continue;
                 }
                 // (finite: the nearer face's the smaller along d, the
                 // division rounding monotonically)
-                let ta = (ob.min_m[a] - o[a]) / d[a];
-                let tb = (ob.max_m[a] - o[a]) / d[a];
-                let (lo, hi) = if d[a] > 0.0 { (ta, tb) } else { (tb, ta) };
+                let (lo, hi) = if d[a] > 0.0 {
+                    (ta[a], tb[a])
+                } else {
+                    (tb[a], ta[a])
+                };
                 let enters_later = lo > t0;
                 t0 = if enters_later { lo } else { t0 };
                 axis = if enters_later { a } else { axis };
