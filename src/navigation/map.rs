@@ -277,10 +277,14 @@ impl GridMap {
     fn ray_walk(&self, o: [f64; 2], d: [f64; 2], len: f64) -> RayWalk {
         let done = RayWalk {
             i: 0,
-            step: [0; 2],
-            left: [0; 2],
-            t_next: [f64::INFINITY; 2],
-            t_delta: [f64::INFINITY; 2],
+            step_x: 0,
+            step_y: 0,
+            left_x: 0,
+            left_y: 0,
+            t_next_x: f64::INFINITY,
+            t_next_y: f64::INFINITY,
+            t_delta_x: f64::INFINITY,
+            t_delta_y: f64::INFINITY,
             len,
             done: true,
         };
@@ -316,10 +320,14 @@ impl GridMap {
         }
         RayWalk {
             i: c[1] as usize * self.n + c[0] as usize,
-            step,
-            left,
-            t_next,
-            t_delta,
+            step_x: step[0],
+            step_y: step[1],
+            left_x: left[0],
+            left_y: left[1],
+            t_next_x: t_next[0],
+            t_next_y: t_next[1],
+            t_delta_x: t_delta[0],
+            t_delta_y: t_delta[1],
             len,
             done: false,
         }
@@ -461,7 +469,7 @@ impl GridMap {
                 from_row_beside(cur, above, d1, d2);
             }
             for x in 1..width {
-                cur[x] = cur[x].min(cur[x - 1] + d1);
+                cur[x] = min_of(cur[x], cur[x - 1] + d1);
             }
         }
         for y in (y0..=y1).rev() {
@@ -472,7 +480,7 @@ impl GridMap {
                 from_row_beside(cur, below, d1, d2);
             }
             for x in (0..width - 1).rev() {
-                cur[x] = cur[x].min(cur[x + 1] + d1);
+                cur[x] = min_of(cur[x], cur[x + 1] + d1);
             }
         }
     }
@@ -649,31 +657,46 @@ mod search;
 /// `d1` and the two diagonal ones plus `d2`.
 fn from_row_beside(cur: &mut [f32], beside: &[f32], d1: f32, d2: f32) {
     let w = cur.len();
-    cur[0] = cur[0].min(beside[0] + d1);
+    cur[0] = min_of(cur[0], beside[0] + d1);
     if w > 1 {
-        cur[0] = cur[0].min(beside[1] + d2);
-        cur[w - 1] = cur[w - 1].min(beside[w - 1] + d1).min(beside[w - 2] + d2);
+        cur[0] = min_of(cur[0], beside[1] + d2);
+        cur[w - 1] = min_of(min_of(cur[w - 1], beside[w - 1] + d1), beside[w - 2] + d2);
     }
     for x in 1..w.saturating_sub(1) {
-        cur[x] = cur[x]
-            .min(beside[x] + d1)
-            .min(beside[x - 1] + d2)
-            .min(beside[x + 1] + d2);
+        cur[x] = min_of(
+            min_of(min_of(cur[x], beside[x] + d1), beside[x - 1] + d2),
+            beside[x + 1] + d2,
+        );
     }
 }
 
-#[cfg(test)]
-#[path = "map_tests.rs"]
-mod tests;
+/// The smaller of two distances (never NaN in the field: `f32::min`'s
+/// care for NaN would only slow its passes, and packs as one
+/// instruction).
+fn min_of(a: f32, b: f32) -> f32 {
+    if b < a {
+        b
+    } else {
+        a
+    }
+}
 
-/// The cells of one ray, in order ([`GridMap::ray_walk`]).
+/// The cells of one ray, in order ([`GridMap::ray_walk`]). Per axis
+/// (x, y) in scalars, not arrays: an array indexed by the axis of each
+/// step would keep them in memory.
 struct RayWalk {
     /// The cell to give next (unless `done`).
     i: usize,
-    step: [isize; 2],
-    left: [i64; 2],
-    t_next: [f64; 2],
-    t_delta: [f64; 2],
+    /// Per axis: the index's step, the cells left on the map that way,
+    /// the ray length to the next boundary, and between boundaries.
+    step_x: isize,
+    step_y: isize,
+    left_x: i64,
+    left_y: i64,
+    t_next_x: f64,
+    t_next_y: f64,
+    t_delta_x: f64,
+    t_delta_y: f64,
     len: f64,
     done: bool,
 }
@@ -686,19 +709,28 @@ impl Iterator for RayWalk {
             return None;
         }
         let i = self.i;
-        let a = if self.t_next[0] < self.t_next[1] {
-            0
+        let x = self.t_next_x < self.t_next_y;
+        let (t, left) = if x {
+            (self.t_next_x, self.left_x)
         } else {
-            1
+            (self.t_next_y, self.left_y)
         };
         // past its length, or the next cell off the map
-        if self.t_next[a] > self.len || self.left[a] == 0 {
+        if t > self.len || left == 0 {
             self.done = true;
+        } else if x {
+            self.left_x -= 1;
+            self.i = i.wrapping_add_signed(self.step_x);
+            self.t_next_x += self.t_delta_x;
         } else {
-            self.left[a] -= 1;
-            self.i = i.wrapping_add_signed(self.step[a]);
-            self.t_next[a] += self.t_delta[a];
+            self.left_y -= 1;
+            self.i = i.wrapping_add_signed(self.step_y);
+            self.t_next_y += self.t_delta_y;
         }
         Some(i)
     }
 }
+
+#[cfg(test)]
+#[path = "map_tests.rs"]
+mod tests;
