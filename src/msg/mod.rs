@@ -21,7 +21,7 @@ use serde::Serialize;
 
 pub use calibration::{CalibrationError, Intrinsics, RgbdCalibration, TransformSpec};
 pub use command::{FaultReason, SafeCmd, StopReason, SupervisorState, VelocityCmd};
-pub use geometry::{hypot_cmp, wrap_angle, Frame, Pose2};
+pub use geometry::{floor_fast, hypot_cmp, wrap_angle, Frame, Pose2};
 pub use image::{is_valid_depth, DepthImage, ImageError, RgbImage};
 pub use sensors::{
     LaserRay, LaserScan, MapObstacles, NoReturn, Obstacles, Reading, RgbdFrame, WheelTicks,

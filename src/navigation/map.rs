@@ -14,7 +14,7 @@ use std::collections::BinaryHeap;
 
 use serde::Deserialize;
 
-use crate::msg::{LaserRay, Pose2};
+use crate::msg::{floor_fast, LaserRay, Pose2};
 
 /// The map's settings (config `[map]`).
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
@@ -177,8 +177,8 @@ impl GridMap {
     fn cell_xy(&self, p: [f64; 2]) -> Option<(usize, usize)> {
         let r = self.settings.resolution_m;
         let (x, y) = (
-            ((p[0] - self.origin_m[0]) / r).floor(),
-            ((p[1] - self.origin_m[1]) / r).floor(),
+            floor_fast((p[0] - self.origin_m[0]) / r),
+            floor_fast((p[1] - self.origin_m[1]) / r),
         );
         (x >= 0.0 && y >= 0.0 && (x as usize) < self.n && (y as usize) < self.n)
             .then_some((x as usize, y as usize))
@@ -294,7 +294,7 @@ impl GridMap {
         if !(g[0].is_finite() && g[1].is_finite() && len.is_finite()) {
             return done;
         }
-        let c = [g[0].floor() as i64, g[1].floor() as i64];
+        let c = [floor_fast(g[0]) as i64, floor_fast(g[1]) as i64];
         if c[0] < 0 || c[1] < 0 || c[0] >= n || c[1] >= n {
             return done;
         }

@@ -22,7 +22,7 @@ use std::collections::BTreeMap;
 
 use nalgebra::{Isometry3, Point3};
 
-use crate::msg::{is_valid_depth, DepthImage, Intrinsics};
+use crate::msg::{floor_fast, is_valid_depth, DepthImage, Intrinsics};
 
 /// Config `[depth_obstacles]`.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Deserialize, serde::Serialize)]
@@ -182,7 +182,7 @@ impl NearestDepth {
 type Cell = (i32, i32);
 
 fn cell_of(x: f64, y: f64, cell_m: f64) -> Option<Cell> {
-    let (i, j) = ((x / cell_m).floor(), (y / cell_m).floor());
+    let (i, j) = (floor_fast(x / cell_m), floor_fast(y / cell_m));
     let ok = |v: f64| v.is_finite() && v.abs() < 1e6;
     (ok(i) && ok(j)).then_some((i as i32, j as i32))
 }
