@@ -321,9 +321,9 @@ impl SimWorld {
         }
     }
 
-    /// Moves the walking people on by `dt_s` (each waits while the chair
-    /// is near where they would step, and after
-    /// [`WALKER_GIVES_WAY_AFTER_S`] turns back).
+    /// Moves the walking people on by `dt_s` (each waits while a step
+    /// would take them nearer the chair within [`WALKER_KEEPS_M`], and
+    /// after [`WALKER_GIVES_WAY_AFTER_S`] turns back).
     fn walk(&mut self, dt_s: f64) {
         if self.walkers.is_empty() {
             return;
@@ -351,12 +351,14 @@ impl SimWorld {
                     .map(|p| box_distance(lo, hi, *p))
                     .fold(f64::INFINITY, f64::min)
             };
-            // a step within the keep-out that does not take them away
-            // from the chair waits (one away from it is taken: the chair
-            // may have come nearer than the keep-out to them)
+            // a step within the keep-out that takes them nearer the chair
+            // waits (one away from it, or along it at the same distance,
+            // is taken: the chair may have come nearer than the keep-out
+            // to them, and a person standing just before a waiting chair
+            // walks on past it rather than wait there with it for good)
             let gap_next = gap(lo, hi);
             if gap_next < WALKER_KEEPS_M
-                && gap_next <= gap(here, [here[0] + w.size_m[0], here[1] + w.size_m[1]])
+                && gap_next < gap(here, [here[0] + w.size_m[0], here[1] + w.size_m[1]])
             {
                 walking.waited_s += dt_s;
                 if walking.waited_s >= WALKER_GIVES_WAY_AFTER_S {

@@ -194,6 +194,49 @@ fn a_walking_person_walks_to_and_fro_and_waits_for_the_chair() {
     assert_eq!(w.report.collision_steps, 0);
 }
 
+/// A person just before the front of a chair standing in a doorway,
+/// walking across its way (along its front, at the same distance), walks
+/// on past it: before, each step within the keep-out that did not take
+/// them further away waited, and turning back after
+/// [`WALKER_GIVES_WAY_AFTER_S`] was no better, so they stood there with
+/// the chair for good (scene 168 of seed 1, the chair held in a doorway
+/// 40 s by a person 0.14 m before it).
+#[test]
+fn a_person_just_before_a_waiting_chair_walks_on_past_it() {
+    let mut w = world();
+    let mapping = mapping();
+    w.truth = Pose2 {
+        x_m: 3.0,
+        y_m: 2.0,
+        theta_rad: 0.0,
+    };
+    // the front at x 3.55; the person 0.14 m before it, across its way
+    let idx = w.room.objects.len();
+    w.room.objects.push(crate::sim::room::SimObject {
+        label_id: 0,
+        label: "person".into(),
+        min_m: [3.69, 1.4, 0.0],
+        max_m: [4.14, 1.7, 1.7],
+        color: [0, 0, 0],
+    });
+    let walker = Walker {
+        object: idx,
+        from_m: [3.69, 1.4],
+        to_m: [3.69, 2.9],
+        speed_mps: 0.5,
+        size_m: [0.45, 0.3, 1.7],
+    };
+    w.walkers = vec![Walking::new(walker)];
+    let before = w.room.objects[idx].min_m;
+    for _ in 0..300 {
+        w.step(0.01, None, &mapping);
+    }
+    let after = w.room.objects[idx].min_m;
+    assert!(after[1] > before[1] + 1.0, "{before:?} → {after:?}");
+    assert_eq!(after[0], before[0], "along its line");
+    assert_eq!(w.report.collision_steps, 0);
+}
+
 #[test]
 fn driving_forward_moves_the_chair_and_the_wheels_agree() {
     let mut w = world();
