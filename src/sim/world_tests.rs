@@ -116,6 +116,29 @@ fn the_start_is_free_and_a_wall_is_where_the_laser_says() {
     assert!((ahead as f64 - truth).abs() < 0.002, "{ahead} vs {truth}");
 }
 
+/// A person 0.45 × 0.3 m and 1.7 m tall walking to and fro at 0.5 m/s
+/// between `from_m` and `to_m` (their box's low corner), the world's only
+/// walker: their object's index.
+fn add_walker(w: &mut SimWorld, from_m: [f64; 2], to_m: [f64; 2]) -> usize {
+    let size_m = [0.45, 0.3, 1.7];
+    let idx = w.room.objects.len();
+    w.room.objects.push(crate::sim::room::SimObject {
+        label_id: 0,
+        label: "person".into(),
+        min_m: [from_m[0], from_m[1], 0.0],
+        max_m: [from_m[0] + size_m[0], from_m[1] + size_m[1], size_m[2]],
+        color: [0, 0, 0],
+    });
+    w.walkers = vec![Walking::new(Walker {
+        object: idx,
+        from_m,
+        to_m,
+        speed_mps: 0.5,
+        size_m,
+    })];
+    idx
+}
+
 #[test]
 fn a_walking_person_walks_to_and_fro_and_waits_for_the_chair() {
     let mut w = world();
@@ -126,22 +149,7 @@ fn a_walking_person_walks_to_and_fro_and_waits_for_the_chair() {
         y_m: 1.9,
         theta_rad: 0.0,
     };
-    let idx = w.room.objects.len();
-    w.room.objects.push(crate::sim::room::SimObject {
-        label_id: 0,
-        label: "person".into(),
-        min_m: [3.2, 1.0, 0.0],
-        max_m: [3.65, 1.3, 1.7],
-        color: [0, 0, 0],
-    });
-    let walker = Walker {
-        object: idx,
-        from_m: [3.2, 1.0],
-        to_m: [3.2, 3.0],
-        speed_mps: 0.5,
-        size_m: [0.45, 0.3, 1.7],
-    };
-    w.walkers = vec![Walking::new(walker.clone())];
+    let idx = add_walker(&mut w, [3.2, 1.0], [3.2, 3.0]);
     // 2 m at 0.5 m/s: there in 4 s, and back in another 4
     for _ in 0..400 {
         w.step(0.01, None, &mapping);
@@ -211,22 +219,7 @@ fn a_person_just_before_a_waiting_chair_walks_on_past_it() {
         theta_rad: 0.0,
     };
     // the front at x 3.55; the person 0.14 m before it, across its way
-    let idx = w.room.objects.len();
-    w.room.objects.push(crate::sim::room::SimObject {
-        label_id: 0,
-        label: "person".into(),
-        min_m: [3.69, 1.4, 0.0],
-        max_m: [4.14, 1.7, 1.7],
-        color: [0, 0, 0],
-    });
-    let walker = Walker {
-        object: idx,
-        from_m: [3.69, 1.4],
-        to_m: [3.69, 2.9],
-        speed_mps: 0.5,
-        size_m: [0.45, 0.3, 1.7],
-    };
-    w.walkers = vec![Walking::new(walker)];
+    let idx = add_walker(&mut w, [3.69, 1.4], [3.69, 2.9]);
     let before = w.room.objects[idx].min_m;
     for _ in 0..300 {
         w.step(0.01, None, &mapping);
