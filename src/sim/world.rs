@@ -168,6 +168,79 @@ fn box_distance(lo: [f64; 2], hi: [f64; 2], p: [f64; 2]) -> f64 {
     }
 }
 
+/// The footprint `f` at `pose` as its four corners in the world, going
+/// round.
+fn footprint_corners(f: &Footprint, pose: &Pose2) -> [[f64; 2]; 4] {
+    let (c, s) = (pose.theta_rad.cos(), pose.theta_rad.sin());
+    [
+        [-f.rear_m, -f.half_width_m],
+        [f.front_m, -f.half_width_m],
+        [f.front_m, f.half_width_m],
+        [-f.rear_m, f.half_width_m],
+    ]
+    .map(|q| {
+        [
+            pose.x_m + c * q[0] - s * q[1],
+            pose.y_m + s * q[0] + c * q[1],
+        ]
+    })
+}
+
+/// Signed gap between the footprint `f` at `pose` and the rectangle
+/// `[lo, hi]` on the floor, exact: apart, the distance between the two
+/// outlines (for two convex outlines that do not meet, a corner of one to
+/// the other); overlapping, not above zero (how deep the deepest corner
+/// is, or zero when they cross with no corner inside the other).
+pub fn footprint_gap(f: &Footprint, pose: &Pose2, lo: [f64; 2], hi: [f64; 2]) -> f64 {
+    let corners = footprint_corners(f, pose);
+    let (c, s) = (pose.theta_rad.cos(), pose.theta_rad.sin());
+    let in_chair = |p: [f64; 2]| {
+        let (dx, dy) = (p[0] - pose.x_m, p[1] - pose.y_m);
+        [c * dx + s * dy, -s * dx + c * dy]
+    };
+    let (chair_lo, chair_hi) = ([-f.rear_m, -f.half_width_m], [f.front_m, f.half_width_m]);
+    let theirs = [
+        [lo[0], lo[1]],
+        [hi[0], lo[1]],
+        [hi[0], hi[1]],
+        [lo[0], hi[1]],
+    ];
+    let gap = corners
+        .iter()
+        .map(|p| box_distance(lo, hi, *p))
+        .chain(
+            theirs
+                .iter()
+                .map(|p| box_distance(chair_lo, chair_hi, in_chair(*p))),
+        )
+        .fold(f64::INFINITY, f64::min);
+    if gap <= 0.0 {
+        return gap;
+    }
+    // no corner inside the other: apart unless they cross, which they do
+    // when no side of either separates them (two rectangles: the world's
+    // axes and the chair's)
+    let apart_along = |axis: [f64; 2]| {
+        let span = |pts: &[[f64; 2]; 4]| {
+            pts.iter()
+                .map(|p| p[0] * axis[0] + p[1] * axis[1])
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+                    (a.min(v), b.max(v))
+                })
+        };
+        let (a, b) = (span(&corners), span(&theirs));
+        a.1 < b.0 || b.1 < a.0
+    };
+    if [[1.0, 0.0], [0.0, 1.0], [c, s], [-s, c]]
+        .into_iter()
+        .any(apart_along)
+    {
+        gap
+    } else {
+        0.0
+    }
+}
+
 /// A wall or a side of an object in the lasers' plane: its two ends, m.
 type Segment = ([f64; 2], [f64; 2]);
 
@@ -328,7 +401,7 @@ impl SimWorld {
         if self.walkers.is_empty() {
             return;
         }
-        let outline = self.outline_world();
+        let (f, pose) = (self.footprint, self.truth);
         for walking in self.walkers.iter_mut() {
             let (w, back) = (&walking.walker, &mut walking.back);
             let Some(o) = self.room.objects.get(w.object) else {
@@ -345,12 +418,7 @@ impl SimWorld {
                 here
             };
             let (lo, hi) = (next, [next[0] + w.size_m[0], next[1] + w.size_m[1]]);
-            let gap = |lo: [f64; 2], hi: [f64; 2]| {
-                outline
-                    .iter()
-                    .map(|p| box_distance(lo, hi, *p))
-                    .fold(f64::INFINITY, f64::min)
-            };
+            let gap = |lo: [f64; 2], hi: [f64; 2]| footprint_gap(&f, &pose, lo, hi);
             // a step within the keep-out that takes them nearer the chair
             // waits (one away from it, or along it at the same distance,
             // is taken: the chair may have come nearer than the keep-out
@@ -380,7 +448,8 @@ impl SimWorld {
         }
     }
 
-    /// The footprint's outline in the world, sampled.
+    /// The footprint's outline in the world, points 0.1 of a side apart
+    /// (to draw it; distances to it are [`footprint_gap`]'s, exact).
     pub fn outline_world(&self) -> Vec<[f64; 2]> {
         let f = self.footprint;
         let (c, s) = (self.truth.theta_rad.cos(), self.truth.theta_rad.sin());
@@ -410,13 +479,11 @@ impl SimWorld {
     /// Smallest distance from the footprint to the edge of a step down
     /// (negative: part of the chair is over it).
     pub fn drop_clearance(&self) -> f64 {
-        let mut best = f64::INFINITY;
-        for p in self.outline_world() {
-            for pit in &self.room.pits {
-                best = best.min(box_distance(pit.min_m, pit.max_m, p));
-            }
-        }
-        best
+        self.room
+            .pits
+            .iter()
+            .map(|pit| footprint_gap(&self.footprint, &self.truth, pit.min_m, pit.max_m))
+            .fold(f64::INFINITY, f64::min)
     }
 
     /// What the encoder board would send now.
@@ -503,43 +570,31 @@ impl SimWorld {
     /// room, or None for a wall.
     pub fn clearance_to(&self) -> (f64, Option<usize>) {
         let [sx, sy, _] = self.room.size_m;
-        let outline = self.outline_world();
-        // each object's distance from base_link less the outline's reach
-        // from it: no outline point is nearer than that (a box's signed
-        // distance changes no faster than the point moves), so an object
-        // whose bound is no nearer than the best so far cannot be nearer
-        // at any point, and is not measured (the answer is the same)
-        let here = [self.truth.x_m, self.truth.y_m];
-        let reach_m = outline
+        let (f, pose) = (&self.footprint, &self.truth);
+        // the room is convex, so the footprint's nearest point to a wall
+        // is one of its corners
+        let wall = footprint_corners(f, pose)
             .iter()
-            .map(|p| (p[0] - here[0]).hypot(p[1] - here[1]))
-            .fold(0.0, f64::max)
-            + 1e-6;
-        let bounds: Vec<(usize, [f64; 2], [f64; 2], f64)> = self
-            .room
-            .objects
-            .iter()
-            .enumerate()
-            .filter(|(_, o)| o.max_m[2] > 0.05)
-            .map(|(i, o)| {
-                let (lo, hi) = ([o.min_m[0], o.min_m[1]], [o.max_m[0], o.max_m[1]]);
-                (i, lo, hi, box_distance(lo, hi, here) - reach_m)
-            })
-            .collect();
-        let mut best = (f64::INFINITY, None);
-        for p in outline {
-            let wall = p[0].min(p[1]).min(sx - p[0]).min(sy - p[1]);
-            if wall < best.0 {
-                best = (wall, None);
+            .map(|p| p[0].min(p[1]).min(sx - p[0]).min(sy - p[1]))
+            .fold(f64::INFINITY, f64::min);
+        let mut best = (wall, None);
+        // each object's distance from base_link less the footprint's reach
+        // from it: the footprint is no nearer than that, so an object whose
+        // bound is no nearer than the best so far is not measured (the
+        // answer is the same)
+        let here = [pose.x_m, pose.y_m];
+        let reach_m = f.front_m.max(f.rear_m).hypot(f.half_width_m) + 1e-6;
+        for (i, o) in self.room.objects.iter().enumerate() {
+            if o.max_m[2] <= 0.05 {
+                continue;
             }
-            for &(i, lo, hi, bound) in &bounds {
-                if bound >= best.0 {
-                    continue;
-                }
-                let d = box_distance(lo, hi, p);
-                if d < best.0 {
-                    best = (d, Some(i));
-                }
+            let (lo, hi) = ([o.min_m[0], o.min_m[1]], [o.max_m[0], o.max_m[1]]);
+            if box_distance(lo, hi, here) - reach_m >= best.0 {
+                continue;
+            }
+            let d = footprint_gap(f, pose, lo, hi);
+            if d < best.0 {
+                best = (d, Some(i));
             }
         }
         best

@@ -49,20 +49,19 @@ fn casting_nearest_segments_first_finds_what_casting_against_all_does() {
 
 #[test]
 fn the_clearance_skipping_far_objects_is_the_clearance_to_every_object() {
-    // the same measure over every object and outline point, nothing skipped
+    // the same measure over every object, nothing skipped
     let every = |w: &SimWorld| {
         let [sx, sy, _] = w.room.size_m;
-        let mut best = (f64::INFINITY, None);
-        for p in w.outline_world() {
-            let wall = p[0].min(p[1]).min(sx - p[0]).min(sy - p[1]);
-            if wall < best.0 {
-                best = (wall, None);
-            }
-            for (i, o) in w.room.objects.iter().enumerate() {
-                let d = box_distance([o.min_m[0], o.min_m[1]], [o.max_m[0], o.max_m[1]], p);
-                if o.max_m[2] > 0.05 && d < best.0 {
-                    best = (d, Some(i));
-                }
+        let wall = footprint_corners(&w.footprint, &w.truth)
+            .iter()
+            .map(|p| p[0].min(p[1]).min(sx - p[0]).min(sy - p[1]))
+            .fold(f64::INFINITY, f64::min);
+        let mut best = (wall, None);
+        for (i, o) in w.room.objects.iter().enumerate() {
+            let (lo, hi) = ([o.min_m[0], o.min_m[1]], [o.max_m[0], o.max_m[1]]);
+            let d = footprint_gap(&w.footprint, &w.truth, lo, hi);
+            if o.max_m[2] > 0.05 && d < best.0 {
+                best = (d, Some(i));
             }
         }
         best
@@ -97,6 +96,133 @@ fn the_clearance_skipping_far_objects_is_the_clearance_to_every_object() {
     }
     // overlapping objects and nearest objects (not walls) were among them
     assert!(touching > 100 && objects > 1000, "{touching} {objects}");
+}
+
+/// The footprint's outline and a box's, each as points every `step_m`
+/// along its sides, and whether any footprint point is in the box or any
+/// box point in the footprint.
+fn sampled_gap(
+    f: &Footprint,
+    pose: &Pose2,
+    lo: [f64; 2],
+    hi: [f64; 2],
+    step_m: f64,
+) -> (f64, bool) {
+    let (c, s) = (pose.theta_rad.cos(), pose.theta_rad.sin());
+    let sides = |a: [f64; 2], b: [f64; 2], out: &mut Vec<[f64; 2]>| {
+        let n = ((b[0] - a[0]).hypot(b[1] - a[1]) / step_m).ceil().max(1.0) as usize;
+        out.extend((0..=n).map(|i| {
+            let t = i as f64 / n as f64;
+            [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]
+        }));
+    };
+    let (mut chair, mut theirs) = (Vec::new(), Vec::new());
+    let fc = [
+        [-f.rear_m, -f.half_width_m],
+        [f.front_m, -f.half_width_m],
+        [f.front_m, f.half_width_m],
+        [-f.rear_m, f.half_width_m],
+    ];
+    let bc = [
+        [lo[0], lo[1]],
+        [hi[0], lo[1]],
+        [hi[0], hi[1]],
+        [lo[0], hi[1]],
+    ];
+    for k in 0..4 {
+        sides(fc[k], fc[(k + 1) % 4], &mut chair);
+        sides(bc[k], bc[(k + 1) % 4], &mut theirs);
+    }
+    let to_world = |q: [f64; 2]| {
+        [
+            pose.x_m + c * q[0] - s * q[1],
+            pose.y_m + s * q[0] + c * q[1],
+        ]
+    };
+    let to_chair = |p: [f64; 2]| {
+        let (dx, dy) = (p[0] - pose.x_m, p[1] - pose.y_m);
+        [c * dx + s * dy, -s * dx + c * dy]
+    };
+    let chair: Vec<[f64; 2]> = chair.into_iter().map(to_world).collect();
+    let mut gap = f64::INFINITY;
+    let mut inside = false;
+    for p in &chair {
+        let d = box_distance(lo, hi, *p);
+        inside |= d <= 0.0;
+        for q in &theirs {
+            gap = gap.min((p[0] - q[0]).hypot(p[1] - q[1]));
+        }
+    }
+    for q in &theirs {
+        inside |= box_distance(fc[0], fc[2], to_chair(*q)) <= 0.0;
+    }
+    (gap, inside)
+}
+
+/// The exact gap between the footprint and a box: apart, the distance
+/// between their outlines to within the sampling; overlapping, never
+/// above zero, also when they cross like a plus with no corner of either
+/// inside the other (where the corners' distances all read apart).
+#[test]
+fn the_footprint_gap_is_the_distance_between_the_outlines() {
+    let f = Footprint {
+        front_m: 0.55,
+        rear_m: 0.6,
+        half_width_m: 0.35,
+    };
+    let mut rng = crate::sim::scene::SplitMix64::new(5);
+    let (mut apart, mut overlapping) = (0, 0);
+    for _ in 0..3000 {
+        let pose = Pose2 {
+            x_m: rng.range(-1.5, 1.5),
+            y_m: rng.range(-1.5, 1.5),
+            theta_rad: rng.range(-3.2, 3.2),
+        };
+        let lo = [rng.range(-1.0, 0.5), rng.range(-1.0, 0.5)];
+        let hi = [lo[0] + rng.range(0.02, 1.5), lo[1] + rng.range(0.02, 1.5)];
+        let got = footprint_gap(&f, &pose, lo, hi);
+        let (sampled, inside) = sampled_gap(&f, &pose, lo, hi, 0.002);
+        if got > 0.0 {
+            apart += 1;
+            assert!(
+                !inside,
+                "{got} apart, yet a point inside: {pose:?} {lo:?} {hi:?}"
+            );
+            // the sampled outlines are never nearer than the true ones, and
+            // no more than a sample spacing further
+            assert!(
+                got <= sampled + 1e-12,
+                "{got} > {sampled}: {pose:?} {lo:?} {hi:?}"
+            );
+            assert!(
+                got > sampled - 0.002,
+                "{got} ≪ {sampled}: {pose:?} {lo:?} {hi:?}"
+            );
+        } else {
+            overlapping += 1;
+            assert!(
+                inside || sampled < 0.002,
+                "{got} overlapping, yet apart by {sampled}: {pose:?} {lo:?} {hi:?}"
+            );
+        }
+    }
+    assert!(apart > 500 && overlapping > 500, "{apart} {overlapping}");
+    // a long thin box across the chair's middle, its ends outside: no
+    // corner of either is inside the other
+    let pose = Pose2 {
+        x_m: 0.0,
+        y_m: 0.0,
+        theta_rad: 0.0,
+    };
+    let (lo, hi) = ([-0.05, -1.0], [0.05, 1.0]);
+    let corners_apart = footprint_corners(&f, &pose)
+        .iter()
+        .all(|p| box_distance(lo, hi, *p) > 0.0);
+    assert!(corners_apart);
+    assert_eq!(footprint_gap(&f, &pose, lo, hi), 0.0);
+    // and the same box beside the chair is as far as its side
+    let (lo, hi) = ([-0.05, 0.45], [0.05, 1.0]);
+    assert!((footprint_gap(&f, &pose, lo, hi) - 0.1).abs() < 1e-12);
 }
 
 #[test]
@@ -167,10 +293,8 @@ fn a_walking_person_walks_to_and_fro_and_waits_for_the_chair() {
     };
     let gap = |w: &SimWorld| {
         let o = &w.room.objects[idx];
-        w.outline_world()
-            .iter()
-            .map(|p| box_distance([o.min_m[0], o.min_m[1]], [o.max_m[0], o.max_m[1]], *p))
-            .fold(f64::INFINITY, f64::min)
+        let (lo, hi) = ([o.min_m[0], o.min_m[1]], [o.max_m[0], o.max_m[1]]);
+        footprint_gap(&w.footprint, &w.truth, lo, hi)
     };
     // (at 0.5 m/s from 1.0 they meet the chair's keep-out at 1.45,
     // within 1 s)
@@ -227,6 +351,59 @@ fn a_person_just_before_a_waiting_chair_walks_on_past_it() {
     let after = w.room.objects[idx].min_m;
     assert!(after[1] > before[1] + 1.0, "{before:?} → {after:?}");
     assert_eq!(after[0], before[0], "along its line");
+    assert_eq!(w.report.collision_steps, 0);
+}
+
+/// A person beside a chair turned to their way, walking on towards its
+/// side, never comes nearer to it than they were (they wait, then turn
+/// back): their distance is to the footprint's edges, not to points along
+/// them, between which a step can near the edge.
+#[test]
+fn a_person_beside_a_slanted_chair_never_comes_nearer_its_side() {
+    let mut w = world();
+    let mapping = mapping();
+    w.truth = Pose2 {
+        x_m: 3.0,
+        y_m: 2.0,
+        theta_rad: -0.3,
+    };
+    // the left side runs up to the left: walking −x nears it
+    let idx = add_walker(&mut w, [3.05, 2.43], [1.5, 2.43]);
+    // the box's distance to the footprint, measured on its edges every mm
+    let edge_gap = |w: &SimWorld| {
+        let o = &w.room.objects[idx];
+        let (c, s) = (w.truth.theta_rad.cos(), w.truth.theta_rad.sin());
+        let f = w.footprint;
+        let mut best = f64::INFINITY;
+        for i in 0..=1000 {
+            let t = i as f64 / 1000.0;
+            let a = -f.rear_m + t * (f.front_m + f.rear_m);
+            let b = -f.half_width_m + t * 2.0 * f.half_width_m;
+            for q in [
+                [a, f.half_width_m],
+                [a, -f.half_width_m],
+                [f.front_m, b],
+                [-f.rear_m, b],
+            ] {
+                let p = [
+                    w.truth.x_m + c * q[0] - s * q[1],
+                    w.truth.y_m + s * q[0] + c * q[1],
+                ];
+                let dx = (o.min_m[0] - p[0]).max(p[0] - o.max_m[0]).max(0.0);
+                let dy = (o.min_m[1] - p[1]).max(p[1] - o.max_m[1]).max(0.0);
+                best = best.min(dx.hypot(dy));
+            }
+        }
+        best
+    };
+    let start = edge_gap(&w);
+    assert!(start < WALKER_KEEPS_M, "{start}");
+    let mut nearest = start;
+    for _ in 0..800 {
+        w.step(0.01, None, &mapping);
+        nearest = nearest.min(edge_gap(&w));
+    }
+    assert!(nearest > start - 1e-3, "{nearest} < {start}");
     assert_eq!(w.report.collision_steps, 0);
 }
 
