@@ -116,13 +116,19 @@ impl Estimation {
 
     /// Remember the depth camera's cells (`d`'s cell size and memory
     /// radius), clearing those under `footprint`; with the camera's view,
-    /// a cell a frame saw part of keeps what that frame could not see.
+    /// a cell a frame saw part of keeps what that frame could not see;
+    /// with the lasers' plane's height, a cell seen across it counts as
+    /// the lasers'.
     pub fn with_obstacle_map(
         mut self,
         d: &crate::perception::depth_obstacles::DepthObstacleSettings,
         footprint: FootprintM,
+        laser_plane_m: Option<f64>,
     ) -> Self {
         let mut map = ObstacleMap::new(d.cell_m, d.memory_radius_m);
+        if let Some(h) = laser_plane_m {
+            map = map.with_laser_plane(h);
+        }
         if let Some(camera) = self.view {
             map = map.with_view(MapView {
                 camera,

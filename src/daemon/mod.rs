@@ -465,6 +465,12 @@ pub async fn run(
                 match depth_map {
                     Some(d) => {
                         let sf = &settings.safety;
+                        // one plane when both lasers scan at one height
+                        let (hl, hr) = (
+                            settings.lasers.left.translation_m[2],
+                            settings.lasers.right.translation_m[2],
+                        );
+                        let laser_plane_m = ((hl - hr).abs() <= 0.05).then_some((hl + hr) / 2.0);
                         est.with_obstacle_map(
                             &d,
                             FootprintM {
@@ -472,6 +478,7 @@ pub async fn run(
                                 rear_m: sf.rear_offset_m,
                                 half_width_m: sf.chair_width_m / 2.0,
                             },
+                            laser_plane_m,
                         )
                     }
                     None => est,

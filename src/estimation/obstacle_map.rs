@@ -65,7 +65,15 @@ pub struct ObstacleMap {
     /// (what the camera sees there now may not be what the lasers saw).
     laser_seen: BTreeSet<(i32, i32)>,
     hit_last_scan: Vec<(i32, i32)>,
+    /// The lasers' plane above the floor, m (None: not known): a cell
+    /// where a frame saw the thing from below it to above it is one the
+    /// lasers see too, whether or not a return landed in that very cell.
+    laser_plane_m: Option<f64>,
 }
+
+/// A thing spans the lasers' plane when a frame saw it this far below
+/// and above it, m.
+const SPANS_PLANE_BY_M: f64 = 0.1;
 
 /// What a depth frame could see, for [`ObstacleMap::with_view`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -158,7 +166,18 @@ impl ObstacleMap {
             floor_seen: BTreeSet::new(),
             laser_seen: BTreeSet::new(),
             hit_last_scan: Vec::new(),
+            laser_plane_m: None,
         }
+    }
+
+    /// The lasers' plane is `height_m` above the floor: a cell a frame saw
+    /// something in from below it to above it counts as seen by the
+    /// lasers ([`ObstacleMap::on_lasers`] forgets it when their rays later
+    /// pass through it): the cells of a person who walked on, seen by the
+    /// camera at their side and by the lasers only at their front.
+    pub fn with_laser_plane(mut self, height_m: f64) -> Self {
+        self.laser_plane_m = Some(height_m);
+        self
     }
 
     /// Keeps, in a cell a frame saw part of, the points outside `view`.
@@ -209,6 +228,21 @@ impl ObstacleMap {
         let drop_offs = scan.drop_offs_base.iter().map(|q| ([q[0], q[1]], 0.0));
         let unseen = unseen.iter().map(|q| ([q[0], q[1]], 0.0));
         let obstacles = scan.obstacles_base.iter().map(|q| ([q[0], q[1]], q[2]));
+        // the cells where this frame saw a thing across the lasers' plane
+        let mut spans = BTreeSet::new();
+        if let Some(plane_m) = self.laser_plane_m {
+            if scan.obstacle_tops_m.len() == scan.obstacles_base.len() {
+                for (q, top_m) in scan.obstacles_base.iter().zip(&scan.obstacle_tops_m) {
+                    if f64::from(q[2]) < plane_m - SPANS_PLANE_BY_M
+                        && f64::from(*top_m) > plane_m + SPANS_PLANE_BY_M
+                    {
+                        if let Some(k) = self.cell(to_odom(&[q[0], q[1]])) {
+                            spans.insert(k);
+                        }
+                    }
+                }
+            }
+        }
         let points = drop_offs
             .map(|(q, z)| (q, z, CellKind::DropOff))
             .chain(unseen.map(|(q, z)| (q, z, CellKind::UnseenDropOff)))
@@ -250,8 +284,11 @@ impl ObstacleMap {
             if points.len() > MAX_POINTS_PER_CELL {
                 points = extremes(&points);
             }
-            // put again: the lasers saw it if their latest scan did
-            if self.hit_last_scan.binary_search(&k).is_err() {
+            // put again: the lasers saw it if their latest scan did, or
+            // would have (it spans their plane)
+            if kind == CellKind::Obstacle && spans.contains(&k) {
+                self.laser_seen.insert(k);
+            } else if self.hit_last_scan.binary_search(&k).is_err() {
                 self.laser_seen.remove(&k);
             }
             self.cells.insert(k, (kind, points));

@@ -169,6 +169,54 @@ fn a_box_under_the_lasers_plane_is_kept_when_the_rays_pass_over_it() {
     assert_eq!(m.laser_seen_len(), 0);
 }
 
+/// [`person_seen`] with each cell's points seen from `low_m` up to
+/// `top_m`.
+fn seen_from_to(centre: [f64; 2], low_m: f32, top_m: f32) -> DepthScan {
+    let mut d = person_seen(centre);
+    for q in &mut d.obstacles_base {
+        q[2] = low_m;
+    }
+    d.obstacle_tops_m = vec![top_m; d.obstacles_base.len()];
+    d
+}
+
+/// A thing the camera saw from below the lasers' plane (0.66 m) to above
+/// it counts as the lasers' though no return landed in its cells (the
+/// camera saw a person's side, the lasers their front in the cells
+/// beside): once the rays pass there, it is forgotten. One seen only
+/// below the plane (a box the rays pass over), only above it (a table's
+/// top the rays pass under) or barely across it stays, as does any
+/// without the lasers' plane given.
+#[test]
+fn a_thing_seen_across_the_lasers_plane_is_forgotten_once_their_rays_pass_there() {
+    let passes = |m: &mut ObstacleMap| {
+        let cells = m.len();
+        assert!(cells >= 5, "{cells}");
+        let forgot = m.on_lasers(HERE, &scan(&[], None));
+        (forgot, cells, m.len())
+    };
+    let mut person = ObstacleMap::new(0.05, 4.0).with_laser_plane(0.66);
+    person.insert(HERE, &seen_from_to(PERSON, 0.06, 1.5), F);
+    assert!(person.laser_seen_len() >= 5, "{}", person.laser_seen_len());
+    let (forgot, before, after) = passes(&mut person);
+    assert!(forgot && after < 4 && after < before, "{before} → {after}");
+    for (what, low_m, top_m) in [
+        ("a box", 0.06, 0.4),
+        ("a table's top", 0.72, 0.75),
+        ("a thing barely across", 0.6, 0.7),
+    ] {
+        let mut m = ObstacleMap::new(0.05, 4.0).with_laser_plane(0.66);
+        m.insert(HERE, &seen_from_to(PERSON, low_m, top_m), F);
+        assert_eq!(m.laser_seen_len(), 0, "{what}");
+        let (forgot, before, after) = passes(&mut m);
+        assert!(!forgot && after == before, "{what}: {before} → {after}");
+    }
+    let mut unknown_plane = ObstacleMap::new(0.05, 4.0);
+    unknown_plane.insert(HERE, &seen_from_to(PERSON, 0.06, 1.5), F);
+    let (forgot, before, after) = passes(&mut unknown_plane);
+    assert!(!forgot && after == before, "{before} → {after}");
+}
+
 #[test]
 fn a_thing_the_rays_still_end_at_or_beside_is_kept() {
     let (mut m, cells) = person_seen_by_both();
@@ -285,7 +333,7 @@ fn the_estimation_sends_the_memory_the_lasers_changed() {
         Tracker::new(s.tracker),
         None,
     )
-    .with_obstacle_map(&s.depth_obstacles, F);
+    .with_obstacle_map(&s.depth_obstacles, F, None);
     let t = Stamp::from_secs_f64;
     for i in 0..=10 {
         est.history.push(t(i as f64 * 0.1), HERE);

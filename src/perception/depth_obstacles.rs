@@ -83,6 +83,10 @@ pub struct DepthScan {
     /// Obstacle points: x, y and the lowest height of the obstacle points
     /// in their cell (the height at which the cell can be seen at all).
     pub obstacles_base: Vec<[f32; 3]>,
+    /// The highest of the obstacle points in each point's cell, m (one
+    /// per point of `obstacles_base`; empty: not known): with the lowest,
+    /// whether the thing seen there spans the lasers' plane.
+    pub obstacle_tops_m: Vec<f32>,
     pub drop_offs_base: Vec<[f32; 2]>,
     /// Where the floor may end out of view, nearer than the image's
     /// bottom row sees through it (`chair_front_m`): drop-offs wherever
@@ -301,16 +305,18 @@ pub fn scan(
         }
         out
     };
-    let keep_with_height = |m: BTreeMap<Cell, Extremes>| -> Vec<[f32; 3]> {
+    let keep_with_height = |m: BTreeMap<Cell, Extremes>| -> (Vec<[f32; 3]>, Vec<f32>) {
         let mut out = Vec::with_capacity(m.len() * 2);
+        let mut tops = Vec::with_capacity(m.len() * 2);
         let mut cell = Vec::with_capacity(4);
         for e in m.into_values().filter(|e| e.count >= s.min_hits.max(1)) {
             cell.clear();
             e.points_into(&mut cell);
             let z = e.low_z_m as f32;
             out.extend(cell.iter().map(|p| [p[0], p[1], z]));
+            tops.extend(cell.iter().map(|_| e.high_z_m as f32));
         }
-        out
+        (out, tops)
     };
     // seen floor only forgets cells: one point (the cell's centre) each
     let floor_cells = |m: BTreeMap<Cell, Extremes>| -> Vec<[f32; 2]> {
@@ -324,8 +330,10 @@ pub fn scan(
             })
             .collect()
     };
+    let (obstacles_base, obstacle_tops_m) = keep_with_height(obstacles);
     DepthScan {
-        obstacles_base: keep_with_height(obstacles),
+        obstacles_base,
+        obstacle_tops_m,
         drop_offs_base: keep(drops),
         drop_offs_unseen_base: keep(drops_unseen),
         floor_base: floor_cells(floor),
@@ -342,13 +350,14 @@ enum Kind {
 }
 
 /// A cell's point count, its points farthest along −x, +x, −y, +y and
-/// the lowest height among its points.
+/// the lowest and highest heights among its points.
 #[derive(Debug, Clone, Copy, Default)]
 struct Extremes {
     count: usize,
     /// min x, max x, min y, max y
     points: [[f64; 2]; 4],
     low_z_m: f64,
+    high_z_m: f64,
 }
 
 impl Extremes {
@@ -356,8 +365,10 @@ impl Extremes {
         if self.count == 0 {
             self.points = [p; 4];
             self.low_z_m = z_m;
+            self.high_z_m = z_m;
         } else {
             self.low_z_m = self.low_z_m.min(z_m);
+            self.high_z_m = self.high_z_m.max(z_m);
             let e = &mut self.points;
             if p[0] < e[0][0] {
                 e[0] = p;
@@ -386,6 +397,7 @@ impl Extremes {
             return;
         }
         self.low_z_m = self.low_z_m.min(later.low_z_m);
+        self.high_z_m = self.high_z_m.max(later.high_z_m);
         let (e, l) = (&mut self.points, &later.points);
         if l[0][0] < e[0][0] {
             e[0] = l[0];

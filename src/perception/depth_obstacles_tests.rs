@@ -4,11 +4,12 @@ use super::*;
 use nalgebra::{Matrix3, Rotation3, Translation3, UnitQuaternion};
 
 /// The fields of a cell's extremes, to compare them exactly.
-fn fields(e: &Extremes) -> (usize, [[u64; 2]; 4], u64) {
+fn fields(e: &Extremes) -> (usize, [[u64; 2]; 4], u64, u64) {
     (
         e.count,
         e.points.map(|p| p.map(f64::to_bits)),
         e.low_z_m.to_bits(),
+        e.high_z_m.to_bits(),
     )
 }
 
@@ -206,6 +207,14 @@ fn a_low_box_under_the_lasers_is_an_obstacle_where_it_stands() {
         .map(|c| c[2] as f64)
         .fold(f64::INFINITY, f64::min);
     assert!(front_low < band + 0.03, "front face lowest {front_low}");
+    // and its cell's highest: the box's top, 0.3 m, on the cells of its
+    // top; none above it, none below its cell's lowest
+    assert_eq!(s.obstacle_tops_m.len(), s.obstacles_base.len());
+    for (c, top) in s.obstacles_base.iter().zip(&s.obstacle_tops_m) {
+        assert!(*top >= c[2] && *top <= 0.3 + 1e-6, "top {top} of {c:?}");
+    }
+    let highest = s.obstacle_tops_m.iter().copied().fold(0.0, f32::max);
+    assert!(highest > 0.28, "highest {highest}");
 }
 
 /// The frame's nearest surfaces: a point behind the box (as the
