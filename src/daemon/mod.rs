@@ -471,6 +471,14 @@ pub async fn run(
                             settings.lasers.right.translation_m[2],
                         );
                         let laser_plane_m = ((hl - hr).abs() <= 0.05).then_some((hl + hr) / 2.0);
+                        if laser_plane_m.is_none() {
+                            tracing::info!(
+                                left_m = hl,
+                                right_m = hr,
+                                "the lasers scan at heights more than 5 cm apart: the camera's \
+                                 memory forgets by the lasers only the cells their returns land on"
+                            );
+                        }
                         est.with_obstacle_map(
                             &d,
                             FootprintM {
