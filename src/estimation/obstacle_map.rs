@@ -225,31 +225,37 @@ impl ObstacleMap {
         // this frame's points by cell: they replace what the cell held
         // where this frame could see it
         let mut seen = Cells::new();
-        let drop_offs = scan.drop_offs_base.iter().map(|q| ([q[0], q[1]], 0.0));
-        let unseen = unseen.iter().map(|q| ([q[0], q[1]], 0.0));
-        let obstacles = scan.obstacles_base.iter().map(|q| ([q[0], q[1]], q[2]));
+        let drop_offs = scan
+            .drop_offs_base
+            .iter()
+            .map(|q| ([q[0], q[1]], 0.0, false));
+        let unseen = unseen.iter().map(|q| ([q[0], q[1]], 0.0, false));
+        // each obstacle point: whether its cell saw the thing across the
+        // lasers' plane (its lowest and highest points)
+        let tops = (scan.obstacle_tops_m.len() == scan.obstacles_base.len())
+            .then_some(&scan.obstacle_tops_m);
+        let obstacles = scan.obstacles_base.iter().enumerate().map(|(i, q)| {
+            let spans = match (self.laser_plane_m, tops) {
+                (Some(plane_m), Some(tops)) => {
+                    f64::from(q[2]) < plane_m - SPANS_PLANE_BY_M
+                        && f64::from(tops[i]) > plane_m + SPANS_PLANE_BY_M
+                }
+                _ => false,
+            };
+            ([q[0], q[1]], q[2], spans)
+        });
         // the cells where this frame saw a thing across the lasers' plane
         let mut spans = BTreeSet::new();
-        if let Some(plane_m) = self.laser_plane_m {
-            if scan.obstacle_tops_m.len() == scan.obstacles_base.len() {
-                for (q, top_m) in scan.obstacles_base.iter().zip(&scan.obstacle_tops_m) {
-                    if f64::from(q[2]) < plane_m - SPANS_PLANE_BY_M
-                        && f64::from(*top_m) > plane_m + SPANS_PLANE_BY_M
-                    {
-                        if let Some(k) = self.cell(to_odom(&[q[0], q[1]])) {
-                            spans.insert(k);
-                        }
-                    }
-                }
-            }
-        }
         let points = drop_offs
-            .map(|(q, z)| (q, z, CellKind::DropOff))
-            .chain(unseen.map(|(q, z)| (q, z, CellKind::UnseenDropOff)))
-            .chain(obstacles.map(|(q, z)| (q, z, CellKind::Obstacle)));
-        for (q, z_m, kind) in points {
+            .map(|(q, z, across)| (q, z, across, CellKind::DropOff))
+            .chain(unseen.map(|(q, z, across)| (q, z, across, CellKind::UnseenDropOff)))
+            .chain(obstacles.map(|(q, z, across)| (q, z, across, CellKind::Obstacle)));
+        for (q, z_m, across, kind) in points {
             let p = to_odom(&q);
             if let Some(k) = self.cell(p) {
+                if across {
+                    spans.insert(k);
+                }
                 // one that may lie out of view never replaces what was
                 // seen in its cell before
                 if kind == CellKind::UnseenDropOff

@@ -194,10 +194,6 @@ fn footprint_corners(f: &Footprint, pose: &Pose2) -> [[f64; 2]; 4] {
 pub fn footprint_gap(f: &Footprint, pose: &Pose2, lo: [f64; 2], hi: [f64; 2]) -> f64 {
     let corners = footprint_corners(f, pose);
     let (c, s) = (pose.theta_rad.cos(), pose.theta_rad.sin());
-    let in_chair = |p: [f64; 2]| {
-        let (dx, dy) = (p[0] - pose.x_m, p[1] - pose.y_m);
-        [c * dx + s * dy, -s * dx + c * dy]
-    };
     let (chair_lo, chair_hi) = ([-f.rear_m, -f.half_width_m], [f.front_m, f.half_width_m]);
     let theirs = [
         [lo[0], lo[1]],
@@ -211,7 +207,8 @@ pub fn footprint_gap(f: &Footprint, pose: &Pose2, lo: [f64; 2], hi: [f64; 2]) ->
         .chain(
             theirs
                 .iter()
-                .map(|p| box_distance(chair_lo, chair_hi, in_chair(*p))),
+                // (the pose is the world's: base_from_odom's transform)
+                .map(|p| box_distance(chair_lo, chair_hi, pose.base_from_odom(*p))),
         )
         .fold(f64::INFINITY, f64::min);
     if gap <= 0.0 {

@@ -139,10 +139,6 @@ fn sampled_gap(
             pose.y_m + s * q[0] + c * q[1],
         ]
     };
-    let to_chair = |p: [f64; 2]| {
-        let (dx, dy) = (p[0] - pose.x_m, p[1] - pose.y_m);
-        [c * dx + s * dy, -s * dx + c * dy]
-    };
     let chair: Vec<[f64; 2]> = chair.into_iter().map(to_world).collect();
     let mut gap = f64::INFINITY;
     let mut inside = false;
@@ -154,7 +150,7 @@ fn sampled_gap(
         }
     }
     for q in &theirs {
-        inside |= box_distance(fc[0], fc[2], to_chair(*q)) <= 0.0;
+        inside |= box_distance(fc[0], fc[2], pose.base_from_odom(*q)) <= 0.0;
     }
     (gap, inside)
 }
