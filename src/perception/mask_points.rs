@@ -316,8 +316,13 @@ fn kept_points(
     let (lo, hi) = (f32x8::splat(lo), f32x8::splat(hi));
     let p = Projector::new(g.intrinsics, g.target_from_camera);
     // with capacity, not zeroed: a zeroed block this size is fresh pages
-    // from the kernel, each a fault when written
-    let mut points = Vec::with_capacity(n);
+    // from the kernel, each a fault when written. Eight slots past the
+    // samples: every block's eight points are written, kept or not, at
+    // the next free slot (`written` never passes `i`, so `written + 8`
+    // never passes `n + 8`), and only the kept ones advance it.
+    let mut points: Vec<Point3<f32>> = Vec::with_capacity(n + L);
+    let mut written = 0usize;
+    let slots = points.spare_capacity_mut();
     let mut sweep = SweepLanes::new(std::mem::take(blocks));
     ground.clear();
     ground.reserve(n.div_ceil(L));
@@ -344,21 +349,28 @@ fn kept_points(
             ground.push([gx, gy]);
             let keep = kept.to_bitmask();
             let (x, y, zt) = (x.to_array(), y.to_array(), zt.to_array());
+            let out = &mut slots[written..written + L];
             if keep == 0xff {
-                let eight: [Point3<f32>; L] =
-                    std::array::from_fn(|l| Point3::new(x[l], y[l], zt[l]));
-                points.extend_from_slice(&eight);
-            } else {
-                for l in 0..L {
-                    if (keep >> l) & 1 == 1 {
-                        points.push(Point3::new(x[l], y[l], zt[l]));
-                    }
+                for (l, slot) in out.iter_mut().enumerate() {
+                    slot.write(Point3::new(x[l], y[l], zt[l]));
                 }
+                written += L;
+            } else if keep != 0 {
+                let mut k = 0usize;
+                for l in 0..L {
+                    out[k].write(Point3::new(x[l], y[l], zt[l]));
+                    k += ((keep >> l) & 1) as usize;
+                }
+                written += k;
             }
             i += L;
         }
         sweep.add_block(block);
     }
+    // SAFETY: the first `written` slots were each written above (a slot
+    // is passed only after its point was written and kept), and
+    // `written <= n < capacity`
+    unsafe { points.set_len(written) };
     let (sweep, spent) = sweep.finish(ground);
     *blocks = spent;
     (points, sweep)
