@@ -337,7 +337,13 @@ impl Supervisor {
             if log && tracing::enabled!(tracing::Level::DEBUG) {
                 let by = |source: usize| blocked_by(&pts[source..=source]);
                 let [corridor, turn, arc, closing] = [0, 1, 2, 3].map(|which| check(which, &pts));
+                // the first point that holds the chair alone (base_link, m)
+                let first_point_base = pts.iter().flat_map(|p| p.iter()).find(|p| {
+                    let one: &[[f32; 2]] = std::slice::from_ref(*p);
+                    blocked_by(&[one])
+                });
                 tracing::debug!(
+                    ?first_point_base,
                     corridor,
                     turn,
                     arc,
