@@ -1,6 +1,7 @@
 //! A top-down picture of one trip: the floor plan (walls, furniture, low
-//! objects, steps down), the objects of the word, the chair's start, its
-//! path and where it ended, and a caption. Pure: the picture from the
+//! objects, steps down), the objects of the word, a walking person where
+//! they ended over the line they walk, the chair's start, its path and
+//! where it ended, and a caption. Pure: the picture from the
 //! world; the caller writes it.
 
 use crate::msg::{ImageError, RgbImage};
@@ -22,6 +23,8 @@ const PIT: [u8; 3] = [40, 60, 140];
 const TARGET: [u8; 3] = [40, 170, 60];
 const PATH: [u8; 3] = [215, 40, 40];
 const START: [u8; 3] = [30, 110, 220];
+const PERSON: [u8; 3] = [160, 60, 170];
+const PERSON_WAY: [u8; 3] = [215, 175, 220];
 const TEXT: [u8; 3] = [0, 0, 0];
 
 /// The picture of `world` (its trace and its chair where it is now),
@@ -68,6 +71,23 @@ pub fn render(world: &SimWorld, target: &str, caption: &str) -> Result<RgbImage,
             c,
         );
     }
+    // a walking person where they were at the end, over the line they
+    // walk to and fro (drawn after the line, below)
+    let people: Vec<[[f64; 2]; 4]> = world
+        .walkers
+        .iter()
+        .filter_map(|walking| {
+            let w = &walking.walker;
+            let o = world.room.objects.get(w.object)?;
+            let mid = |p: [f64; 2]| [p[0] + w.size_m[0] / 2.0, p[1] + w.size_m[1] / 2.0];
+            Some([
+                mid(w.from_m),
+                mid(w.to_m),
+                [o.min_m[0], o.min_m[1]],
+                [o.max_m[0], o.max_m[1]],
+            ])
+        })
+        .collect();
     // the outer walls
     for t in 0..3 {
         let (u0, v1) = px([0.0, 0.0]);
@@ -103,6 +123,10 @@ pub fn render(world: &SimWorld, target: &str, caption: &str) -> Result<RgbImage,
             }
         }
     };
+    for &[from, to, lo, hi] in &people {
+        line(&mut img, from, to, PERSON_WAY, 1);
+        fill(&mut img, lo, hi, PERSON);
+    }
     // the start: the chair's heading as an arrow from a dot
     let s = world.start;
     let tip = [
@@ -162,5 +186,37 @@ mod tests {
         assert_eq!(at(mid), TARGET);
         let Pose2 { x_m, y_m, .. } = scene.start;
         assert_eq!(at([x_m, y_m]), START);
+    }
+
+    /// A walking person is drawn apart from the furniture, where they are.
+    #[test]
+    fn the_picture_shows_a_walking_person_where_they_are() {
+        let scene = (0..200)
+            .map(super::super::scene::generate)
+            .find(|s| !s.walkers.is_empty())
+            .expect("a scene with a person walking");
+        let mut world = SimWorld::in_room(
+            scene.room.clone(),
+            scene.start,
+            DiffDriveParams::paper_chair(),
+        );
+        world.walkers = scene
+            .walkers
+            .iter()
+            .map(|w| super::super::world::Walking::new(w.clone()))
+            .collect();
+        let img = render(&world, &scene.prompt, "a person").expect("a picture");
+        let at = |p: [f64; 2]| {
+            let u = MARGIN_PX + (p[0] * PX_PER_M) as usize;
+            let v = img.height() - MARGIN_PX - (p[1] * PX_PER_M) as usize;
+            let i = (v * img.width() + u) * 3;
+            [img.data()[i], img.data()[i + 1], img.data()[i + 2]]
+        };
+        let o = &scene.room.objects[scene.walkers[0].object];
+        let mid = [
+            (o.min_m[0] + o.max_m[0]) / 2.0,
+            (o.min_m[1] + o.max_m[1]) / 2.0,
+        ];
+        assert_eq!(at(mid), PERSON);
     }
 }

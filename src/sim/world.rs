@@ -85,6 +85,12 @@ pub struct Walker {
 
 /// A walking person keeps this far from the chair's footprint, m.
 pub const WALKER_KEEPS_M: f64 = 0.4;
+/// A step that nears the chair by at most this much of its length is
+/// along it (about 3 degrees off its edge), and taken within the keep-out
+/// while it leaves them at least `WALKER_ALONG_FROM_M` from the chair
+/// (nearer, only a step that does not near it at all), m.
+pub const WALKER_ALONG_NEARS: f64 = 0.05;
+pub const WALKER_ALONG_FROM_M: f64 = 0.1;
 /// A walking person who has waited this long for the chair (which may be
 /// waiting for them) turns back and gives way, s.
 pub const WALKER_GIVES_WAY_AFTER_S: f64 = 3.0;
@@ -417,14 +423,19 @@ impl SimWorld {
             let (lo, hi) = (next, [next[0] + w.size_m[0], next[1] + w.size_m[1]]);
             let gap = |lo: [f64; 2], hi: [f64; 2]| footprint_gap(&f, &pose, lo, hi);
             // a step within the keep-out that takes them nearer the chair
-            // waits (one away from it, or along it at the same distance,
-            // is taken: the chair may have come nearer than the keep-out
-            // to them, and a person standing just before a waiting chair
-            // walks on past it rather than wait there with it for good)
+            // waits (one away from it, or along it, is taken: the chair
+            // may have come nearer than the keep-out to them, and a person
+            // standing just before a waiting chair walks on past it rather
+            // than wait there with it for good; along a chair turned a
+            // little, each step nears it by a little of its length)
             let gap_next = gap(lo, hi);
-            if gap_next < WALKER_KEEPS_M
-                && gap_next < gap(here, [here[0] + w.size_m[0], here[1] + w.size_m[1]])
-            {
+            let gap_here = gap(here, [here[0] + w.size_m[0], here[1] + w.size_m[1]]);
+            let along = if gap_next >= WALKER_ALONG_FROM_M {
+                WALKER_ALONG_NEARS * step
+            } else {
+                0.0
+            };
+            if gap_next < WALKER_KEEPS_M && gap_next < gap_here - along {
                 walking.waited_s += dt_s;
                 if walking.waited_s >= WALKER_GIVES_WAY_AFTER_S {
                     *back = !*back;

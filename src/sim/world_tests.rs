@@ -350,6 +350,37 @@ fn a_person_just_before_a_waiting_chair_walks_on_past_it() {
     assert_eq!(w.report.collision_steps, 0);
 }
 
+/// The same with the chair turned a little (0.01 rad, as a chair that has
+/// just lined up stands): along its front, each step nears the front by
+/// a hundredth of its length, and they walk on past it all the same —
+/// before, that hundredth made every step wait, and a person at the end
+/// of their walk before the chair's front stood there with it for good
+/// (scene 60 of seed 1: a person 0.135 m before a chair in a doorway for
+/// 70 s, the chair held until it gave up).
+#[test]
+fn a_person_just_before_a_chair_turned_a_little_walks_on_past_it() {
+    for theta_rad in [0.01, -0.01] {
+        let mut w = world();
+        let mapping = mapping();
+        w.truth = Pose2 {
+            x_m: 3.0,
+            y_m: 2.0,
+            theta_rad,
+        };
+        let idx = add_walker(&mut w, [3.69, 1.4], [3.69, 2.9]);
+        let before = w.room.objects[idx].min_m;
+        for _ in 0..300 {
+            w.step(0.01, None, &mapping);
+        }
+        let after = w.room.objects[idx].min_m;
+        assert!(
+            after[1] > before[1] + 1.0,
+            "{theta_rad}: {before:?} → {after:?}"
+        );
+        assert_eq!(w.report.collision_steps, 0);
+    }
+}
+
 /// A person beside a chair turned to their way, walking on towards its
 /// side, never comes nearer to it than they were (they wait, then turn
 /// back): their distance is to the footprint's edges, not to points along
