@@ -158,6 +158,14 @@ mod tests {
     use crate::estimation::odometry::DiffDriveParams;
     use crate::msg::Pose2;
 
+    /// The picture's colour at the floor point `p` (world, m).
+    fn colour_at(img: &RgbImage, p: [f64; 2]) -> [u8; 3] {
+        let u = MARGIN_PX + (p[0] * PX_PER_M) as usize;
+        let v = img.height() - MARGIN_PX - (p[1] * PX_PER_M) as usize;
+        let i = (v * img.width() + u) * 3;
+        [img.data()[i], img.data()[i + 1], img.data()[i + 2]]
+    }
+
     #[test]
     fn the_picture_shows_the_floor_the_target_and_the_start() {
         let scene = super::super::scene::generate(7);
@@ -167,12 +175,7 @@ mod tests {
             DiffDriveParams::paper_chair(),
         );
         let img = render(&world, &scene.prompt, "scene 7").expect("a picture");
-        let at = |p: [f64; 2]| {
-            let u = MARGIN_PX + (p[0] * PX_PER_M) as usize;
-            let v = img.height() - MARGIN_PX - (p[1] * PX_PER_M) as usize;
-            let i = (v * img.width() + u) * 3;
-            [img.data()[i], img.data()[i + 1], img.data()[i + 2]]
-        };
+        let at = |p: [f64; 2]| colour_at(&img, p);
         let target = scene
             .room
             .objects
@@ -206,12 +209,7 @@ mod tests {
             .map(|w| super::super::world::Walking::new(w.clone()))
             .collect();
         let img = render(&world, &scene.prompt, "a person").expect("a picture");
-        let at = |p: [f64; 2]| {
-            let u = MARGIN_PX + (p[0] * PX_PER_M) as usize;
-            let v = img.height() - MARGIN_PX - (p[1] * PX_PER_M) as usize;
-            let i = (v * img.width() + u) * 3;
-            [img.data()[i], img.data()[i + 1], img.data()[i + 2]]
-        };
+        let at = |p: [f64; 2]| colour_at(&img, p);
         let o = &scene.room.objects[scene.walkers[0].object];
         let mid = [
             (o.min_m[0] + o.max_m[0]) / 2.0,

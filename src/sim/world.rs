@@ -85,11 +85,11 @@ pub struct Walker {
 
 /// A walking person keeps this far from the chair's footprint, m.
 pub const WALKER_KEEPS_M: f64 = 0.4;
-/// A step that nears the chair by at most this much of its length is
-/// along it (about 3 degrees off its edge), and taken within the keep-out
-/// while it leaves them at least `WALKER_ALONG_FROM_M` from the chair
-/// (nearer, only a step that does not near it at all), m.
+/// A step that nears the chair by at most this fraction of its length is
+/// along it (about 3 degrees off its edge), and taken within the keep-out.
 pub const WALKER_ALONG_NEARS: f64 = 0.05;
+/// ... while it leaves them this far from the chair or more (nearer, only
+/// a step that does not near it at all is taken), m.
 pub const WALKER_ALONG_FROM_M: f64 = 0.1;
 /// A walking person who has waited this long for the chair (which may be
 /// waiting for them) turns back and gives way, s.
