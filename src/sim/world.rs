@@ -429,13 +429,16 @@ impl SimWorld {
             // than wait there with it for good; along a chair turned a
             // little, each step nears it by a little of its length)
             let gap_next = gap(lo, hi);
-            let gap_here = gap(here, [here[0] + w.size_m[0], here[1] + w.size_m[1]]);
-            let along = if gap_next >= WALKER_ALONG_FROM_M {
-                WALKER_ALONG_NEARS * step
-            } else {
-                0.0
+            let nears = gap_next < WALKER_KEEPS_M && {
+                let gap_here = gap(here, [here[0] + w.size_m[0], here[1] + w.size_m[1]]);
+                let along = if gap_next >= WALKER_ALONG_FROM_M {
+                    WALKER_ALONG_NEARS * step
+                } else {
+                    0.0
+                };
+                gap_next < gap_here - along
             };
-            if gap_next < WALKER_KEEPS_M && gap_next < gap_here - along {
+            if nears {
                 walking.waited_s += dt_s;
                 if walking.waited_s >= WALKER_GIVES_WAY_AFTER_S {
                     *back = !*back;
