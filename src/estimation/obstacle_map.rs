@@ -65,6 +65,10 @@ pub struct ObstacleMap {
     /// (what the camera sees there now may not be what the lasers saw).
     laser_seen: BTreeSet<(i32, i32)>,
     hit_last_scan: Vec<(i32, i32)>,
+    /// Of those the lasers saw: how many scans in a row have passed rays
+    /// through the cell with no return landing in it or beside it
+    /// ([`ObstacleMap::on_lasers`]).
+    unhit_scans: BTreeMap<(i32, i32), u32>,
     /// The lasers' plane above the floor, m (None: not known): a cell
     /// where a frame saw the thing from below it to above it is one the
     /// lasers see too, whether or not a return landed in that very cell.
@@ -166,6 +170,7 @@ impl ObstacleMap {
             floor_seen: BTreeSet::new(),
             laser_seen: BTreeSet::new(),
             hit_last_scan: Vec::new(),
+            unhit_scans: BTreeMap::new(),
             laser_plane_m: None,
         }
     }
@@ -323,6 +328,8 @@ impl ObstacleMap {
         });
         let cells = &self.cells;
         self.laser_seen.retain(|k| cells.contains_key(k));
+        let seen = &self.laser_seen;
+        self.unhit_scans.retain(|k, _| seen.contains(k));
         let cell_m = self.cell_m;
         self.floor_seen.retain(|&k| {
             let [x, y] = centre(cell_m, k);

@@ -10,8 +10,12 @@
 //! plane, a table's top above it or a chair's seat, which the lasers pass
 //! over or under). When, later, rays of one scan pass through such a cell
 //! and on beyond it, and no ray ends at it or beside it, the thing the
-//! lasers saw there has gone, and the cell is forgotten. Pure: a scan's
-//! rays (`base_link`) and the chair's pose at the scan's stamp in.
+//! lasers saw there has gone, and the cell is forgotten. Where one scan
+//! cannot tell (the trail lies along the rays, as a wall seen at a slant
+//! does, or the person's return lies just beyond it), time does: rays
+//! through the cell, and no return in it or beside it, scan after scan.
+//! Pure: a scan's rays (`base_link`) and the chair's pose at the scan's
+//! stamp in.
 
 use super::{centre, CellKind, ObstacleMap, MAX_POINTS_PER_CELL};
 use crate::msg::{LaserRay, Pose2};
@@ -31,6 +35,15 @@ const KEEP_WITHIN_M: f64 = 0.25;
 /// Rays of one scan that must pass a cell to forget it: a thing narrower
 /// than the rays' spacing can slip between two of them.
 const PASSES_TO_FORGET: usize = 2;
+/// Scans whose rays pass through a cell the lasers saw, since the last
+/// one that landed a return in it or in a cell beside it, that forget it
+/// though a return lies within [`CLEAR_BEYOND_M`] beyond it or its
+/// neighbours along the rays are remembered too: a person's trail along
+/// the rays' way, with the person standing where they walked on to (a
+/// wall seen at a slant lands a return within a cell of each of its cells
+/// at the distances that matter). The estimation puts a scan at most
+/// every 0.2 s: 4 s or more.
+const UNHIT_SCANS_TO_FORGET: u32 = 20;
 
 /// One scanner's rays: they share an origin and turn by a fixed step.
 struct Fan<'a> {
@@ -135,6 +148,49 @@ fn through(
     passes
 }
 
+/// Whether at least [`PASSES_TO_FORGET`] rays pass through the middle of
+/// the cell `p_base`, within [`THROUGH_POINT_M`] of a point the camera saw
+/// there (`points_base`), and end a cell or more beyond it, no ray beside
+/// it is blind, and it lies farther than [`KEEP_WITHIN_M`] from the
+/// scanners.
+fn looked_through(
+    fans: &[Fan<'_>],
+    p_base: [f64; 2],
+    points_base: &[[f64; 2]],
+    cell_m: f64,
+) -> bool {
+    let reach = cell_m / 2.0;
+    let mut passes = 0;
+    for fan in fans {
+        let (dx, dy) = (p_base[0] - fan.origin[0], p_base[1] - fan.origin[1]);
+        let d = dx.hypot(dy);
+        if d <= KEEP_WITHIN_M {
+            return false;
+        }
+        for r in fan.about(dy.atan2(dx), (KEEP_WITHIN_M / d).asin()) {
+            let (ux, uy) = (r.dir[0] as f64, r.dir[1] as f64);
+            let along = dx * ux + dy * uy;
+            let across = (dx * uy - dy * ux).abs();
+            if across > KEEP_WITHIN_M {
+                continue;
+            }
+            if r.blind {
+                return false;
+            }
+            let beyond = r.range_m.map_or(f64::INFINITY, f64::from) - along;
+            passes += usize::from(
+                across <= reach
+                    && beyond >= cell_m
+                    && points_base.iter().any(|q| {
+                        let (qx, qy) = (q[0] - fan.origin[0], q[1] - fan.origin[1]);
+                        (qx * uy - qy * ux).abs() <= THROUGH_POINT_M
+                    }),
+            );
+        }
+    }
+    passes >= PASSES_TO_FORGET
+}
+
 /// Whether a ray beside the cell whose middle is `p_base` says something
 /// may still be there: a return within [`KEEP_WITHIN_M`] of it, one a
 /// little beyond it ([`CLEAR_BEYOND_M`]), or a blind step.
@@ -197,15 +253,34 @@ impl ObstacleMap {
             .collect();
         hit.sort_unstable();
         hit.dedup();
+        // every cell a return landed in, obstacle or not
+        let mut returns: Vec<(i32, i32)> = rays_base
+            .iter()
+            .filter(|r| !r.blind)
+            .filter_map(|r| {
+                let range = r.range_m? as f64;
+                self.cell(to_odom([
+                    r.origin_m[0] as f64 + range * r.dir[0] as f64,
+                    r.origin_m[1] as f64 + range * r.dir[1] as f64,
+                ]))
+            })
+            .collect();
+        returns.sort_unstable();
+        returns.dedup();
+        let hit_beside = |k: (i32, i32)| {
+            (-1..=1).any(|i| (-1..=1).any(|j| returns.binary_search(&(k.0 + i, k.1 + j)).is_ok()))
+        };
         self.laser_seen.extend(hit.iter().copied());
         // the others the lasers saw before: gone where the rays now pass
         let mut gone = Vec::new();
+        let mut unhit = Vec::new();
         let mut points_base = Vec::with_capacity(MAX_POINTS_PER_CELL);
         for k in &self.laser_seen {
             let Some((_, points)) = self.cells.get(k) else {
                 continue;
             };
             if hit.binary_search(k).is_ok() {
+                unhit.push((*k, None));
                 continue;
             }
             points_base.clear();
@@ -219,12 +294,28 @@ impl ObstacleMap {
             let passes = through(&fans, p_base, &points_base, cell_m, &remembered_base);
             if passes >= PASSES_TO_FORGET && !kept(&fans, p_base) {
                 gone.push(*k);
+            } else if hit_beside(*k) {
+                unhit.push((*k, None));
+            } else if looked_through(&fans, p_base, &points_base, cell_m) {
+                let n = self.unhit_scans.get(k).copied().unwrap_or(0) + 1;
+                if n >= UNHIT_SCANS_TO_FORGET {
+                    gone.push(*k);
+                } else {
+                    unhit.push((*k, Some(n)));
+                }
             }
+        }
+        for (k, n) in unhit {
+            match n {
+                Some(n) => self.unhit_scans.insert(k, n),
+                None => self.unhit_scans.remove(&k),
+            };
         }
         for k in &gone {
             tracing::debug!(cell_odom = ?centre(cell_m, *k), ?pose, "camera memory: the lasers see through a cell they saw");
             self.cells.remove(k);
             self.laser_seen.remove(k);
+            self.unhit_scans.remove(k);
         }
         self.hit_last_scan = hit;
         !gone.is_empty()

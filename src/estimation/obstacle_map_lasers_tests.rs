@@ -234,7 +234,10 @@ fn blind_steps_never_forget_anything() {
     let (mut m, cells) = person_seen_by_both();
     let person = PERSON;
     let toward = person[1].atan2(person[0]);
-    assert!(!m.on_lasers(HERE, &scan(&[], Some((toward, 0.2)))));
+    // scan after scan: not even in time
+    for _ in 0..2 * UNHIT_SCANS_TO_FORGET {
+        assert!(!m.on_lasers(HERE, &scan(&[], Some((toward, 0.2)))));
+    }
     assert_eq!(m.len(), cells);
 }
 
@@ -435,4 +438,89 @@ fn rays_along_a_surface_do_not_pass_its_cells() {
     // the rays run along the surface
     let face = |q: [f64; 2]| (q[1] - 0.225).abs() < 0.025 && (0.8..2.5).contains(&q[0]);
     assert_eq!(through(&f, cell, &points, 0.05, &face), 0);
+}
+
+/// A person who walked straight away from the chair, along the rays,
+/// and stands 2 m ahead (seen across the lasers' plane): the cells where
+/// the camera and the lasers saw them on the way lie along the rays, each
+/// with its neighbours before and after it remembered and the person's
+/// return within 0.3 m beyond the last, as a wall seen at a slant would.
+/// No return lands in them or beside them any more: after
+/// [`UNHIT_SCANS_TO_FORGET`] scans in a row they are forgotten, and the
+/// cells of the person's surface stay.
+#[test]
+fn a_persons_trail_along_the_rays_is_forgotten_once_scans_land_nowhere_on_it() {
+    let mut m = ObstacleMap::new(0.05, 4.0).with_laser_plane(0.66);
+    let at = |x: f64| [x, PERSON[1]];
+    // a frame every 5 cm of their way
+    for x in (0..=16).map(|i| 1.2 + 0.05 * f64::from(i)) {
+        m.insert(HERE, &seen_from_to(at(x), 0.06, 1.5), F);
+        m.on_lasers(HERE, &scan(&[(at(x), PERSON_R)], None));
+    }
+    let standing = scan(&[(at(2.0), PERSON_R)], None);
+    // the trail: points farther than two cells from the person's circle
+    // (a cell beside the returns on them stays: noise, or a step)
+    let trail = |m: &ObstacleMap| {
+        m.points(CellKind::Obstacle)
+            .into_iter()
+            .filter(|p| (p[0] - 2.0).hypot(p[1] - PERSON[1]) > PERSON_R + 0.1)
+            .count()
+    };
+    // the person's surface, where the returns land, and the cell before it
+    let person = |m: &ObstacleMap| {
+        m.points(CellKind::Obstacle)
+            .into_iter()
+            .filter(|p| (p[0] - 2.0).hypot(p[1] - PERSON[1]) <= PERSON_R + 0.05)
+            .count()
+    };
+    let (trail_before, person_before) = (trail(&m), person(&m));
+    assert!(
+        trail_before >= 5 && person_before >= 3,
+        "{trail_before} {person_before}"
+    );
+    // what one scan's rays cannot tell from a wall: all still there
+    m.on_lasers(HERE, &standing);
+    let kept = trail(&m);
+    assert_eq!(kept, trail_before);
+    // (the counts began as the person walked on)
+    for _ in 1..UNHIT_SCANS_TO_FORGET {
+        m.on_lasers(HERE, &standing);
+    }
+    // all but a point in a cell's corner, which one ray alone passes
+    // within 1.5 cm of and through the cell's middle
+    assert!(trail(&m) <= 1, "{kept} → {}", trail(&m));
+    assert_eq!(person(&m), person_before);
+}
+
+/// The other side of that rule: a wall beside the chair, its face 0.33 m
+/// from the left laser and in the far half of its cells (the rays through
+/// the cells' middles pass on and end on the face beyond), keeps its
+/// cells scan after scan: the rays at a slant land a return within a cell
+/// of each. Blind steps toward a cell keep it too.
+#[test]
+fn a_wall_beside_the_chair_is_kept_scan_after_scan() {
+    let wall = ([0.8, 0.545], [2.0, 0.545]);
+    let face: Vec<[f32; 3]> = (0..=24)
+        .map(|i| [0.8 + 0.05 * i as f32, 0.545, 0.02])
+        .collect();
+    let mut m = ObstacleMap::new(0.05, 4.0);
+    m.insert(
+        HERE,
+        &DepthScan {
+            obstacles_base: face,
+            ..Default::default()
+        },
+        F,
+    );
+    let cells = m.len();
+    let rays = scan_with_walls(&[], &[wall], None);
+    for _ in 0..3 * UNHIT_SCANS_TO_FORGET {
+        m.on_lasers(HERE, &rays);
+    }
+    assert!(
+        m.laser_seen_len() > cells / 2,
+        "{} of {cells}",
+        m.laser_seen_len()
+    );
+    assert_eq!(m.len(), cells);
 }
