@@ -8,7 +8,7 @@ use std::time::Duration;
 use serde::Serialize;
 
 use super::tracker::{approach_pose, ApproachPose, Track, Tracker};
-use crate::msg::{wrap_angle, Pose2, Stamp, VelocityCmd};
+use crate::msg::{hypot_cmp, wrap_angle, Pose2, Stamp, VelocityCmd};
 use crate::perception::boxes::OrientedBox;
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -179,6 +179,10 @@ pub struct GoalKeeper {
     word_since: Option<Stamp>,
     /// The track "no free place beside it" was said of.
     said_no_approach: Option<u64>,
+    /// The place "looking further" was last said of (odom): a search held
+    /// in one place that picks the same place again goes there without
+    /// saying it again.
+    said_further_to: Option<[f64; 2]>,
     /// Searches begun again for this word after losing sight of it.
     searched_again: u32,
     /// Places beside the object the chair was held on its way to (odom):
@@ -247,6 +251,9 @@ pub const LOOK_SETTLE_RAD: f64 = 0.5;
 pub const MAX_EXPLORATIONS: usize = 6;
 /// A place to search is reached this close, m.
 const EXPLORED_WITHIN_M: f64 = 0.3;
+/// A place to look from within this of the one "looking further" was
+/// last said of is the same place: not said again (m).
+const SAME_PLACE_TO_LOOK_FROM_M: f64 = 0.3;
 /// Driving to a place to search gives up after this long (and searches
 /// where it is).
 const EXPLORE_FOR: Duration = Duration::from_secs(40);
@@ -277,6 +284,7 @@ impl GoalKeeper {
             search_since: None,
             word_since: None,
             said_no_approach: None,
+            said_further_to: None,
             searched_again: 0,
             refused: Vec::new(),
             refusing: false,
@@ -303,6 +311,7 @@ impl GoalKeeper {
         self.search_since = None;
         self.word_since = None;
         self.said_no_approach = None;
+        self.said_further_to = None;
         self.searched_again = 0;
         self.refused.clear();
         self.refusing = false;
@@ -526,7 +535,16 @@ impl GoalKeeper {
                     target,
                     since: now,
                 };
-                Some(GoalEvent::LookingFurther { label })
+                let again = self.said_further_to.is_some_and(|p| {
+                    hypot_cmp(
+                        p[0] - target[0],
+                        p[1] - target[1],
+                        SAME_PLACE_TO_LOOK_FROM_M,
+                    )
+                    .is_some_and(std::cmp::Ordering::is_le)
+                });
+                self.said_further_to = Some(target);
+                (!again).then_some(GoalEvent::LookingFurther { label })
             }
             _ => {
                 self.state = GoalState::None;

@@ -528,3 +528,52 @@ fn held_to_the_end_beside_the_object_ends_there() {
         assert!(matches!(g.state(), GoalState::Searching { .. }));
     }
 }
+
+/// A search held in one place that picks the same place to look from
+/// again and again (scene 330 of `opennav sim --seed 1`: every 3 s for
+/// 90 s) says "looking further" once; another place is said again.
+#[test]
+fn looking_further_to_the_same_place_is_said_once() {
+    let mut g = GoalKeeper::new(crate::config::Settings::defaults().goal_settings());
+    let tracker = Tracker::new(crate::config::Settings::defaults().tracker);
+    g.set_prompt("bed");
+    let here = Pose2::default();
+    let back_to_searching = |g: &mut GoalKeeper, s: f64, at: [f64; 2]| {
+        // the place reached: it looks again from there
+        let chair = Pose2 {
+            x_m: at[0],
+            y_m: at[1],
+            theta_rad: 0.0,
+        };
+        g.update(t(s), &tracker, chair, &[], &|_| true, &|_| true);
+        assert!(
+            matches!(g.state(), GoalState::Searching { .. }),
+            "{:?}",
+            g.state()
+        );
+    };
+    let said = |e: Option<GoalEvent>| e.map(|e| e.say());
+    g.update(t(0.0), &tracker, here, &[], &|_| true, &|_| true);
+    let place = [1.0, 0.5];
+    assert_eq!(
+        said(g.explore(t(1.0), Some(place))).as_deref(),
+        Some("I cannot see a bed from here. Looking further.")
+    );
+    for k in 0..5 {
+        back_to_searching(&mut g, 2.0 + 3.0 * f64::from(k), place);
+        // within 0.3 m of it: the same place, not said again
+        let near = [place[0] + 0.2, place[1] - 0.1];
+        assert_eq!(
+            said(g.explore(t(3.0 + 3.0 * f64::from(k)), Some(near))),
+            None
+        );
+        assert!(matches!(g.state(), GoalState::Exploring { .. }));
+    }
+    back_to_searching(&mut g, 20.0, place);
+    let elsewhere = [-1.0, 0.5];
+    assert!(said(g.explore(t(21.0), Some(elsewhere))).is_some());
+    // a new word: said again, at the first place too
+    g.set_prompt("bed");
+    g.update(t(22.0), &tracker, here, &[], &|_| true, &|_| true);
+    assert!(said(g.explore(t(23.0), Some(elsewhere))).is_some());
+}
