@@ -383,13 +383,13 @@ fn the_estimation_sends_the_memory_the_lasers_changed() {
     assert!(after.value.obstacles_odom.len() < 4);
 }
 
-#[test]
-fn a_wall_the_rays_run_along_is_kept() {
-    // a wall's face 0.52 m to the left (in the middle of its cells), from
-    // 0.8 m to 2.5 m ahead, seen by the camera and hit by the lasers face on
-    let wall = ([0.8, 0.52], [2.5, 0.52]);
-    let face: Vec<[f32; 3]> = (0..=34)
-        .map(|i| [0.8 + 0.05 * i as f32, 0.52, 0.02])
+/// A memory with a wall's face at `y_m` to the left, from 0.8 m ahead to
+/// `to_m`, seen by the camera from `HERE` (a point every 5 cm); the wall
+/// and the memory's cell count.
+fn wall_seen(y_m: f64, to_m: f64) -> (ObstacleMap, ([f64; 2], [f64; 2]), usize) {
+    let n = ((to_m - 0.8) / 0.05).round() as usize;
+    let face: Vec<[f32; 3]> = (0..=n)
+        .map(|i| [(0.8 + 0.05 * i as f64) as f32, y_m as f32, 0.02])
         .collect();
     let mut m = ObstacleMap::new(0.05, 4.0);
     m.insert(
@@ -401,6 +401,14 @@ fn a_wall_the_rays_run_along_is_kept() {
         F,
     );
     let cells = m.len();
+    (m, ([0.8, y_m], [to_m, y_m]), cells)
+}
+
+#[test]
+fn a_wall_the_rays_run_along_is_kept() {
+    // a wall's face 0.52 m to the left (in the middle of its cells), from
+    // 0.8 m to 2.5 m ahead, seen by the camera and hit by the lasers face on
+    let (mut m, wall, cells) = wall_seen(0.52, 2.5);
     m.on_lasers(HERE, &scan_with_walls(&[], &[wall], None));
     assert!(
         m.laser_seen_len() > cells / 2,
@@ -496,23 +504,10 @@ fn a_persons_trail_along_the_rays_is_forgotten_once_scans_land_nowhere_on_it() {
 /// from the left laser and in the far half of its cells (the rays through
 /// the cells' middles pass on and end on the face beyond), keeps its
 /// cells scan after scan: the rays at a slant land a return within a cell
-/// of each. Blind steps toward a cell keep it too.
+/// of each (blind steps keep a cell too: `blind_steps_never_forget_anything`).
 #[test]
 fn a_wall_beside_the_chair_is_kept_scan_after_scan() {
-    let wall = ([0.8, 0.545], [2.0, 0.545]);
-    let face: Vec<[f32; 3]> = (0..=24)
-        .map(|i| [0.8 + 0.05 * i as f32, 0.545, 0.02])
-        .collect();
-    let mut m = ObstacleMap::new(0.05, 4.0);
-    m.insert(
-        HERE,
-        &DepthScan {
-            obstacles_base: face,
-            ..Default::default()
-        },
-        F,
-    );
-    let cells = m.len();
+    let (mut m, wall, cells) = wall_seen(0.545, 2.0);
     let rays = scan_with_walls(&[], &[wall], None);
     for _ in 0..3 * UNHIT_SCANS_TO_FORGET {
         m.on_lasers(HERE, &rays);
