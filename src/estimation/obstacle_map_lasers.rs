@@ -105,6 +105,16 @@ fn fans(rays: &[LaserRay]) -> Vec<Fan<'_>> {
     out
 }
 
+/// Whether the ray of `fan` along `dir` passes within [`THROUGH_POINT_M`]
+/// of one of the points the camera saw (`points_base`): through the
+/// thing's surface, not the cell's free part beside it.
+fn through_a_point(fan: &Fan<'_>, dir: [f64; 2], points_base: &[[f64; 2]]) -> bool {
+    points_base.iter().any(|q| {
+        let (qx, qy) = (q[0] - fan.origin[0], q[1] - fan.origin[1]);
+        (qx * dir[1] - qy * dir[0]).abs() <= THROUGH_POINT_M
+    })
+}
+
 /// The rays that pass the cell whose middle is `p_base`: through it
 /// (through a point the camera saw, `points_base`, and across the surface:
 /// no obstacle cell remembered just before or after it along the ray,
@@ -134,10 +144,7 @@ fn through(
             // no return and not blind: nothing within the laser's range
             let beyond = r.range_m.map_or(f64::INFINITY, f64::from) - along;
             let pass = beyond >= CLEAR_BEYOND_M
-                && points_base.iter().any(|q| {
-                    let (qx, qy) = (q[0] - fan.origin[0], q[1] - fan.origin[1]);
-                    (qx * uy - qy * ux).abs() <= THROUGH_POINT_M
-                })
+                && through_a_point(fan, [ux, uy], points_base)
                 // across the surface, not along it: a ray along a wall, a
                 // jamb's inner face, passes its points within a centimetre
                 && !remembered_base([p_base[0] - ux * cell_m, p_base[1] - uy * cell_m])
@@ -179,12 +186,7 @@ fn looked_through(
             }
             let beyond = r.range_m.map_or(f64::INFINITY, f64::from) - along;
             passes += usize::from(
-                across <= reach
-                    && beyond >= cell_m
-                    && points_base.iter().any(|q| {
-                        let (qx, qy) = (q[0] - fan.origin[0], q[1] - fan.origin[1]);
-                        (qx * uy - qy * ux).abs() <= THROUGH_POINT_M
-                    }),
+                across <= reach && beyond >= cell_m && through_a_point(fan, [ux, uy], points_base),
             );
         }
     }
@@ -237,22 +239,6 @@ impl ObstacleMap {
             let (dx, dy) = (p[0] - pose.x_m, p[1] - pose.y_m);
             [c * dx + s * dy, -s * dx + c * dy]
         };
-        // the obstacle cells this scan's returns land in
-        let mut hit: Vec<(i32, i32)> = rays_base
-            .iter()
-            .filter(|r| !r.blind)
-            .filter_map(|r| {
-                let range = r.range_m? as f64;
-                let p = [
-                    r.origin_m[0] as f64 + range * r.dir[0] as f64,
-                    r.origin_m[1] as f64 + range * r.dir[1] as f64,
-                ];
-                let k = self.cell(to_odom(p))?;
-                matches!(self.cells.get(&k), Some((CellKind::Obstacle, _))).then_some(k)
-            })
-            .collect();
-        hit.sort_unstable();
-        hit.dedup();
         // every cell a return landed in, obstacle or not
         let mut returns: Vec<(i32, i32)> = rays_base
             .iter()
@@ -267,6 +253,12 @@ impl ObstacleMap {
             .collect();
         returns.sort_unstable();
         returns.dedup();
+        // the obstacle cells among them (sorted still)
+        let hit: Vec<(i32, i32)> = returns
+            .iter()
+            .copied()
+            .filter(|k| matches!(self.cells.get(k), Some((CellKind::Obstacle, _))))
+            .collect();
         let hit_beside = |k: (i32, i32)| {
             (-1..=1).any(|i| (-1..=1).any(|j| returns.binary_search(&(k.0 + i, k.1 + j)).is_ok()))
         };
