@@ -65,8 +65,8 @@ pub struct ObstacleMap {
     /// (what the camera sees there now may not be what the lasers saw).
     laser_seen: BTreeSet<(i32, i32)>,
     hit_last_scan: Vec<(i32, i32)>,
-    /// Of those the lasers saw: how many scans in a row have passed rays
-    /// through the cell with no return landing in it or beside it
+    /// Of those the lasers saw: how many scans have passed rays through
+    /// the cell since the last that landed a return in it or beside it
     /// ([`ObstacleMap::on_lasers`]).
     unhit_scans: BTreeMap<(i32, i32), u32>,
     /// The lasers' plane above the floor, m (None: not known): a cell
