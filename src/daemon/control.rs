@@ -94,6 +94,8 @@ pub struct NavigationStats {
     /// (held on them, or out of time).
     pub manoeuvres: u64,
     pub manoeuvres_given_up: u64,
+    /// Of those, begun through a doorway whose passage was given up.
+    pub doorway_manoeuvres: u64,
 }
 
 pub struct Control {
@@ -187,6 +189,9 @@ pub struct Control {
     manoeuvres_for_goal: u32,
     manoeuvres: u64,
     manoeuvres_held: u64,
+    /// Manoeuvres through a doorway begun for this goal, and in all.
+    doorway_manoeuvres_for_goal: u32,
+    doorway_manoeuvres: u64,
 }
 
 /// A turn on the spot refused this long for an unseen rear: the chair asks.
@@ -271,6 +276,8 @@ impl Control {
             manoeuvres_for_goal: 0,
             manoeuvres: 0,
             manoeuvres_held: 0,
+            doorway_manoeuvres_for_goal: 0,
+            doorway_manoeuvres: 0,
         }
     }
 
@@ -579,6 +586,7 @@ impl Control {
             last_doorway_given_up: self.route.as_ref().and_then(|r| r.last_given_up),
             manoeuvres: self.manoeuvres,
             manoeuvres_given_up: self.manoeuvres_held,
+            doorway_manoeuvres: self.doorway_manoeuvres,
         }
     }
 

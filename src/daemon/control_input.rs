@@ -111,16 +111,15 @@ impl Control {
                     // stays held where it is (the goal given up in time)
                     self.end_manoeuvre("not clear behind");
                     self.say("I will not back up.".into());
-                } else if let Some(p) = asked_at.filter(|_| self.back_off.backing()) {
-                    // backing off only made room for another try: the
-                    // chair stays held where it is, and goes on when the
-                    // way clears
+                } else if let Some(p) = asked_at {
+                    // backing off only made room for another try (or
+                    // what asked is over: the back-off ended, a passage
+                    // moved on to another phase): the chair stays held
+                    // where it is, no back-off is asked for here again,
+                    // and it goes on when the way clears (the goal given
+                    // up in time), as for a back-off under way
                     self.back_off.refuse(p);
                     self.say("I will not back up.".into());
-                } else {
-                    self.goal.clear();
-                    self.planner_cmd = None;
-                    self.say("Staying here.".into());
                 }
             }
             UserInput::No if self.asked_rear.is_some() => {

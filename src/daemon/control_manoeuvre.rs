@@ -10,6 +10,7 @@
 use super::Control;
 use crate::estimation::goal::GoalState;
 use crate::msg::{Pose2, Stamp, SupervisorState, VelocityCmd};
+use crate::navigation::doorway::Doorway;
 use crate::navigation::manoeuvre::{self, Follower, ManoeuvreShape};
 
 /// A manoeuvre held by the supervisor this long without a break is over
@@ -30,12 +31,34 @@ const WAY_POINT_M: f64 = 1.5;
 /// A straight move's speed, m/s.
 const MANOEUVRE_MPS: f64 = 0.08;
 
+/// Manoeuvres through a doorway begun at most, per goal, and how long one
+/// goes on at most (as long as a passage: the trip to an object is not
+/// bounded by the search's time, only by being held, and a manoeuvre
+/// moves the chair; scene 140 of `opennav sim --seed 1`, whose object
+/// lies a step down beyond a doorway, ran past its trial's end with
+/// three of 150 s).
+pub(super) const DOORWAY_MANOEUVRES_PER_GOAL: u32 = 2;
+pub(super) const DOORWAY_MANOEUVRE_AT_MOST: std::time::Duration =
+    std::time::Duration::from_secs(60);
+/// A manoeuvre through a doorway ends this far past its middle (base_link:
+/// the chair's rear, 0.45 m behind it, out of the wall's half thickness
+/// with room to turn on), within [`THROUGH_WITHIN_M`] of it and turned
+/// within [`THROUGH_TURNED_WITHIN_RAD`] of the doorway's axis (m, rad).
+const THROUGH_PAST_M: f64 = 0.8;
+const THROUGH_WITHIN_M: f64 = 0.15;
+const THROUGH_TURNED_WITHIN_RAD: f64 = 0.3;
+
 /// A manoeuvre under way.
 #[derive(Debug, Clone)]
 pub(super) struct Manoeuvre {
     follower: Follower,
+    /// Over after this long.
+    at_most: std::time::Duration,
     since: Stamp,
     held_since: Option<Stamp>,
+    /// Through a doorway (on the way to a place to look from too), not to
+    /// the place beside the object.
+    through_doorway: bool,
 }
 
 impl Control {
@@ -95,14 +118,7 @@ impl Control {
         };
         map.update_distances();
         self.manoeuvres_for_goal += 1;
-        let (sin, cos) = pose.theta_rad.sin_cos();
-        let seen_now: Vec<[f64; 2]> = seen_now_base
-            .iter()
-            .map(|q| {
-                let (x, y) = (q[0] as f64, q[1] as f64);
-                [pose.x_m + cos * x - sin * y, pose.y_m + sin * x + cos * y]
-            })
-            .collect();
+        let seen_now = odom_points(pose, seen_now_base);
         let to_place = (place, a.yaw_rad, ENDS_TURNED_WITHIN_RAD);
         let to_way = on_the_way.map(|p| (p, 0.0, std::f64::consts::PI));
         let found = [Some(to_place), to_way]
@@ -133,13 +149,81 @@ impl Control {
         };
         tracing::info!(?pose, ?place, ?to, ?moves, "manoeuvre: begun");
         self.manoeuvres += 1;
+        let follower = Follower::new(moves);
+        let at_most = MANOEUVRE_AT_MOST;
         self.manoeuvre = Some(Manoeuvre {
-            follower: Follower::new(moves),
+            follower,
+            at_most,
             since: now,
             held_since: None,
+            through_doorway: false,
         });
         self.say(
             "Something is in my way. I will work my way round it, turning on the spot and \
+             driving straight; say stop to stay here."
+                .to_string(),
+        );
+        true
+    }
+
+    /// The passage through `door` was given up (held in it, or out of
+    /// time): a manoeuvre on the map through it, to
+    /// [`THROUGH_PAST_M`] past its middle facing along its axis, as a
+    /// person would work a chair through a tight doorway by turns on the
+    /// spot and straight crawls, forward and back. Begun if one is found
+    /// (true); else the planner's way is followed again, as before. It
+    /// keeps clear of `seen_now_base` too (base_link).
+    pub(super) fn begin_doorway_manoeuvre(
+        &mut self,
+        now: Stamp,
+        pose: Pose2,
+        door: Doorway,
+        seen_now_base: &[[f32; 2]],
+    ) -> bool {
+        if self.doorway_manoeuvres_for_goal >= DOORWAY_MANOEUVRES_PER_GOAL || self.manoeuvring() {
+            return false;
+        }
+        let shape = ManoeuvreShape::at_a_crawl(&self.supervisor);
+        let no_turns: Vec<([f64; 2], f64)> = self
+            .turn_refused_at
+            .map(|p| ([p.x_m, p.y_m], super::REFUSED_TURN_WITHIN_M))
+            .into_iter()
+            .collect();
+        let Some(map) = self.route.as_mut().and_then(|r| r.map.as_mut()) else {
+            return false;
+        };
+        map.update_distances();
+        self.doorway_manoeuvres_for_goal += 1;
+        let seen_now = odom_points(pose, seen_now_base);
+        let to = door.on_axis(THROUGH_PAST_M);
+        let Some(moves) = manoeuvre::plan(
+            map,
+            &seen_now,
+            &no_turns,
+            pose,
+            to,
+            door.axis_rad,
+            THROUGH_WITHIN_M,
+            THROUGH_TURNED_WITHIN_RAD,
+            &shape,
+        ) else {
+            tracing::info!(?pose, center = ?door.center, width_m = door.width_m, "manoeuvre: none found through the doorway");
+            return false;
+        };
+        tracing::info!(?pose, center = ?door.center, width_m = door.width_m, ?to, ?moves, "manoeuvre: through the doorway, begun");
+        self.manoeuvres += 1;
+        self.doorway_manoeuvres += 1;
+        let follower = Follower::new(moves);
+        let at_most = DOORWAY_MANOEUVRE_AT_MOST;
+        self.manoeuvre = Some(Manoeuvre {
+            follower,
+            at_most,
+            since: now,
+            held_since: None,
+            through_doorway: true,
+        });
+        self.say(
+            "The doorway is tight. I will work my way through it, turning on the spot and \
              driving straight; say stop to stay here."
                 .to_string(),
         );
@@ -159,8 +243,17 @@ impl Control {
             GoalState::None | GoalState::Reached { .. }
         ) {
             self.manoeuvres_for_goal = 0;
+            self.doorway_manoeuvres_for_goal = 0;
         }
-        if !matches!(self.goal.state(), GoalState::Tracking { .. }) {
+        // through a doorway: on the way to the object or to a place to
+        // look from; else only to the object
+        let through_doorway = self.manoeuvre.as_ref().is_some_and(|m| m.through_doorway);
+        let going = match self.goal.state() {
+            GoalState::Tracking { .. } => true,
+            GoalState::Searching { .. } | GoalState::Exploring { .. } => through_doorway,
+            _ => false,
+        };
+        if !going {
             if self.manoeuvre.take().is_some() {
                 tracing::info!("manoeuvre: over, no place to go to");
             }
@@ -175,7 +268,7 @@ impl Control {
         let held_for = m.held_since.get_or_insert(now).age_at(now);
         let over = if held && held_for >= MANOEUVRE_HELD_FOR {
             Some("held")
-        } else if m.since.age_at(now) >= MANOEUVRE_AT_MOST {
+        } else if m.since.age_at(now) >= m.at_most {
             Some("out of time")
         } else {
             None
@@ -217,4 +310,15 @@ impl Control {
     pub(super) fn manoeuvre_left(&self) -> Option<&[manoeuvre::Move]> {
         self.manoeuvre.as_ref().map(|m| m.follower.left())
     }
+}
+
+/// Points in base_link (seen from `pose`) in odom.
+fn odom_points(pose: Pose2, base: &[[f32; 2]]) -> Vec<[f64; 2]> {
+    let (sin, cos) = pose.theta_rad.sin_cos();
+    base.iter()
+        .map(|q| {
+            let (x, y) = (q[0] as f64, q[1] as f64);
+            [pose.x_m + cos * x - sin * y, pose.y_m + sin * x + cos * y]
+        })
+        .collect()
 }

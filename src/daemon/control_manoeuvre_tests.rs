@@ -140,3 +140,86 @@ fn a_manoeuvre_to_a_place_out_of_reach_ends_on_the_way() {
         "ends at {end:?}, not on the way 1.5 m on"
     );
 }
+
+/// A doorway whose passage was given up, the chair before it turned well
+/// off its axis and off its middle line: a manoeuvre through it on the
+/// map begins (said), ending past it facing along its axis; it goes on
+/// while the goal is a search (a place to look from beyond the doorway),
+/// and no second one begins while it is under way.
+#[test]
+fn a_doorway_given_up_is_worked_through_on_the_map() {
+    let mut c = control(true).with_map(MapSettings::default());
+    c.on_input(UserInput::Goto("chair".into()));
+    assert!(matches!(c.goal.state(), GoalState::Searching { .. }));
+    // a wall at x = 1 m with a 0.84 m doorway about y = 0
+    let mut wall: Vec<[f64; 2]> = Vec::new();
+    for k in 0..=120 {
+        let y_m = -3.0 + k as f64 * 0.05;
+        if y_m.abs() > 0.42 {
+            wall.push([1.0, y_m]);
+        }
+    }
+    let mut map = crate::navigation::map::GridMap::new(MapSettings::default(), [0.0, 0.0]);
+    map.set_camera(&wall, &[]);
+    if let Some(r) = c.route.as_mut() {
+        r.map = Some(map);
+    }
+    let door = crate::navigation::doorway::Doorway {
+        center: [1.0, 0.0],
+        axis_rad: 0.0,
+        width_m: 0.84,
+    };
+    let pose = Pose2 {
+        x_m: -0.2,
+        y_m: 0.4,
+        theta_rad: 1.2,
+    };
+    assert!(c.begin_doorway_manoeuvre(at(0), pose, door, &[]));
+    let said: Vec<String> = std::mem::take(&mut c.said);
+    assert!(
+        said.iter().any(|s| s.starts_with("The doorway is tight.")),
+        "{said:?}"
+    );
+    assert_eq!(c.navigation_stats().doorway_manoeuvres, 1);
+    let moves = c.manoeuvre_left().map(<[_]>::to_vec).unwrap_or_default();
+    let last = moves.iter().rev().find_map(|m| match *m {
+        crate::navigation::manoeuvre::Move::Straight {
+            to, heading_rad, ..
+        } => Some((to, heading_rad)),
+        crate::navigation::manoeuvre::Move::Turn { .. } => None,
+    });
+    let (to, heading_rad) = last.unwrap_or_else(|| panic!("no straight move: {moves:?}"));
+    assert!(
+        to[0] > 1.6 && to[1].abs() < 0.2,
+        "ends at {to:?}: {moves:?}"
+    );
+    assert!(
+        heading_rad.abs() < 0.3,
+        "ends turned {heading_rad}: {moves:?}"
+    );
+    // searching, the manoeuvre drives on; no second one begins
+    assert!(c
+        .manoeuvre_step(at(50), pose, SupervisorState::Navigating)
+        .is_some());
+    assert!(!c.begin_doorway_manoeuvre(at(100), pose, door, &[]));
+    assert_eq!(c.navigation_stats().doorway_manoeuvres, 1);
+}
+
+/// "No" to backing up after what asked has ended (the back-off over, a
+/// passage on to another phase): the chair stays held on its way, no
+/// back-off is asked for there again, and the trip goes on (not "Staying
+/// here.", which ends it).
+#[test]
+fn no_to_a_back_up_no_longer_under_way_keeps_the_trip() {
+    let (mut c, _, began, said) = held_going_to_a_chair_3_m_ahead();
+    began.unwrap_or_else(|| panic!("no manoeuvre: {said:?}"));
+    c.end_manoeuvre("test: over");
+    assert!(!c.manoeuvring() && !c.back_off.backing());
+    c.asked_rear = Some(Pose2::default());
+    c.asked_back_up = true;
+    c.on_input(UserInput::No);
+    let said: Vec<String> = std::mem::take(&mut c.said);
+    assert!(said.iter().any(|s| s == "I will not back up."), "{said:?}");
+    assert!(!said.iter().any(|s| s.contains("Staying here")), "{said:?}");
+    assert!(matches!(c.goal.state(), GoalState::Tracking { .. }));
+}

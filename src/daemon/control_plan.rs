@@ -202,6 +202,15 @@ impl Control {
             .route
             .as_mut()
             .and_then(|r| r.through_doorway(now, pose, to, within_m, state, lasers_base));
+        // its passage given up just now: worked through on the map
+        // instead, where a way is found (the manoeuvre drives from the
+        // next step; still this one)
+        let given_up = self.route.as_mut().and_then(|r| r.take_given_up_door());
+        if let Some(d) = given_up {
+            if self.begin_doorway_manoeuvre(now, pose, d, &o_turn.points_base) {
+                return Stamped::new(now, VelocityCmd::default());
+            }
+        }
         let aim = match (door, self.route.as_mut()) {
             (Some(PassageCmd::Drive(cmd)), _) => {
                 // through a doorway: its own steering

@@ -50,6 +50,10 @@ pub struct Router {
     pub doorways: u64,
     pub doorways_given_up: u64,
     pub last_given_up: Option<DoorwayGivenUp>,
+    /// The doorway whose passage was given up this step, for the control
+    /// step to work its way through on the map instead
+    /// ([`Router::take_given_up_door`]).
+    given_up_door: Option<doorway::Doorway>,
 }
 
 /// A doorway passage given up: the phase it was in, the doorway's width
@@ -138,6 +142,7 @@ impl Router {
             doorways: 0,
             doorways_given_up: 0,
             last_given_up: None,
+            given_up_door: None,
         }
     }
 
@@ -230,6 +235,12 @@ impl Router {
             self.back_up_refused_at = Some(at);
         }
         backing
+    }
+
+    /// The doorway whose passage [`Router::through_doorway`] gave up
+    /// (once).
+    pub(super) fn take_given_up_door(&mut self) -> Option<doorway::Doorway> {
+        self.given_up_door.take()
     }
 
     /// A new trip: the person's earlier "no" to a back-up no longer holds
@@ -428,6 +439,7 @@ impl Router {
                 "doorway: given up"
             );
             self.last_given_up = Some(given_up);
+            self.given_up_door = Some(passage.door);
             self.skip = Some((passage.door.center, Stamp(now.0 + PASSAGE_SKIP_FOR)));
             self.passage = None;
             return None;

@@ -393,6 +393,35 @@ fn a_nearer_object_of_the_word_becomes_the_goal() {
     assert!(matches!(g.state(), GoalState::Tracking { track, .. } if *track == near_id));
 }
 
+/// A track of the word in the line of sight before the goal's object,
+/// while that is still seen (the depth segmenter took what hides part of
+/// it for the object): not "a nearer one", however long it is seen; the
+/// same track off to the side is.
+#[test]
+fn what_stands_before_the_goals_object_is_not_a_nearer_one() {
+    for (y_m, nearer) in [(0.2, false), (2.0, true)] {
+        let mut g = GoalKeeper::new(crate::config::Settings::defaults().goal_settings());
+        let mut tracker = Tracker::new(crate::config::Settings::defaults().tracker);
+        let chair = Pose2::default();
+        g.set_prompt("chair");
+        let far = chair_at(6.0, 0.0);
+        let before = chair_at(3.0, y_m);
+        let mut events = Vec::new();
+        for k in 0..40 {
+            let now = t(k as f64 * 0.1);
+            let seen = if k < 3 {
+                vec![far.clone()]
+            } else {
+                vec![far.clone(), before.clone()]
+            };
+            tracker.update(now, &seen, |_| true);
+            events.extend(g.update(now, &tracker, chair, &[], &|_| true, &|_| true));
+        }
+        let switched = events.iter().any(|e| matches!(e, GoalEvent::Nearer { .. }));
+        assert_eq!(switched, nearer, "before the goal at y {y_m} m: {events:?}");
+    }
+}
+
 /// An object turned to odom's axes (a 2 × 1.6 m bed at 45°), held
 /// facing it at the place's distance from its side: as near as it goes.
 /// Its upright box reaches 1 m nearer there, at its corner; the distance

@@ -271,10 +271,14 @@ pub fn plan(
             }
         }
     }
-    let heading = |k: usize| k as f64 * std::f64::consts::TAU / HEADINGS as f64;
+    // the lattice's headings hold the goal's heading itself (a doorway's
+    // axis: a few degrees off it, the footprint sweeps a jamb)
+    let turn_step = std::f64::consts::TAU / HEADINGS as f64;
+    let offset = goal_yaw_rad.rem_euclid(turn_step);
+    let heading = |k: usize| offset + k as f64 * turn_step;
     let heading_index = |theta: f64| -> usize {
-        let t = theta.rem_euclid(std::f64::consts::TAU);
-        ((t / std::f64::consts::TAU * HEADINGS as f64).round() as usize) % HEADINGS
+        let t = (theta - offset).rem_euclid(std::f64::consts::TAU);
+        ((t / turn_step).round() as usize) % HEADINGS
     };
     let reach_m = (shape.front_m.max(shape.rear_m) + shape.ahead_m)
         .hypot(shape.half_width_m + shape.side_margin_m);
@@ -314,7 +318,7 @@ pub fn plan(
     // goal's costs at least its turn steps (the guide stays a lower bound)
     let turn_left = |k: usize| {
         let off = wrap_angle(heading(k) - goal_yaw_rad).abs() - yaw_tol_rad;
-        (off.max(0.0) / (std::f64::consts::TAU / HEADINGS as f64)).floor() * S_PER_TURN_STEP
+        (off.max(0.0) / turn_step).floor() * S_PER_TURN_STEP
     };
     let c0 = cell([start.x_m, start.y_m])?;
     if !to_goal[c0].is_finite() {

@@ -275,3 +275,44 @@ fn through_the_narrowest_doorway_on_the_map() {
         }
     }
 }
+
+/// Through a 0.82 m doorway whose axis lies between the lattice's 5°
+/// steps, from before it turned 1 rad off its axis: the turns end on the
+/// axis itself (the lattice holds the goal's heading), and the footprint
+/// never touches a wall.
+#[test]
+fn through_a_doorway_turned_off_its_axis_the_turns_end_on_it() {
+    for k in 0..6 {
+        let axis_rad = 0.37 + k as f64 * 0.61;
+        let (s, c) = axis_rad.sin_cos();
+        let turn = |p: [f64; 2]| [c * p[0] - s * p[1], s * p[0] + c * p[1]];
+        let mut points = wall([1.0, -4.0], [1.0, -0.41]);
+        points.extend(wall([1.0, 0.41], [1.0, 4.0]));
+        let points: Vec<[f64; 2]> = points.into_iter().map(turn).collect();
+        let map = map_of(&points);
+        let from = turn([-0.1, 0.3]);
+        let start = Pose2 {
+            x_m: from[0],
+            y_m: from[1],
+            theta_rad: wrap_angle(axis_rad + 1.0),
+        };
+        let goal = turn([1.8, 0.0]);
+        let moves = plan(&map, &[], &[], start, goal, axis_rad, 0.15, 0.3, &SHAPE)
+            .unwrap_or_else(|| panic!("no manoeuvre through the doorway on axis {axis_rad} rad"));
+        for m in &moves {
+            if let Move::Straight { heading_rad, .. } = m {
+                let off = wrap_angle(heading_rad - axis_rad).abs();
+                assert!(
+                    !(1e-9..=0.05).contains(&off),
+                    "a straight move {off} rad off the axis: {moves:?}"
+                );
+            }
+        }
+        for p in drive(moves, start) {
+            assert!(
+                !touches(&p, &points),
+                "the footprint touches a wall at {p:?} (axis {axis_rad} rad)"
+            );
+        }
+    }
+}
