@@ -96,11 +96,7 @@ impl Control {
         let place = [a.x_m, a.y_m];
         let shape = ManoeuvreShape::at_a_crawl(&self.supervisor);
         // where the person said it is not clear around: no turn there
-        let no_turns: Vec<([f64; 2], f64)> = self
-            .turn_refused_at
-            .map(|p| ([p.x_m, p.y_m], super::REFUSED_TURN_WITHIN_M))
-            .into_iter()
-            .collect();
+        let no_turns = self.no_turns();
         let Some(route) = self.route.as_mut() else {
             return false;
         };
@@ -148,22 +144,50 @@ impl Control {
             return false;
         };
         tracing::info!(?pose, ?place, ?to, ?moves, "manoeuvre: begun");
-        self.manoeuvres += 1;
-        let follower = Follower::new(moves);
-        let at_most = MANOEUVRE_AT_MOST;
-        self.manoeuvre = Some(Manoeuvre {
-            follower,
-            at_most,
-            since: now,
-            held_since: None,
-            through_doorway: false,
-        });
-        self.say(
+        self.start_manoeuvre(
+            now,
+            moves,
+            false,
             "Something is in my way. I will work my way round it, turning on the spot and \
-             driving straight; say stop to stay here."
-                .to_string(),
+             driving straight; say stop to stay here.",
         );
         true
+    }
+
+    /// Where the person said it is not clear around: no turn on the spot
+    /// there (odom centre, radius m).
+    fn no_turns(&self) -> Vec<([f64; 2], f64)> {
+        self.turn_refused_at
+            .map(|p| ([p.x_m, p.y_m], super::REFUSED_TURN_WITHIN_M))
+            .into_iter()
+            .collect()
+    }
+
+    /// The manoeuvre of `moves` under way from `now` (through a doorway,
+    /// or not), counted and said.
+    fn start_manoeuvre(
+        &mut self,
+        now: Stamp,
+        moves: Vec<manoeuvre::Move>,
+        through_doorway: bool,
+        said: &str,
+    ) {
+        self.manoeuvres += 1;
+        if through_doorway {
+            self.doorway_manoeuvres += 1;
+        }
+        self.manoeuvre = Some(Manoeuvre {
+            follower: Follower::new(moves),
+            at_most: if through_doorway {
+                DOORWAY_MANOEUVRE_AT_MOST
+            } else {
+                MANOEUVRE_AT_MOST
+            },
+            since: now,
+            held_since: None,
+            through_doorway,
+        });
+        self.say(said.to_string());
     }
 
     /// The passage through `door` was given up (held in it, or out of
@@ -184,11 +208,7 @@ impl Control {
             return false;
         }
         let shape = ManoeuvreShape::at_a_crawl(&self.supervisor);
-        let no_turns: Vec<([f64; 2], f64)> = self
-            .turn_refused_at
-            .map(|p| ([p.x_m, p.y_m], super::REFUSED_TURN_WITHIN_M))
-            .into_iter()
-            .collect();
+        let no_turns = self.no_turns();
         let Some(map) = self.route.as_mut().and_then(|r| r.map.as_mut()) else {
             return false;
         };
@@ -211,21 +231,12 @@ impl Control {
             return false;
         };
         tracing::info!(?pose, center = ?door.center, width_m = door.width_m, ?to, ?moves, "manoeuvre: through the doorway, begun");
-        self.manoeuvres += 1;
-        self.doorway_manoeuvres += 1;
-        let follower = Follower::new(moves);
-        let at_most = DOORWAY_MANOEUVRE_AT_MOST;
-        self.manoeuvre = Some(Manoeuvre {
-            follower,
-            at_most,
-            since: now,
-            held_since: None,
-            through_doorway: true,
-        });
-        self.say(
+        self.start_manoeuvre(
+            now,
+            moves,
+            true,
             "The doorway is tight. I will work my way through it, turning on the spot and \
-             driving straight; say stop to stay here."
-                .to_string(),
+             driving straight; say stop to stay here.",
         );
         true
     }

@@ -58,12 +58,7 @@ fn held_with_no_way_round_it_works_its_way_round_on_the_map() {
     );
     assert!(first.is_some_and(|m| m.v_mps < 0.0), "{first:?}");
     // the person says it is not clear behind
-    c.asked_rear = Some(Pose2::default());
-    c.asked_back_up = true;
-    c.on_input(UserInput::No);
-    let said: Vec<String> = std::mem::take(&mut c.said);
-    assert!(said.iter().any(|s| s == "I will not back up."), "{said:?}");
-    assert!(!said.iter().any(|s| s.contains("Staying here")), "{said:?}");
+    no_to_backing_up(&mut c);
     assert!(!c.manoeuvring());
     assert_eq!(c.navigation_stats().manoeuvres_given_up, 1);
     assert!(matches!(c.goal.state(), GoalState::Tracking { .. }));
@@ -215,11 +210,17 @@ fn no_to_a_back_up_no_longer_under_way_keeps_the_trip() {
     began.unwrap_or_else(|| panic!("no manoeuvre: {said:?}"));
     c.end_manoeuvre("test: over");
     assert!(!c.manoeuvring() && !c.back_off.backing());
+    no_to_backing_up(&mut c);
+    assert!(matches!(c.goal.state(), GoalState::Tracking { .. }));
+}
+
+/// The person says "no" to backing up: the chair says "I will not back
+/// up.", not "Staying here." (the trip goes on).
+fn no_to_backing_up(c: &mut Control) {
     c.asked_rear = Some(Pose2::default());
     c.asked_back_up = true;
     c.on_input(UserInput::No);
     let said: Vec<String> = std::mem::take(&mut c.said);
     assert!(said.iter().any(|s| s == "I will not back up."), "{said:?}");
     assert!(!said.iter().any(|s| s.contains("Staying here")), "{said:?}");
-    assert!(matches!(c.goal.state(), GoalState::Tracking { .. }));
 }
