@@ -290,12 +290,17 @@ impl Control {
         };
         if cmd.is_none() {
             let left = m.follower.left().len();
+            let through_doorway = m.through_doorway;
             self.manoeuvre = None;
             match over {
                 Some(why) => {
                     self.manoeuvres_held += 1;
-                    tracing::warn!(?pose, why, left, "manoeuvre: given up");
-                    self.say("I could not work my way round it.".to_string());
+                    tracing::warn!(?pose, why, left, through_doorway, "manoeuvre: given up");
+                    self.say(if through_doorway {
+                        "I could not work my way through the doorway.".to_string()
+                    } else {
+                        "I could not work my way round it.".to_string()
+                    });
                 }
                 None => tracing::info!(?pose, "manoeuvre: done"),
             }

@@ -140,7 +140,8 @@ fn a_manoeuvre_to_a_place_out_of_reach_ends_on_the_way() {
 /// off its axis and off its middle line: a manoeuvre through it on the
 /// map begins (said), ending past it facing along its axis; it goes on
 /// while the goal is a search (a place to look from beyond the doorway),
-/// and no second one begins while it is under way.
+/// no second one begins while it is under way, and after its minute it
+/// is over (said).
 #[test]
 fn a_doorway_given_up_is_worked_through_on_the_map() {
     let mut c = control(true).with_map(MapSettings::default());
@@ -198,6 +199,19 @@ fn a_doorway_given_up_is_worked_through_on_the_map() {
         .is_some());
     assert!(!c.begin_doorway_manoeuvre(at(100), pose, door, &[]));
     assert_eq!(c.navigation_stats().doorway_manoeuvres, 1);
+    // its minute out (the chair never moved): over, said, the hold goes on
+    let late = crate::daemon::control::manoeuvre::DOORWAY_MANOEUVRE_AT_MOST.as_millis() as u64;
+    assert!(c
+        .manoeuvre_step(at(late - 50), pose, SupervisorState::Navigating)
+        .is_some());
+    assert_eq!(
+        c.manoeuvre_step(at(late), pose, SupervisorState::Navigating),
+        None
+    );
+    assert!(!c.manoeuvring());
+    assert_eq!(c.navigation_stats().manoeuvres_given_up, 1);
+    let said: Vec<String> = std::mem::take(&mut c.said);
+    assert_eq!(said, ["I could not work my way through the doorway."]);
 }
 
 /// "No" to backing up after what asked has ended (the back-off over, a
