@@ -52,8 +52,6 @@ const THROUGH_TURNED_WITHIN_RAD: f64 = 0.3;
 #[derive(Debug, Clone)]
 pub(super) struct Manoeuvre {
     follower: Follower,
-    /// Over after this long.
-    at_most: std::time::Duration,
     since: Stamp,
     held_since: Option<Stamp>,
     /// Through a doorway (on the way to a place to look from too), not to
@@ -114,7 +112,10 @@ impl Control {
         };
         map.update_distances();
         self.manoeuvres_for_goal += 1;
-        let seen_now = odom_points(pose, seen_now_base);
+        let seen_now = seen_now_base
+            .iter()
+            .map(|q| pose.odom_from_base([q[0] as f64, q[1] as f64]))
+            .collect::<Vec<_>>();
         let to_place = (place, a.yaw_rad, ENDS_TURNED_WITHIN_RAD);
         let to_way = on_the_way.map(|p| (p, 0.0, std::f64::consts::PI));
         let found = [Some(to_place), to_way]
@@ -178,11 +179,6 @@ impl Control {
         }
         self.manoeuvre = Some(Manoeuvre {
             follower: Follower::new(moves),
-            at_most: if through_doorway {
-                DOORWAY_MANOEUVRE_AT_MOST
-            } else {
-                MANOEUVRE_AT_MOST
-            },
             since: now,
             held_since: None,
             through_doorway,
@@ -214,7 +210,10 @@ impl Control {
         };
         map.update_distances();
         self.doorway_manoeuvres_for_goal += 1;
-        let seen_now = odom_points(pose, seen_now_base);
+        let seen_now = seen_now_base
+            .iter()
+            .map(|q| pose.odom_from_base([q[0] as f64, q[1] as f64]))
+            .collect::<Vec<_>>();
         let to = door.on_axis(THROUGH_PAST_M);
         let Some(moves) = manoeuvre::plan(
             map,
@@ -279,7 +278,13 @@ impl Control {
         let held_for = m.held_since.get_or_insert(now).age_at(now);
         let over = if held && held_for >= MANOEUVRE_HELD_FOR {
             Some("held")
-        } else if m.since.age_at(now) >= m.at_most {
+        } else if m.since.age_at(now)
+            >= if m.through_doorway {
+                DOORWAY_MANOEUVRE_AT_MOST
+            } else {
+                MANOEUVRE_AT_MOST
+            }
+        {
             Some("out of time")
         } else {
             None
@@ -326,15 +331,4 @@ impl Control {
     pub(super) fn manoeuvre_left(&self) -> Option<&[manoeuvre::Move]> {
         self.manoeuvre.as_ref().map(|m| m.follower.left())
     }
-}
-
-/// Points in base_link (seen from `pose`) in odom.
-fn odom_points(pose: Pose2, base: &[[f32; 2]]) -> Vec<[f64; 2]> {
-    let (sin, cos) = pose.theta_rad.sin_cos();
-    base.iter()
-        .map(|q| {
-            let (x, y) = (q[0] as f64, q[1] as f64);
-            [pose.x_m + cos * x - sin * y, pose.y_m + sin * x + cos * y]
-        })
-        .collect()
 }

@@ -40,6 +40,16 @@ impl Pose2 {
         [c * dx + s * dy, -s * dx + c * dy]
     }
 
+    /// The point `p_base` (base_link; this pose being odom_from_base) in
+    /// odom: the inverse of [`Pose2::base_from_odom`].
+    pub fn odom_from_base(&self, p_base: [f64; 2]) -> [f64; 2] {
+        let (c, s) = (self.theta_rad.cos(), self.theta_rad.sin());
+        [
+            self.x_m + c * p_base[0] - s * p_base[1],
+            self.y_m + s * p_base[0] + c * p_base[1],
+        ]
+    }
+
     /// Moves by `ds` along an arc turning by `dtheta` (exact when
     /// |dθ| is not tiny, the midpoint rule otherwise).
     pub fn advanced(&self, ds: f64, dtheta: f64) -> Pose2 {
@@ -125,6 +135,27 @@ impl Pose2 {
 mod tests {
     use super::*;
     use crate::sim::scene::SplitMix64;
+
+    /// odom_from_base and base_from_odom undo each other, and a point 1 m
+    /// ahead of a chair at (1, 2) facing +y lies at (1, 3).
+    #[test]
+    fn odom_from_base_inverts_base_from_odom() {
+        let pose = Pose2 {
+            x_m: 1.0,
+            y_m: 2.0,
+            theta_rad: std::f64::consts::FRAC_PI_2,
+        };
+        let ahead = pose.odom_from_base([1.0, 0.0]);
+        assert!((ahead[0] - 1.0).abs() < 1e-12 && (ahead[1] - 3.0).abs() < 1e-12);
+        let turned = Pose2 {
+            x_m: -0.4,
+            y_m: 0.7,
+            theta_rad: 2.3,
+        };
+        let p = [0.35, -1.2];
+        let back = turned.base_from_odom(turned.odom_from_base(p));
+        assert!((back[0] - p[0]).abs() < 1e-12 && (back[1] - p[1]).abs() < 1e-12);
+    }
 
     #[test]
     fn floor_fast_is_floor_bit_for_bit() {
