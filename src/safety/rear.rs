@@ -78,9 +78,12 @@ pub struct RearWatch {
     pub settings: RearSettings,
     /// Where the lasers looked from: (stamp, pose), thinned.
     views: VecDeque<(Stamp, Pose2)>,
-    /// Laser points in odom with their stamp, on a 5 cm grid.
-    points: VecDeque<(Stamp, [f64; 2])>,
-    cells: std::collections::HashSet<(i64, i64)>,
+    /// Laser points in odom on a 5 cm grid, each cell's newest, with the
+    /// stamp of the scan that last saw it: a wall seen scan after scan is
+    /// remembered for `memory` after the last scan that saw it, not
+    /// forgotten `memory` after the first while the chair still turns
+    /// beside it.
+    points: std::collections::BTreeMap<(i64, i64), (Stamp, [f64; 2])>,
     confirmed: Option<(Stamp, Pose2)>,
     /// Whether that word was for all around the chair, not only behind.
     confirmed_around: bool,
@@ -138,8 +141,7 @@ impl RearWatch {
         RearWatch {
             settings,
             views: VecDeque::new(),
-            points: VecDeque::new(),
-            cells: Default::default(),
+            points: Default::default(),
             confirmed: None,
             confirmed_around: false,
             floor_vouched: VecDeque::new(),
@@ -169,9 +171,7 @@ impl RearWatch {
                 (p[0] / CELL_M).floor() as i64,
                 (p[1] / CELL_M).floor() as i64,
             );
-            if self.cells.insert(cell) {
-                self.points.push_back((stamp, p));
-            }
+            self.points.insert(cell, (stamp, p));
         }
     }
 
@@ -221,22 +221,9 @@ impl RearWatch {
             self.views.pop_front();
         }
         let radius = s.points_radius_m + 1.0;
-        let before = self.points.len();
-        self.points.retain(|(t, p)| {
+        self.points.retain(|_, (t, p)| {
             t.age_at(now) <= s.memory && (p[0] - pose.x_m).hypot(p[1] - pose.y_m) <= radius
         });
-        if self.points.len() != before {
-            self.cells = self
-                .points
-                .iter()
-                .map(|(_, p)| {
-                    (
-                        (p[0] / CELL_M).floor() as i64,
-                        (p[1] / CELL_M).floor() as i64,
-                    )
-                })
-                .collect();
-        }
     }
 
     fn near(&self, a: &Pose2, b: &Pose2) -> bool {
@@ -325,7 +312,7 @@ impl RearWatch {
             // in front no longer holds the chair)
             points_base: self
                 .points
-                .iter()
+                .values()
                 .filter(|(t, _)| t.age_at(now) <= self.settings.memory)
                 .map(|(_, p)| {
                     let (dx, dy) = (p[0] - pose.x_m, p[1] - pose.y_m);
@@ -509,6 +496,16 @@ mod tests {
         assert_eq!(v.points_base.len(), 1);
         assert!((v.points_base[0][0] + 0.8).abs() < 1e-3, "{v:?}");
         assert!(w.view(at(31.0), pose(0.0, 0.0)).points_base.is_empty());
+        // seen scan after scan (facing it, 0 s to 20 s), then turned away
+        // from: remembered for the memory after the last scan that saw it
+        let mut w = RearWatch::new(RearSettings::default());
+        for k in 0..=200 {
+            w.on_scan(at(0.1 * k as f64), pose(0.0, 180.0), &[[0.8, 0.0]]);
+        }
+        let v = w.view(at(31.0), pose(0.0, 0.0));
+        assert_eq!(v.points_base.len(), 1, "{v:?}");
+        assert!((v.points_base[0][0] + 0.8).abs() < 1e-3, "{v:?}");
+        assert!(w.view(at(50.5), pose(0.0, 0.0)).points_base.is_empty());
     }
 
     #[test]
