@@ -355,7 +355,12 @@ impl Control {
             Stamped::new(c.stamp, o)
         });
         if let (Some(r), Some(odo)) = (self.route.as_mut(), inputs.odometry) {
-            r.update(odo, inputs.obstacles, inputs.camera, self.view.as_ref());
+            r.update(
+                odo.value.pose,
+                inputs.obstacles,
+                inputs.camera,
+                self.view.as_ref(),
+            );
         }
         // what the lasers saw of the rear, before the plan: its turns on
         // the spot are checked against the points the supervisor holds

@@ -101,9 +101,6 @@ pub(super) const REPLAN_MOVED_M: f64 = 0.3;
 /// A new place to search is this far from the chair and from the places
 /// searched, m.
 pub(super) const EXPLORE_MIN_M: f64 = 1.0;
-/// A laser set's pose is the odometry's driven back (or on) at most this
-/// far to the set's stamp, s: further, the speed then is not known.
-const SCAN_POSE_WITHIN_S: f64 = 0.2;
 pub(super) const EXPLORE_APART_M: f64 = 1.5;
 /// The camera is taken to have looked this far along the floor, m (the
 /// tracker confirms objects within it).
@@ -149,27 +146,21 @@ impl Router {
         }
     }
 
-    /// Puts the newest laser set and camera set in: the lasers' seen from
-    /// where the chair was at their stamp (the odometry's driven back to
-    /// it: turning at 0.8 rad/s, the 40–90 ms between them put a wall
-    /// 3 m off up to 20 cm aside), the camera's looked from where it is.
+    /// Puts the newest laser set (seen from `pose`) and camera set in.
     pub(super) fn update(
         &mut self,
-        odo: &Stamped<crate::msg::Odometry>,
+        pose: crate::msg::Pose2,
         lasers: Option<&Stamped<Obstacles>>,
         camera: Option<&Stamped<MapObstacles>>,
         view: Option<&crate::estimation::view::CameraView>,
     ) {
         let settings = self.settings;
-        let pose = odo.value.pose;
         let map = self
             .map
             .get_or_insert_with(|| GridMap::new(settings, [pose.x_m, pose.y_m]));
         if let Some(l) = lasers.filter(|l| Some(l.stamp) != self.scan) {
             self.scan = Some(l.stamp);
-            let before_s = (odo.stamp.as_secs_f64() - l.stamp.as_secs_f64())
-                .clamp(-SCAN_POSE_WITHIN_S, SCAN_POSE_WITHIN_S);
-            map.add_scan(odo.value.pose_before(before_s), &l.value.rays_base);
+            map.add_scan(pose, &l.value.rays_base);
         }
         if let Some(c) = camera.filter(|c| Some(c.stamp) != self.camera) {
             self.camera = Some(c.stamp);
@@ -512,56 +503,6 @@ mod tests {
         r.carrot(at(period_ms + 50), [0.0, 0.0], [0.0, 3.0], 0.1);
         assert_eq!((r.planned, r.no_way), (3, 2));
         assert!(r.path.is_some());
-    }
-
-    #[test]
-    fn a_laser_set_older_than_the_odometry_is_put_where_the_chair_was_then() {
-        use crate::msg::{LaserRay, Odometry, Pose2};
-        // a wall across x = 3 m (odom), seen at the set's stamp with the
-        // chair at the origin heading along x; 90 ms later (the odometry's
-        // stamp) it has turned 0.072 rad on at 0.8 rad/s
-        let rays_base: Vec<LaserRay> = (-30..=30)
-            .map(|k| {
-                let a = (k as f32).to_radians();
-                LaserRay {
-                    origin_m: [0.0, 0.0],
-                    dir: [a.cos(), a.sin()],
-                    blind: false,
-                    range_m: Some(3.0 / a.cos()),
-                }
-            })
-            .collect();
-        let lasers = Stamped::new(
-            at(1000),
-            Obstacles {
-                rays_base,
-                ..Default::default()
-            },
-        );
-        let odo = Stamped::new(
-            at(1090),
-            Odometry {
-                pose: Pose2 {
-                    theta_rad: 0.072,
-                    ..Default::default()
-                },
-                omega_radps: 0.8,
-                ..Default::default()
-            },
-        );
-        let mut r = Router::new(MapSettings::default());
-        r.update(&odo, Some(&lasers), None, None);
-        let map = r.map.as_mut().expect("a map");
-        // along the wall, 1 m either side of the middle: on it, not
-        // 0.07 rad round (0.2 m off at y = 1 m)
-        for y in [-1.0, 0.0, 1.0] {
-            let on_wall = [2.975, 3.025]
-                .iter()
-                .any(|&x| map.cell([x, y]).is_some_and(|i| map.is_blocked(i)));
-            assert!(on_wall, "the wall at y = {y}");
-            let before = map.cell([2.8, y]).expect("on the map");
-            assert!(!map.is_blocked(before), "before the wall at y = {y}");
-        }
     }
 
     /// A map of a wall along x = 2 with a 0.9 m doorway centred on y = 1.

@@ -41,32 +41,6 @@ pub struct Odometry {
     pub pose_cov: [[f64; 3]; 3],
 }
 
-impl Odometry {
-    /// The pose `dt_s` seconds before this one's (after, for a negative
-    /// `dt_s`), driving on at this speed and yaw rate: where the chair was
-    /// at a sensor's stamp a little older than the odometry's.
-    pub fn pose_before(&self, dt_s: f64) -> Pose2 {
-        let (v, w, p) = (self.v_mps, self.omega_radps, self.pose);
-        let theta_rad = p.theta_rad - w * dt_s;
-        // along the arc between the two headings (a straight line when
-        // the yaw rate is nil)
-        let (dx, dy) = if (w * dt_s).abs() < 1e-9 {
-            (v * dt_s * p.theta_rad.cos(), v * dt_s * p.theta_rad.sin())
-        } else {
-            let r = v / w;
-            (
-                r * (p.theta_rad.sin() - theta_rad.sin()),
-                -r * (p.theta_rad.cos() - theta_rad.cos()),
-            )
-        };
-        Pose2 {
-            x_m: p.x_m - dx,
-            y_m: p.y_m - dy,
-            theta_rad: wrap_angle(theta_rad),
-        }
-    }
-}
-
 /// What a user can say or press.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum UserInput {
@@ -161,55 +135,6 @@ impl UserInput {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn the_pose_before_follows_the_arc_back() {
-        let odo = |v_mps: f64, omega_radps: f64| Odometry {
-            pose: Pose2 {
-                x_m: 1.0,
-                y_m: 2.0,
-                theta_rad: 0.5,
-            },
-            v_mps,
-            omega_radps,
-            ..Default::default()
-        };
-        let close = |a: Pose2, b: Pose2| {
-            (a.x_m - b.x_m).abs() < 1e-9
-                && (a.y_m - b.y_m).abs() < 1e-9
-                && wrap_angle(a.theta_rad - b.theta_rad).abs() < 1e-9
-        };
-        // standing still: where it is
-        assert!(close(odo(0.0, 0.0).pose_before(0.1), odo(0.0, 0.0).pose));
-        // turning on the spot at 0.8 rad/s: 80 ms before, 0.064 rad back
-        let turned = odo(0.0, 0.8).pose_before(0.08);
-        assert!(
-            (turned.theta_rad - (0.5 - 0.064)).abs() < 1e-12,
-            "{turned:?}"
-        );
-        assert!(turned.x_m == 1.0 && turned.y_m == 2.0);
-        // straight at 0.5 m/s: 0.05 m back along the heading
-        let back = odo(0.5, 0.0).pose_before(0.1);
-        assert!((back.x_m - (1.0 - 0.05 * 0.5f64.cos())).abs() < 1e-12);
-        assert!((back.y_m - (2.0 - 0.05 * 0.5f64.sin())).abs() < 1e-12);
-        // on a quarter circle of radius 1 m, a quarter period back: the
-        // circle's centre lies to the left of the heading, 1 m off
-        let w = 1.0;
-        let arc = odo(1.0, w).pose_before(std::f64::consts::FRAC_PI_2 / w);
-        let centre = [1.0 - 0.5f64.sin(), 2.0 + 0.5f64.cos()];
-        let r = (arc.x_m - centre[0]).hypot(arc.y_m - centre[1]);
-        assert!((r - 1.0).abs() < 1e-9, "{arc:?}");
-        assert!((arc.theta_rad - (0.5 - std::f64::consts::FRAC_PI_2)).abs() < 1e-9);
-        // and forward again: where it was
-        let arc_odo = Odometry {
-            pose: arc,
-            ..odo(1.0, w)
-        };
-        assert!(close(
-            arc_odo.pose_before(-std::f64::consts::FRAC_PI_2 / w),
-            odo(0.0, 0.0).pose
-        ));
-    }
 
     #[test]
     fn user_input_words() {
