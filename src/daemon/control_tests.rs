@@ -480,3 +480,45 @@ mod floor;
 
 #[path = "control_search_tests.rs"]
 mod search_held;
+
+/// Held on a bend forward for floor never seen beside the chair, the
+/// chair asks about the floor beside it for turning, not about a turn on
+/// the spot, and "yes" vouches for all around that spot.
+#[test]
+fn a_bend_held_for_floor_never_seen_asks_about_the_floor_beside() {
+    use crate::msg::{Pose2, StopReason};
+    let mut c = control(false);
+    let at = |ms_: u64| Stamp(std::time::Duration::from_millis(ms_));
+    c.planner_cmd = Some(Stamped::new(
+        at(0),
+        VelocityCmd {
+            v_mps: 0.09,
+            omega_radps: -0.25,
+        },
+    ));
+    let held = SupervisorState::Stopped(StopReason::FloorUnseen);
+    let here = Pose2::default();
+    // asked once the bend has been held a second
+    c.ask_about_rear(at(0), held, Some(here), false, false);
+    assert!(c.said.is_empty(), "{:?}", c.said);
+    c.ask_about_rear(at(1000), held, Some(here), false, false);
+    assert_eq!(c.said.len(), 1, "{:?}", c.said);
+    let q = &c.said[0];
+    assert!(q.starts_with("I need to turn, and I cannot see the floor beside me."), "{q}");
+    assert!(q.contains("Is it clear around me?"), "{q}");
+    assert!(!q.contains("on the spot"), "{q}");
+    assert!(c.asked_around);
+    // a turn on the spot held so is asked about as a turn on the spot
+    let mut c = control(false);
+    c.planner_cmd = Some(Stamped::new(
+        at(0),
+        VelocityCmd {
+            v_mps: 0.0,
+            omega_radps: -0.5,
+        },
+    ));
+    c.ask_about_rear(at(0), held, Some(here), false, false);
+    c.ask_about_rear(at(1000), held, Some(here), false, false);
+    assert_eq!(c.said.len(), 1, "{:?}", c.said);
+    assert!(c.said[0].starts_with("I need to turn on the spot"), "{:?}", c.said);
+}

@@ -100,6 +100,12 @@ const CONTROL_PERIOD_S: f64 = 0.05;
 const SWEEP_AHEAD_S: f64 = 0.25;
 /// The angle added to a turn's next moment (rad; 6.5 cm at the corners).
 const SWEEP_EXTRA_RAD: f64 = 0.1;
+/// A bend's next moment is at most this long (s): a slow bend's angle
+/// takes long to turn, and the check repeats every step.
+const BEND_SWEEP_MAX_S: f64 = 1.0;
+/// Floor never seen holds a bend only this near a thing the camera saw
+/// (m): where the thing may go on out of view.
+const BEND_UNSEEN_NEAR_THING_M: f64 = 0.3;
 
 #[derive(Debug, Clone)]
 pub struct Supervisor {
@@ -387,6 +393,19 @@ impl Supervisor {
         {
             // floor the camera never saw in the turn's circle: a box
             // under the lasers' plane may lie there; the person may vouch
+            Some(StopReason::FloorUnseen)
+        } else if l.turn_needs_seen_floor
+            && [(v, w), (v_now, w_now)].iter().any(|&(v, w)| {
+                let (unseen, things) = camera.map_or((no_points, no_points), |c| {
+                    (&c.floor_unseen_base[..], &c.points_base[..])
+                });
+                self.bend_sweep_hits(unseen, things, v, w)
+            })
+        {
+            // floor the camera never saw beside the chair, where a bend
+            // swings its rear corner: a box or a bed's corner under the
+            // lasers' plane may lie there; the person may vouch (the
+            // floor they vouch for leaves the list before it comes here)
             Some(StopReason::FloorUnseen)
         } else if self.way_unseen(
             &obs.value.rays_base,

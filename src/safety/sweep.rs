@@ -55,8 +55,61 @@ impl Rect {
     }
 }
 
+impl Rect {
+    /// Whether driving the arc `(v_mps, omega_radps)` for up to `t_s`
+    /// brings the footprint's sides or rear within `margin_m` of a point
+    /// beside or behind it (not ahead of its front edge: that is the
+    /// travel's own way) and nearer to it than it is now: the floor the
+    /// rear corner swings over on a bend, beside the chair. A point under
+    /// the footprint now, or one the arc leaves as far away, is not swept.
+    pub fn arc_sweeps(
+        &self,
+        p: [f64; 2],
+        v_mps: f64,
+        omega_radps: f64,
+        t_s: f64,
+        margin_m: f64,
+    ) -> bool {
+        if p[0] > self.front {
+            return false;
+        }
+        let now = self.gap(p[0], p[1]);
+        if now <= 0.0 {
+            return false;
+        }
+        // no nearer than the corners reach, plus what the arc moves
+        let reach = self.corner_reach_m() + margin_m + v_mps.abs() * t_s;
+        if p[0] * p[0] + p[1] * p[1] > reach * reach {
+            return false;
+        }
+        let steps = ((omega_radps * t_s).abs() / SWEEP_STEP_RAD)
+            .max((v_mps * t_s).abs() / SWEEP_STEP_M)
+            .ceil()
+            .max(1.0) as usize;
+        (1..=steps).any(|k| {
+            let t = t_s * k as f64 / steps as f64;
+            let th = omega_radps * t;
+            // the unicycle's exact arc from base_link
+            let (x, y) = if omega_radps.abs() > 1e-9 {
+                (
+                    v_mps / omega_radps * th.sin(),
+                    v_mps / omega_radps * (1.0 - th.cos()),
+                )
+            } else {
+                (v_mps * t, 0.0)
+            };
+            let (c, s) = (th.cos(), th.sin());
+            let (dx, dy) = (p[0] - x, p[1] - y);
+            let g = self.gap(c * dx + s * dy, -s * dx + c * dy);
+            g < margin_m && g < now - 1e-4
+        })
+    }
+}
+
 /// The turn is sampled every this many radians (1.3 cm at the corners).
 const SWEEP_STEP_RAD: f64 = 0.02;
+/// An arc is sampled at least every this many metres along it.
+const SWEEP_STEP_M: f64 = 0.01;
 
 #[cfg(test)]
 mod tests {
@@ -103,5 +156,34 @@ mod tests {
         assert!(CHAIR.turn_sweeps([0.10, 0.60], std::f64::consts::PI, 0.03));
         // beyond the corners' circle: never
         assert!(!CHAIR.turn_sweeps([0.0, 0.70], std::f64::consts::TAU, 0.03));
+    }
+
+    /// On a forward bend to the right, the rear-left corner swings out to
+    /// the left: a point beside it is swept; the same point is not on a
+    /// bend to the left (the rear swings away), nor one beside the left
+    /// side's middle that the side passes, nor one ahead of the front
+    /// edge (the travel's own way), nor one under the chair.
+    #[test]
+    fn a_bend_sweeps_what_its_rear_corner_swings_into() {
+        let (v, t, m) = (0.09, 0.8, 0.03);
+        // beside the rear-left corner, 1 cm out
+        assert!(CHAIR.arc_sweeps([-0.40, 0.36], v, -0.25, t, m));
+        assert!(!CHAIR.arc_sweeps([-0.40, 0.36], v, 0.25, t, m));
+        // 5 cm out behind the corner: it swings 0.45 · 0.2 = 9 cm out
+        // while moving 7 cm on, to 4.3 cm of it: within a 5 cm margin,
+        // not a 3 cm one
+        assert!(CHAIR.arc_sweeps([-0.45, 0.40], v, -0.25, t, 0.05));
+        assert!(!CHAIR.arc_sweeps([-0.45, 0.40], v, -0.25, t, m));
+        // 20 cm out: beyond the swing and the margin
+        assert!(!CHAIR.arc_sweeps([-0.40, 0.55], v, -0.25, t, 0.05));
+        // beside the middle of the left side, 5 cm out: the side moves
+        // along it and turns away from it
+        assert!(!CHAIR.arc_sweeps([0.05, 0.40], v, -0.25, t, m));
+        // ahead of the front edge: the corridor's, not this
+        assert!(!CHAIR.arc_sweeps([0.60, 0.30], v, 0.25, t, m));
+        // under the chair
+        assert!(!CHAIR.arc_sweeps([-0.40, 0.30], v, -0.25, t, m));
+        // straight on, nothing beside is swept
+        assert!(!CHAIR.arc_sweeps([-0.40, 0.36], v, 0.0, t, m));
     }
 }
