@@ -113,12 +113,6 @@ impl Control {
             .planner_cmd
             .as_ref()
             .is_some_and(|c| c.value.v_mps < 0.0);
-        // held on a bend forward (the rear corner swings over floor the
-        // camera never saw), not a turn on the spot
-        let bending = self
-            .planner_cmd
-            .as_ref()
-            .is_some_and(|c| c.value.v_mps >= 0.05);
         // where the person said no to a turn, not asked about a turn
         // again; backing up straight is another question (the strip
         // behind, not the circle a turn sweeps), asked even there — a
@@ -155,11 +149,6 @@ impl Control {
                 self.say(if backing {
                     "I need to back up a little, up to half a metre, and I cannot see \
                      behind me. Is it clear behind? Say yes to let me back up, or no."
-                        .into()
-                } else if around && bending {
-                    "I need to turn, and I cannot see the floor beside me. Is it clear \
-                     around me? Nothing behind me, nothing low beside me. Say yes to let me \
-                     turn, or no."
                         .into()
                 } else if around && before_unseen {
                     "I need to turn on the spot, and I cannot see behind me or the floor near \

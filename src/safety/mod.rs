@@ -402,11 +402,14 @@ impl Supervisor {
                 self.bend_sweep_hits(unseen, things, v, w)
             })
         {
-            // floor the camera never saw beside the chair, where a bend
-            // swings its rear corner: a box or a bed's corner under the
-            // lasers' plane may lie there; the person may vouch (the
-            // floor they vouch for leaves the list before it comes here)
-            Some(StopReason::FloorUnseen)
+            // floor the camera never saw beside the chair, next to a
+            // thing it saw, where a bend swings its rear corner: the
+            // thing (a bed's corner under the lasers' plane) may go on
+            // there. Held as an obstacle, not asked about: the control
+            // step's detours try the other motions (asking "is it clear
+            // around me?" was answered "no" for the thing itself, and
+            // the floor never seen around then boxed the chair in)
+            Some(StopReason::Obstacle)
         } else if self.way_unseen(
             &obs.value.rays_base,
             &[v, rolling(v_now), rolling(v_last)],

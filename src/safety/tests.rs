@@ -455,7 +455,7 @@ fn a_bend_that_would_swing_the_rear_over_floor_never_seen_waits() {
     };
     let state =
         |v: f64, w: f64, unseen: &[[f32; 2]], check: bool| state_near(v, w, unseen, &[BED], check);
-    let held = SupervisorState::Stopped(StopReason::FloorUnseen);
+    let held = SupervisorState::Stopped(StopReason::Obstacle);
     let goes = SupervisorState::Navigating;
     // the bed alone holds nothing: the bends go
     assert_eq!(state_near(0.09, -0.25, &[], &[BED], true), goes);
