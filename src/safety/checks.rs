@@ -150,17 +150,8 @@ impl Supervisor {
         // signed distance from the footprint (negative inside), in its frame
         let footprint = self.footprint();
         let gap = |qx: f64, qy: f64| footprint.gap(qx, qy);
-        // the footprint's pose after CLOSING_S (the unicycle's exact arc)
-        let th = omega_radps * CLOSING_S;
-        let (x, y) = if omega_radps.abs() > 1e-9 {
-            (
-                v_mps / omega_radps * th.sin(),
-                v_mps / omega_radps * (1.0 - th.cos()),
-            )
-        } else {
-            (v_mps * CLOSING_S, 0.0)
-        };
-        let (c, s) = (th.cos(), th.sin());
+        // the footprint's pose after CLOSING_S
+        let pose = super::sweep::arc_pose(v_mps, omega_radps, CLOSING_S);
         points.into_iter().any(|p| {
             let (px, py) = (p[0] as f64, p[1] as f64);
             // beyond the band along either axis: beyond it (the gap is at
@@ -172,8 +163,8 @@ impl Supervisor {
             if now > band {
                 return false;
             }
-            let (dx, dy) = (px - x, py - y);
-            gap(c * dx + s * dy, -s * dx + c * dy) < now - CLOSING_MIN_M
+            let [qx, qy] = pose.to_footprint([px, py]);
+            gap(qx, qy) < now - CLOSING_MIN_M
         })
     }
 
@@ -204,23 +195,15 @@ impl Supervisor {
         );
         let horizon_s = self.stop_distance_at(v_mps) / v_mps.abs();
         const POSES: usize = 8;
-        let poses: Vec<(f64, f64, f64, f64)> = (1..=POSES)
+        let poses: Vec<super::sweep::ArcPose> = (1..=POSES)
             .map(|k| {
-                let t = horizon_s * k as f64 / POSES as f64;
-                let th = omega_radps * t;
-                // the unicycle's exact arc from base_link
-                let (x, y) = (
-                    v_mps / omega_radps * th.sin(),
-                    v_mps / omega_radps * (1.0 - th.cos()),
-                );
-                (x, y, th.cos(), th.sin())
+                super::sweep::arc_pose(v_mps, omega_radps, horizon_s * k as f64 / POSES as f64)
             })
             .collect();
         points.into_iter().any(|p| {
-            let (px, py) = (p[0] as f64, p[1] as f64);
-            poses.iter().any(|&(x, y, c, s)| {
-                let (dx, dy) = (px - x, py - y);
-                let (qx, qy) = (c * dx + s * dy, -s * dx + c * dy);
+            let p = [p[0] as f64, p[1] as f64];
+            poses.iter().any(|pose| {
+                let [qx, qy] = pose.to_footprint(p);
                 qx >= -rear && qx <= front && qy.abs() <= half
             })
         })

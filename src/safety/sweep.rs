@@ -87,22 +87,52 @@ impl Rect {
             .ceil()
             .max(1.0) as usize;
         (1..=steps).any(|k| {
-            let t = t_s * k as f64 / steps as f64;
-            let th = omega_radps * t;
-            // the unicycle's exact arc from base_link
-            let (x, y) = if omega_radps.abs() > 1e-9 {
-                (
-                    v_mps / omega_radps * th.sin(),
-                    v_mps / omega_radps * (1.0 - th.cos()),
-                )
-            } else {
-                (v_mps * t, 0.0)
-            };
-            let (c, s) = (th.cos(), th.sin());
-            let (dx, dy) = (p[0] - x, p[1] - y);
-            let g = self.gap(c * dx + s * dy, -s * dx + c * dy);
+            let pose = arc_pose(v_mps, omega_radps, t_s * k as f64 / steps as f64);
+            let [qx, qy] = pose.to_footprint(p);
+            let g = self.gap(qx, qy);
             g < margin_m && g < now - 1e-4
         })
+    }
+}
+
+/// Where base_link is after driving the arc `(v_mps, omega_radps)` for
+/// `t_s` from base_link now: the unicycle's exact arc (a straight line
+/// when it does not turn).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ArcPose {
+    pub x_m: f64,
+    pub y_m: f64,
+    pub cos: f64,
+    pub sin: f64,
+}
+
+impl ArcPose {
+    /// A point in base_link now, in the footprint's frame at this pose.
+    pub fn to_footprint(&self, p: [f64; 2]) -> [f64; 2] {
+        let (dx, dy) = (p[0] - self.x_m, p[1] - self.y_m);
+        [
+            self.cos * dx + self.sin * dy,
+            -self.sin * dx + self.cos * dy,
+        ]
+    }
+}
+
+/// The pose after `t_s` of the arc `(v_mps, omega_radps)`.
+pub fn arc_pose(v_mps: f64, omega_radps: f64, t_s: f64) -> ArcPose {
+    let th = omega_radps * t_s;
+    let (x_m, y_m) = if omega_radps.abs() > 1e-9 {
+        (
+            v_mps / omega_radps * th.sin(),
+            v_mps / omega_radps * (1.0 - th.cos()),
+        )
+    } else {
+        (v_mps * t_s, 0.0)
+    };
+    ArcPose {
+        x_m,
+        y_m,
+        cos: th.cos(),
+        sin: th.sin(),
     }
 }
 
