@@ -152,6 +152,42 @@ mod tests {
     };
 
     #[test]
+    fn the_arc_pose_follows_the_unicycle() {
+        // a quarter circle of radius 1 m to the left: 1 m on, 1 m left,
+        // turned a quarter
+        let q = arc_pose(0.2, 0.2, std::f64::consts::FRAC_PI_2 / 0.2);
+        assert!(
+            (q.x_m - 1.0).abs() < 1e-12 && (q.y_m - 1.0).abs() < 1e-12,
+            "{q:?}"
+        );
+        assert!(q.cos.abs() < 1e-12 && (q.sin - 1.0).abs() < 1e-12, "{q:?}");
+        // a point 1 m ahead of the start lies 1 m straight behind the
+        // footprint there (it faces the start's left now); the start
+        // itself 1 m behind and 1 m to its left
+        let [fx, fy] = q.to_footprint([1.0, 0.0]);
+        assert!((fx + 1.0).abs() < 1e-12 && fy.abs() < 1e-12, "{fx} {fy}");
+        let [sx, sy] = q.to_footprint([0.0, 0.0]);
+        assert!(
+            (sx + 1.0).abs() < 1e-12 && (sy - 1.0).abs() < 1e-12,
+            "{sx} {sy}"
+        );
+        // straight on, and backwards, without a turn
+        let s = arc_pose(0.3, 0.0, 2.0);
+        assert!(
+            (s.x_m - 0.6).abs() < 1e-12 && s.y_m == 0.0 && s.cos == 1.0,
+            "{s:?}"
+        );
+        let b = arc_pose(-0.15, 0.0, 2.0);
+        assert!((b.x_m + 0.3).abs() < 1e-12 && b.y_m == 0.0, "{b:?}");
+        // turning on the spot: it stays, turned
+        let t = arc_pose(0.0, -0.5, 1.0);
+        assert!(
+            t.x_m == 0.0 && t.y_m == 0.0 && (t.sin + 0.5f64.sin()).abs() < 1e-12,
+            "{t:?}"
+        );
+    }
+
+    #[test]
     fn the_gap_is_signed() {
         assert!((CHAIR.gap(0.65, 0.0) - 0.10).abs() < 1e-12);
         assert!((CHAIR.gap(0.0, -0.40) - 0.05).abs() < 1e-12);
