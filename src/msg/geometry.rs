@@ -50,6 +50,27 @@ impl Pose2 {
         ]
     }
 
+    /// The unicycle's pose after `t_s` at `(v, ω)` from the origin facing
+    /// +x (base_link at the start): exact on the arc, straight on with the
+    /// heading exactly 0 where |ω| is below 1e-9. The heading is ω·t, not
+    /// wrapped.
+    pub fn unicycle_from_origin(v_mps: f64, omega_radps: f64, t_s: f64) -> Pose2 {
+        let th = omega_radps * t_s;
+        if omega_radps.abs() < 1e-9 {
+            Pose2 {
+                x_m: v_mps * t_s,
+                y_m: 0.0,
+                theta_rad: 0.0,
+            }
+        } else {
+            Pose2 {
+                x_m: v_mps / omega_radps * th.sin(),
+                y_m: v_mps / omega_radps * (1.0 - th.cos()),
+                theta_rad: th,
+            }
+        }
+    }
+
     /// Moves by `ds` along an arc turning by `dtheta` (exact when
     /// |dθ| is not tiny, the midpoint rule otherwise).
     pub fn advanced(&self, ds: f64, dtheta: f64) -> Pose2 {
@@ -155,6 +176,29 @@ mod tests {
         let p = [0.35, -1.2];
         let back = turned.base_from_odom(turned.odom_from_base(p));
         assert!((back[0] - p[0]).abs() < 1e-12 && (back[1] - p[1]).abs() < 1e-12);
+    }
+
+    /// A quarter circle of radius 1 m ends at (1, 1) facing +y; straight on
+    /// the heading is exactly 0; and any arc ends where `Pose2::advanced`
+    /// from the origin does with the same length and turn.
+    #[test]
+    fn the_unicycle_from_the_origin_follows_its_arc() {
+        let half_pi = std::f64::consts::FRAC_PI_2;
+        let quarter = Pose2::unicycle_from_origin(half_pi, half_pi, 1.0);
+        assert!((quarter.x_m - 1.0).abs() < 1e-12, "{quarter:?}");
+        assert!((quarter.y_m - 1.0).abs() < 1e-12, "{quarter:?}");
+        assert!((quarter.theta_rad - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
+        let straight = Pose2::unicycle_from_origin(0.5, 1e-12, 2.0);
+        assert_eq!(
+            (straight.x_m, straight.y_m, straight.theta_rad),
+            (1.0, 0.0, 0.0)
+        );
+        for (v, w, t) in [(0.4, -0.7, 1.5), (-0.3, 0.2, 2.0), (0.0, 0.9, 1.0)] {
+            let a = Pose2::unicycle_from_origin(v, w, t);
+            let b = Pose2::default().advanced(v * t, w * t);
+            assert!((a.x_m - b.x_m).abs() < 1e-12 && (a.y_m - b.y_m).abs() < 1e-12);
+            assert!((wrap_angle(a.theta_rad) - b.theta_rad).abs() < 1e-12);
+        }
     }
 
     #[test]

@@ -60,21 +60,8 @@ fn predicted(c: &VelocityCmd, crawl_mps: f64, t_s: f64) -> (f64, f64, f64) {
         let d = crawl_mps * (t_s - turn_s);
         (d * th.cos(), d * th.sin(), th)
     } else {
-        arc_end(c.v_mps, c.omega_radps, t_s)
-    }
-}
-
-/// The unicycle's pose after `t_s` at `(v, ω)` from the origin, facing +x.
-fn arc_end(v_mps: f64, omega_radps: f64, t_s: f64) -> (f64, f64, f64) {
-    let th = omega_radps * t_s;
-    if omega_radps.abs() < 1e-9 {
-        (v_mps * t_s, 0.0, 0.0)
-    } else {
-        (
-            v_mps / omega_radps * th.sin(),
-            v_mps / omega_radps * (1.0 - th.cos()),
-            th,
-        )
+        let end = crate::msg::Pose2::unicycle_from_origin(c.v_mps, c.omega_radps, t_s);
+        (end.x_m, end.y_m, end.theta_rad)
     }
 }
 

@@ -119,20 +119,12 @@ impl ArcPose {
 
 /// The pose after `t_s` of the arc `(v_mps, omega_radps)`.
 pub fn arc_pose(v_mps: f64, omega_radps: f64, t_s: f64) -> ArcPose {
-    let th = omega_radps * t_s;
-    let (x_m, y_m) = if omega_radps.abs() > 1e-9 {
-        (
-            v_mps / omega_radps * th.sin(),
-            v_mps / omega_radps * (1.0 - th.cos()),
-        )
-    } else {
-        (v_mps * t_s, 0.0)
-    };
+    let end = crate::msg::Pose2::unicycle_from_origin(v_mps, omega_radps, t_s);
     ArcPose {
-        x_m,
-        y_m,
-        cos: th.cos(),
-        sin: th.sin(),
+        x_m: end.x_m,
+        y_m: end.y_m,
+        cos: end.theta_rad.cos(),
+        sin: end.theta_rad.sin(),
     }
 }
 
