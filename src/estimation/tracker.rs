@@ -315,7 +315,9 @@ pub struct ApproachPose {
 /// The pose `standoff_m` from the object's box edge, facing its centre: on
 /// the side towards `from` when that spot is at least `clearance_m` from
 /// every obstacle point, else the nearest free direction around the
-/// object (15° steps). None when no side is free.
+/// object (15° steps); where none is, a place square to a side of the
+/// object anywhere along it, the nearest to `from`. None when no place is
+/// free.
 /// The line from a stopping place to its object keeps this far from every
 /// obstacle point but the object's own along the chair's body (from the
 /// place to its front edge): the body (half its width) fits there, facing
@@ -423,6 +425,33 @@ pub fn approach_pose(
             (r, false)
         }
     };
+    // a place `r` from the object's edge along `out` (unit, from the
+    // object to the place), facing `edge`: clear of every obstacle point
+    // by `clearance_m`, admitted by `fits`, the chair's body and its view
+    // of the object clear of everything else
+    let clearance_sq = clearance_m.max(0.0).powi(2);
+    let passes = |[x, y]: [f64; 2], r: f64, out: [f64; 2], edge: [f64; 2], yaw_rad: f64| {
+        // (squared distances: this runs for every candidate over every
+        // obstacle point, each control step)
+        let free = obstacles.iter().all(|o| {
+            let (dx, dy) = (o[0] - x, o[1] - y);
+            dx * dx + dy * dy >= clearance_sq
+        });
+        let body = body_m.clamp(0.0, r);
+        let front = [x - body * out[0], y - body * out[1]];
+        let in_sight = || {
+            obstacles.iter().all(|o| {
+                is_own(o)
+                    || (segment_distance_sq([x, y], front, *o) >= LINE_OF_SIGHT_M.powi(2)
+                        && segment_distance_sq(front, edge, *o) >= VIEW_CLEAR_M.powi(2))
+            })
+        };
+        (free && fits([x, y]) && in_sight()).then_some(ApproachPose {
+            x_m: x,
+            y_m: y,
+            yaw_rad,
+        })
+    };
     for k in 0..=12 {
         for sign in [1.0, -1.0] {
             if k == 0 && sign < 0.0 {
@@ -446,36 +475,92 @@ pub fn approach_pose(
                 r += short_m;
             }
             let (x, y) = (cx + r * a.cos(), cy + r * a.sin());
-            // (squared distances: this runs for every candidate over
-            // every obstacle point, each control step)
-            let clearance_sq = clearance_m.max(0.0).powi(2);
-            let free = obstacles.iter().all(|o| {
-                let (dx, dy) = (o[0] - x, o[1] - y);
-                dx * dx + dy * dy >= clearance_sq
-            });
-            // and the chair's body and its view of the object clear of
+            // the chair's body and its view of the object clear of
             // everything else
             let edge = [cx + reach(a) * a.cos(), cy + reach(a) * a.sin()];
-            let body = body_m.clamp(0.0, r);
-            let front = [x - body * a.cos(), y - body * a.sin()];
-            let in_sight = || {
-                obstacles.iter().all(|o| {
-                    is_own(o)
-                        || (segment_distance_sq([x, y], front, *o) >= LINE_OF_SIGHT_M.powi(2)
-                            && segment_distance_sq(front, edge, *o) >= VIEW_CLEAR_M.powi(2))
-                })
-            };
-            if free && fits([x, y]) && in_sight() {
-                return Some(ApproachPose {
-                    x_m: x,
-                    y_m: y,
-                    yaw_rad: (cy - y).atan2(cx - x),
-                });
+            let yaw_rad = (cy - y).atan2(cx - x);
+            if let Some(place) = passes([x, y], r, [a.cos(), a.sin()], edge, yaw_rad) {
+                return Some(place);
             }
         }
     }
-    None
+    // none round the centre: square to a side of the object, anywhere
+    // along it (a bed or a sofa whose places facing its centre are taken
+    // by a low box or a cabinet), the nearest to `from` first
+    let mut sides = side_places(track, standoff_m);
+    sides.sort_by(|a, b| {
+        let d = |c: &SidePlace| (c.place[0] - from[0]).hypot(c.place[1] - from[1]);
+        d(a).total_cmp(&d(b))
+    });
+    sides.into_iter().find_map(|c| {
+        let yaw_rad = (-c.normal[1]).atan2(-c.normal[0]);
+        passes(c.place, standoff_m, c.normal, c.edge, yaw_rad)
+    })
 }
+
+/// A place square to a side of an object: the place, its outward normal
+/// (from the object to the place) and the point of the side it faces.
+#[derive(Debug, Clone, Copy)]
+struct SidePlace {
+    place: [f64; 2],
+    normal: [f64; 2],
+    edge: [f64; 2],
+}
+
+/// Places along the sides of a track's outline (its footprint where that
+/// holds its centre, else its upright box) `standoff_m` out from them,
+/// every [`SIDE_STEP_M`] along each side, corners included.
+fn side_places(track: &Track, standoff_m: f64) -> Vec<SidePlace> {
+    let f = &track.footprint;
+    let (center, half, yaw) = if f.ground_contains([track.center_m[0], track.center_m[1]]) {
+        (
+            [f.center_m[0], f.center_m[1]],
+            [f.size_m[0] / 2.0, f.size_m[1] / 2.0],
+            f.yaw_rad,
+        )
+    } else {
+        (
+            [track.center_m[0], track.center_m[1]],
+            [track.size_m[0] / 2.0, track.size_m[1] / 2.0],
+            0.0,
+        )
+    };
+    let (c, s) = (yaw.cos(), yaw.sin());
+    let (u, v) = ([c, s], [-s, c]);
+    let mut out = Vec::new();
+    // each side: its outward normal, the direction along it, the half
+    // depth across and the half length along
+    for (normal, along, depth, length) in [
+        (u, v, half[0], half[1]),
+        ([-u[0], -u[1]], v, half[0], half[1]),
+        (v, u, half[1], half[0]),
+        ([-v[0], -v[1]], u, half[1], half[0]),
+    ] {
+        if !(depth.is_finite() && length.is_finite()) {
+            continue;
+        }
+        let steps = (2.0 * length / SIDE_STEP_M).ceil().clamp(1.0, 200.0) as usize;
+        for i in 0..=steps {
+            let t = -length + 2.0 * length * i as f64 / steps as f64;
+            let edge = [
+                center[0] + depth * normal[0] + t * along[0],
+                center[1] + depth * normal[1] + t * along[1],
+            ];
+            out.push(SidePlace {
+                place: [
+                    edge[0] + standoff_m * normal[0],
+                    edge[1] + standoff_m * normal[1],
+                ],
+                normal,
+                edge,
+            });
+        }
+    }
+    out
+}
+
+/// The places along an object's side are this far apart, m.
+const SIDE_STEP_M: f64 = 0.1;
 
 #[cfg(test)]
 #[path = "tracker_tests.rs"]

@@ -202,6 +202,66 @@ fn approach_pose_faces_the_object_from_the_free_side() {
     assert!(approach_pose(&t, [0.0, 0.0], 0.6, 0.6, &ring, 0.4, &|_| true).is_none());
 }
 
+/// A bed 0.6 m deep and 2 m long (along y) about (3, 0): where any place
+/// is admitted, the one facing its centre from the chair; where the map
+/// admits only places off its near side's middle (a low box there), none
+/// of those facing the centre passes and the place is square to the
+/// side, the one nearest the chair, facing +x; none where nothing is
+/// admitted.
+#[test]
+fn a_long_object_is_approached_square_to_its_side_where_no_place_facing_its_centre_passes() {
+    let mut pts = Vec::new();
+    for i in 0..=12 {
+        for j in 0..=40 {
+            for z in [0.0f32, 0.5] {
+                pts.push(Point3::new(
+                    2.7 + 0.05 * i as f32,
+                    -1.0 + 0.05 * j as f32,
+                    z,
+                ));
+            }
+        }
+    }
+    let bed = Object3D::from_points("bed".into(), 0.8, Frame::Odom, pts, None).unwrap();
+    let mut tr = Tracker::new(TrackerParams {
+        confirm_hits: 1,
+        ..crate::config::Settings::defaults().tracker
+    });
+    tr.update(s(0.0), &[bed], |_| true);
+    let t = tr.goal("bed", [0.0, 0.0]).unwrap().clone();
+    let p = approach_pose(&t, [0.0, 0.0], 0.6, 0.6, &[], 0.4, &|_| true).unwrap();
+    assert!((p.x_m - 2.1).abs() < 1e-4 && p.y_m.abs() < 1e-4, "{p:?}");
+    let off_the_middle = |p: [f64; 2]| (p[0] - 2.1).abs() < 1e-4 && p[1].abs() > 0.5;
+    let p = approach_pose(&t, [0.0, -0.2], 0.6, 0.6, &[], 0.4, &off_the_middle).unwrap();
+    assert!(
+        (p.x_m - 2.1).abs() < 1e-4 && (p.y_m + 0.6).abs() < 1e-4,
+        "{p:?}"
+    );
+    assert!(p.yaw_rad.abs() < 1e-6, "{p:?}");
+    // from beyond the bed's far end: that end of the side
+    let p = approach_pose(&t, [0.0, 1.5], 0.6, 0.6, &[], 0.4, &off_the_middle).unwrap();
+    assert!(
+        (p.x_m - 2.1).abs() < 1e-4 && (p.y_m - 1.0).abs() < 1e-4,
+        "{p:?}"
+    );
+    // a cabinet 0.32 m from that place: the next one along
+    let p = approach_pose(
+        &t,
+        [0.0, 1.5],
+        0.6,
+        0.6,
+        &[[1.9, 1.25]],
+        0.4,
+        &off_the_middle,
+    );
+    let p = p.unwrap();
+    assert!(
+        (p.x_m - 2.1).abs() < 1e-4 && (p.y_m - 0.9).abs() < 1e-4,
+        "{p:?}"
+    );
+    assert!(approach_pose(&t, [0.0, 0.0], 0.6, 0.6, &[], 0.4, &|_| false).is_none());
+}
+
 #[test]
 fn only_the_chairs_body_needs_room_beside_the_line_to_the_object() {
     let t = one_track("chair", [3.0, 0.0, 0.4], 0.25);
