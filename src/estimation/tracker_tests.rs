@@ -172,12 +172,18 @@ fn overlapping_same_label_tracks_merge() {
 /// The confirmed track of one box `label` of half size `half` about
 /// `c`, seen once.
 fn one_track(label: &str, c: [f32; 3], half: f32) -> Track {
+    track_of(obj(label, c, half))
+}
+
+/// The confirmed track of `object`, seen once.
+fn track_of(object: Object3D) -> Track {
+    let label = object.label.clone();
     let mut tr = Tracker::new(TrackerParams {
         confirm_hits: 1,
         ..crate::config::Settings::defaults().tracker
     });
-    tr.update(s(0.0), &[obj(label, c, half)], |_| true);
-    tr.goal(label, [0.0, 0.0]).unwrap().clone()
+    tr.update(s(0.0), &[object], |_| true);
+    tr.goal(&label, [0.0, 0.0]).unwrap().clone()
 }
 
 #[test]
@@ -222,13 +228,7 @@ fn a_long_object_is_approached_square_to_its_side_where_no_place_facing_its_cent
             }
         }
     }
-    let bed = Object3D::from_points("bed".into(), 0.8, Frame::Odom, pts, None).unwrap();
-    let mut tr = Tracker::new(TrackerParams {
-        confirm_hits: 1,
-        ..crate::config::Settings::defaults().tracker
-    });
-    tr.update(s(0.0), &[bed], |_| true);
-    let t = tr.goal("bed", [0.0, 0.0]).unwrap().clone();
+    let t = track_of(Object3D::from_points("bed".into(), 0.8, Frame::Odom, pts, None).unwrap());
     let p = approach_pose(&t, [0.0, 0.0], 0.6, 0.6, &[], 0.4, &|_| true).unwrap();
     assert!((p.x_m - 2.1).abs() < 1e-4 && p.y_m.abs() < 1e-4, "{p:?}");
     let off_the_middle = |p: [f64; 2]| (p[0] - 2.1).abs() < 1e-4 && p[1].abs() > 0.5;
@@ -299,13 +299,7 @@ fn approach_pose_stops_at_a_turned_objects_own_outline() {
             }
         }
     }
-    let desk = Object3D::from_points("desk".into(), 0.8, Frame::Odom, pts, None).unwrap();
-    let mut tr = Tracker::new(TrackerParams {
-        confirm_hits: 1,
-        ..crate::config::Settings::defaults().tracker
-    });
-    tr.update(s(0.0), &[desk], |_| true);
-    let t = tr.goal("desk", [0.0, 0.0]).unwrap().clone();
+    let t = track_of(Object3D::from_points("desk".into(), 0.8, Frame::Odom, pts, None).unwrap());
     assert!((t.size_m[0] - 0.9 * 2f64.sqrt()).abs() < 0.01, "{t:?}");
     let crossing = 3.0 - 0.3 * 2f64.sqrt();
     let upright = 3.0 - 0.45 * 2f64.sqrt();
