@@ -312,12 +312,6 @@ pub struct ApproachPose {
     pub yaw_rad: f64,
 }
 
-/// The pose `standoff_m` from the object's box edge, facing its centre: on
-/// the side towards `from` when that spot is at least `clearance_m` from
-/// every obstacle point, else the nearest free direction around the
-/// object (15° steps); where none is, a place square to a side of the
-/// object anywhere along it, the nearest to `from`. None when no place is
-/// free.
 /// The line from a stopping place to its object keeps this far from every
 /// obstacle point but the object's own along the chair's body (from the
 /// place to its front edge): the body (half its width) fits there, facing
@@ -357,6 +351,10 @@ const STANDOFF_SLACK_M: f64 = 0.02;
 /// `fits` admits (odom: e.g. where the chair fits on the map of everything
 /// it has seen; `&|_| true` for any). `body_m`: from the place to the
 /// chair's front edge (of `standoff_m`, from the place to the object).
+/// The place faces the object's centre from the side towards `from`, else
+/// from the nearest direction round it that passes (15° steps); where
+/// none does, it is square to a side of the object anywhere along it,
+/// the nearest to `from` that passes. None when no place passes.
 pub fn approach_pose(
     track: &Track,
     from: [f64; 2],
