@@ -135,12 +135,8 @@ impl SeenBox {
     /// [`approach_pose`] measures the place beside it; else its upright
     /// box, larger than a turned object (most at the corners).
     fn distance_m(&self, p: [f64; 2]) -> f64 {
-        crate::estimation::tracker::outline_distance_m(
-            self.center_m,
-            self.size_m,
-            &self.footprint,
-            p,
-        )
+        crate::estimation::tracker::outline(self.center_m, self.size_m, &self.footprint)
+            .ground_distance_m(p)
     }
 }
 

@@ -67,24 +67,29 @@ pub struct Track {
     last_update: Stamp,
 }
 
-/// From a point on the ground (odom) to an object's outline, m: its
-/// ground outline (`footprint`, oriented) where the box's centre lies in
-/// it; else its upright box (`center_m`, `size_m`), larger than a turned
-/// object (most at the corners).
-pub fn outline_distance_m(
-    center_m: [f64; 3],
-    size_m: [f64; 3],
-    footprint: &OrientedBox,
-    p: [f64; 2],
-) -> f64 {
+/// An object's ground outline (odom): its ground outline (`footprint`,
+/// oriented) where the box's centre lies in it; else its upright box
+/// (`center_m`, `size_m`, yaw 0), larger than a turned object (most at
+/// the corners). The place beside an object, the places along its sides
+/// and the goal keeper's arrival all measure from it.
+pub fn outline(center_m: [f64; 3], size_m: [f64; 3], footprint: &OrientedBox) -> OrientedBox {
     if footprint.ground_contains([center_m[0], center_m[1]]) {
-        return footprint.ground_distance_m(p);
+        *footprint
+    } else {
+        OrientedBox {
+            center_m,
+            size_m,
+            yaw_rad: 0.0,
+        }
     }
-    let gap = |d: f64, half: f64| (d.abs() - half).max(0.0);
-    gap(p[0] - center_m[0], size_m[0] / 2.0).hypot(gap(p[1] - center_m[1], size_m[1] / 2.0))
 }
 
 impl Track {
+    /// Its ground outline (see [`outline`]).
+    pub fn outline(&self) -> OrientedBox {
+        outline(self.center_m, self.size_m, &self.footprint)
+    }
+
     pub fn aabb(&self) -> Aabb {
         Aabb {
             min_m: std::array::from_fn(|i| self.center_m[i] - self.size_m[i] / 2.0),
@@ -374,29 +379,9 @@ pub fn approach_pose(
         let ty = if s > 1e-9 { hy / s } else { f64::INFINITY };
         tx.min(ty)
     };
-    // along a from the centre, where the footprint ends (None: the centre
-    // is not inside it)
-    let footprint_reach = |a: f64| -> Option<f64> {
-        let f = &track.footprint;
-        if !f.ground_contains([cx, cy]) {
-            return None;
-        }
-        // the centre and the direction in the footprint's own axes
-        let [x, y] = f.ground_local([cx, cy]);
-        let (c, s) = (f.yaw_rad.cos(), f.yaw_rad.sin());
-        let (dx, dy) = (a.cos() * c + a.sin() * s, -a.cos() * s + a.sin() * c);
-        let (hl, hw) = (f.size_m[0] / 2.0, f.size_m[1] / 2.0);
-        let exit = |p: f64, d: f64, half: f64| {
-            if d > 1e-9 {
-                (half - p) / d
-            } else if d < -1e-9 {
-                (-half - p) / d
-            } else {
-                f64::INFINITY
-            }
-        };
-        Some(exit(x, dx, hl).min(exit(y, dy, hw)))
-    };
+    // the outline: the footprint where it holds the centre, else the
+    // upright box
+    let outline = track.outline();
     let (hx, hy) = (track.size_m[0] / 2.0, track.size_m[1] / 2.0);
     let is_own = |o: &[f64; 2]| {
         (o[0] - cx).abs() - hx <= OWN_POINT_M && (o[1] - cy).abs() - hy <= OWN_POINT_M
@@ -415,7 +400,7 @@ pub fn approach_pose(
             .filter(|o| ((o[0] - cx) * s - (o[1] - cy) * c).abs() <= OWN_FACE_HALF_M)
             .map(|o| (o[0] - cx) * c + (o[1] - cy) * s)
             .fold(f64::NEG_INFINITY, f64::max);
-        let r = footprint_reach(a).map_or(reach(a), |f| f.min(reach(a)));
+        let r = outline.ground_exit_m([cx, cy], a).min(reach(a));
         // (and whether its own points set it, nearer than the outline)
         if seen.is_finite() && seen < r {
             (seen.max(0.0), true)
@@ -465,8 +450,7 @@ pub fn approach_pose(
             // own points put its edge inside the outline)
             for _ in 0..if own_edge { 0 } else { 3 } {
                 let (x, y) = (cx + r * a.cos(), cy + r * a.sin());
-                let short_m = standoff_m
-                    - outline_distance_m(track.center_m, track.size_m, &track.footprint, [x, y]);
+                let short_m = standoff_m - outline.ground_distance_m([x, y]);
                 if short_m <= STANDOFF_SLACK_M {
                     break;
                 }
@@ -485,7 +469,7 @@ pub fn approach_pose(
     // none round the centre: square to a side of the object, anywhere
     // along it (a bed or a sofa whose places facing its centre are taken
     // by a low box or a cabinet), the nearest to `from` first
-    let mut sides = side_places(track, standoff_m);
+    let mut sides = side_places(&outline, standoff_m);
     sides.sort_by(|a, b| {
         let d = |c: &SidePlace| (c.place[0] - from[0]).hypot(c.place[1] - from[1]);
         d(a).total_cmp(&d(b))
@@ -505,24 +489,13 @@ struct SidePlace {
     edge: [f64; 2],
 }
 
-/// Places along the sides of a track's outline (its footprint where that
-/// holds its centre, else its upright box) `standoff_m` out from them,
-/// every [`SIDE_STEP_M`] along each side, corners included.
-fn side_places(track: &Track, standoff_m: f64) -> Vec<SidePlace> {
-    let f = &track.footprint;
-    let (center, half, yaw) = if f.ground_contains([track.center_m[0], track.center_m[1]]) {
-        (
-            [f.center_m[0], f.center_m[1]],
-            [f.size_m[0] / 2.0, f.size_m[1] / 2.0],
-            f.yaw_rad,
-        )
-    } else {
-        (
-            [track.center_m[0], track.center_m[1]],
-            [track.size_m[0] / 2.0, track.size_m[1] / 2.0],
-            0.0,
-        )
-    };
+/// Places along the sides of an object's `outline` (see [`outline`])
+/// `standoff_m` out from them, every [`SIDE_STEP_M`] along each side,
+/// corners included.
+fn side_places(outline: &OrientedBox, standoff_m: f64) -> Vec<SidePlace> {
+    let center = [outline.center_m[0], outline.center_m[1]];
+    let half = [outline.size_m[0] / 2.0, outline.size_m[1] / 2.0];
+    let yaw = outline.yaw_rad;
     let (c, s) = (yaw.cos(), yaw.sin());
     let (u, v) = ([c, s], [-s, c]);
     let mut out = Vec::new();

@@ -346,3 +346,27 @@ fn approach_pose_stops_at_the_objects_own_points_inside_its_box() {
     let p = approach_pose(&t, [0.0, 0.0], 0.6, 0.6, &[[2.45, 0.0]], 0.3, &|_| true).unwrap();
     assert!((p.x_m - (2.5 - 0.6)).abs() < 1e-6, "{p:?}");
 }
+
+#[test]
+fn the_outline_is_the_footprint_where_it_holds_the_centre_else_the_upright_box() {
+    let center_m = [3.0, 1.0, 0.4];
+    let size_m = [1.2, 0.8, 0.8];
+    let turned = OrientedBox {
+        center_m: [3.05, 1.0, 0.4],
+        size_m: [1.0, 0.5, 0.8],
+        yaw_rad: 0.3,
+    };
+    assert_eq!(outline(center_m, size_m, &turned), turned);
+    // a footprint of a part seen up close, off the centre: the upright box
+    let part = OrientedBox {
+        center_m: [3.5, 1.3, 0.4],
+        size_m: [0.2, 0.2, 0.8],
+        yaw_rad: 0.3,
+    };
+    let upright = outline(center_m, size_m, &part);
+    assert_eq!(upright.yaw_rad, 0.0);
+    assert_eq!(upright.center_m, center_m);
+    assert_eq!(upright.size_m, size_m);
+    // 0.5 m beyond the upright box's +x side
+    assert!((upright.ground_distance_m([4.1, 1.0]) - 0.5).abs() < 1e-12);
+}

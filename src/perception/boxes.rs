@@ -116,6 +116,27 @@ impl OrientedBox {
         gap(x, self.size_m[0] / 2.0).hypot(gap(y, self.size_m[1] / 2.0))
     }
 
+    /// From a ground point inside the box along direction `dir_rad`
+    /// (the box's frame) to where its outline ends, m.
+    pub fn ground_exit_m(&self, p: [f64; 2], dir_rad: f64) -> f64 {
+        let [x, y] = self.ground_local(p);
+        let (c, s) = (self.yaw_rad.cos(), self.yaw_rad.sin());
+        let (dx, dy) = (
+            dir_rad.cos() * c + dir_rad.sin() * s,
+            -dir_rad.cos() * s + dir_rad.sin() * c,
+        );
+        let exit = |p: f64, d: f64, half: f64| {
+            if d > 1e-9 {
+                (half - p) / d
+            } else if d < -1e-9 {
+                (-half - p) / d
+            } else {
+                f64::INFINITY
+            }
+        };
+        exit(x, dx, self.size_m[0] / 2.0).min(exit(y, dy, self.size_m[1] / 2.0))
+    }
+
     /// The minimum-area rectangle of the points' ground projection (rotating
     /// calipers over the convex hull), extruded from min z to max z. The yaw
     /// is the direction of the longer side, in (−π/2, π/2].
@@ -423,5 +444,55 @@ mod tests {
         ];
         assert_eq!(merge_objects(objs.clone(), 0.75).len(), 2);
         assert_eq!(merge_objects(objs, 0.7499).len(), 1);
+    }
+
+    #[test]
+    fn a_turned_box_is_left_where_its_outline_ends() {
+        // 2 × 1 m, turned 30°, centred at (1, 2)
+        let b = OrientedBox {
+            center_m: [1.0, 2.0, 0.5],
+            size_m: [2.0, 1.0, 1.0],
+            yaw_rad: 30f64.to_radians(),
+        };
+        let centre = [1.0, 2.0];
+        // along its length and across it, from the centre: the half sizes
+        assert!((b.ground_exit_m(centre, 30f64.to_radians()) - 1.0).abs() < 1e-12);
+        assert!((b.ground_exit_m(centre, 120f64.to_radians()) - 0.5).abs() < 1e-12);
+        assert!((b.ground_exit_m(centre, -150f64.to_radians()) - 1.0).abs() < 1e-12);
+        // along odom's x axis the 0.5 m half width ends it: 0.5 / sin 30°
+        assert!((b.ground_exit_m(centre, 0.0) - 1.0).abs() < 1e-12);
+        // and where it ends, the point is on the outline
+        for dir in [0.3, 1.1, 2.5, -0.7] {
+            let r = b.ground_exit_m(centre, dir);
+            let edge = [centre[0] + r * f64::cos(dir), centre[1] + r * f64::sin(dir)];
+            assert!(b.ground_contains([edge[0] - 1e-9 * dir.cos(), edge[1] - 1e-9 * dir.sin()]));
+            assert!(!b.ground_contains([edge[0] + 1e-6 * dir.cos(), edge[1] + 1e-6 * dir.sin()]));
+            assert!(b.ground_distance_m(edge) < 1e-9);
+        }
+        // from a point off the centre, along the length
+        assert!((b.ground_exit_m(b_point(&b, 0.5, 0.0), 30f64.to_radians()) - 0.5).abs() < 1e-12);
+    }
+
+    /// The ground point `along` m along the box's length and `across` m
+    /// across it from its centre.
+    fn b_point(b: &OrientedBox, along: f64, across: f64) -> [f64; 2] {
+        let (c, s) = (b.yaw_rad.cos(), b.yaw_rad.sin());
+        [
+            b.center_m[0] + along * c - across * s,
+            b.center_m[1] + along * s + across * c,
+        ]
+    }
+
+    #[test]
+    fn an_upright_box_measures_the_gap_to_its_sides() {
+        let b = OrientedBox {
+            center_m: [1.0, 2.0, 0.5],
+            size_m: [2.0, 1.0, 1.0],
+            yaw_rad: 0.0,
+        };
+        // beside a side, beyond a corner, inside
+        assert_eq!(b.ground_distance_m([3.0, 2.2]), 1.0);
+        assert!((b.ground_distance_m([3.0, 3.5]) - 2f64.sqrt()).abs() < 1e-12);
+        assert_eq!(b.ground_distance_m([1.5, 2.1]), 0.0);
     }
 }
