@@ -121,6 +121,43 @@ fn the_command_prints_a_line_per_scene_and_a_summary_whatever_the_job_count() {
     for k in ["path_ratio_median", "path_ratio_median_reached_band"] {
         assert!(summary.get(k).is_some(), "no {k} in the summary: {summary}");
     }
+    // how the failed trips ended, by their lines' outcomes
+    for reachable in [true, false] {
+        let by = &summary["failed_by_outcome"][if reachable {
+            "reachable"
+        } else {
+            "unreachable"
+        }];
+        let by = by.as_object().expect("failed_by_outcome");
+        let failed: Vec<&serde_json::Value> = one[..3]
+            .iter()
+            .filter(|l| l["reachable"] == reachable && l["success"] == false)
+            .collect();
+        assert_eq!(
+            by.values().filter_map(|n| n.as_u64()).sum::<u64>(),
+            failed.len() as u64,
+            "{summary}"
+        );
+        for l in failed {
+            let name = l["outcome"]
+                .as_str()
+                .map(str::to_string)
+                .or_else(|| {
+                    l["outcome"]
+                        .as_object()
+                        .and_then(|o| o.keys().next().cloned())
+                })
+                .expect("an outcome");
+            assert!(by[&name].as_u64() >= Some(1), "{name}: {summary}");
+        }
+    }
+    // a detector that sees nothing: the trip ends not found, and the
+    // summary counts it so
+    let blind = sim_lines(&["--scene", "1", "--seed", "5", "--misses", "1", "--json"]);
+    assert_eq!(blind[0]["outcome"], "not_found", "{}", blind[0]);
+    let by = &blind[1]["summary"]["failed_by_outcome"];
+    assert_eq!(by["reachable"], serde_json::json!({"not_found": 1}), "{by}");
+    assert_eq!(by["unreachable"], serde_json::json!({}), "{by}");
     // a scene re-runs alone
     let alone = sim_lines(&["--scene", "2", "--seed", "5", "--json"]);
     assert_eq!(alone[0], one[2]);

@@ -207,6 +207,15 @@ fn trips(config: Option<&std::path::Path>, args: &SimArgs) -> Result<(), Failure
             .filter_map(|t| yardstick(t).filter(|s| *s > 0.1).map(|s| t.path_m / s))
             .collect()
     };
+    // how the trips that failed ended, reachable or not: where to look
+    // first after a change
+    let failed_by_outcome = |reachable: bool| {
+        let mut counts = std::collections::BTreeMap::<String, usize>::new();
+        for t in ok.iter().filter(|t| t.reachable == reachable && !t.success) {
+            *counts.entry(outcome_name(&t.outcome)).or_default() += 1;
+        }
+        counts
+    };
     let summary = serde_json::json!({"summary": {
         "scenes": ok.len(),
         "reached": ok.iter().filter(|t| t.reached).count(),
@@ -220,10 +229,27 @@ fn trips(config: Option<&std::path::Path>, args: &SimArgs) -> Result<(), Failure
         "path_ratio_median": median(ratios(|t| t.shortest_path_to_standoff_m)),
         "path_ratio_median_reached_band": median(ratios(|t| t.shortest_path_m)),
         "time_s_median": median(ok.iter().map(|t| t.time_s).collect()),
+        "failed_by_outcome": {
+            "reachable": failed_by_outcome(true),
+            "unreachable": failed_by_outcome(false),
+        },
         "wall_s": t0.elapsed().as_secs_f64(),
     }});
     println!("{summary}");
     Ok(())
+}
+
+/// An outcome's name as each scene's line has it ("not_found",
+/// "gave_up", …; a fault, whatever its task, "fault").
+fn outcome_name(outcome: &opennav::daemon::control::Outcome) -> String {
+    match serde_json::to_value(outcome) {
+        Ok(serde_json::Value::String(name)) => name,
+        Ok(serde_json::Value::Object(o)) if o.len() == 1 => {
+            o.keys().next().cloned().unwrap_or_else(|| format!("{o:?}"))
+        }
+        Ok(other) => other.to_string(),
+        Err(e) => format!("{outcome:?} (not written as JSON: {e})"),
+    }
 }
 
 /// A progress bar on stderr: done of all, elapsed and the time left.
