@@ -371,14 +371,13 @@ pub fn approach_pose(
 ) -> Option<ApproachPose> {
     let (cx, cy) = (track.center_m[0], track.center_m[1]);
     let base = (from[1] - cy).atan2(from[0] - cx);
-    let reach = |a: f64| {
-        // distance from the centre to the box edge along direction a
-        let (hx, hy) = (track.size_m[0] / 2.0, track.size_m[1] / 2.0);
-        let (c, s) = (a.cos().abs(), a.sin().abs());
-        let tx = if c > 1e-9 { hx / c } else { f64::INFINITY };
-        let ty = if s > 1e-9 { hy / s } else { f64::INFINITY };
-        tx.min(ty)
+    // from the centre to the upright box's edge along direction a
+    let upright = OrientedBox {
+        center_m: track.center_m,
+        size_m: track.size_m,
+        yaw_rad: 0.0,
     };
+    let reach = |a: f64| upright.ground_exit_m([cx, cy], a);
     // the outline: the footprint where it holds the centre, else the
     // upright box
     let outline = track.outline();
