@@ -138,6 +138,7 @@ fn through_a_doorway_it_turns_only_once_past_it() {
                     theta_rad: heading_rad,
                 };
             }
+            Move::Arc { .. } => panic!("a bend where turns and straight moves do: {moves:?}"),
         }
     }
     let poses = drive(moves, start);
@@ -315,4 +316,238 @@ fn through_a_doorway_turned_off_its_axis_the_turns_end_on_it() {
             );
         }
     }
+}
+
+/// Whether the footprint with `margin_m` all round at `pose` holds any of
+/// `points`.
+fn within(pose: &Pose2, points: &[[f64; 2]], margin_m: f64) -> bool {
+    let (s, c) = pose.theta_rad.sin_cos();
+    points.iter().any(|q| {
+        let (dx, dy) = (q[0] - pose.x_m, q[1] - pose.y_m);
+        let (x, y) = (c * dx + s * dy, -s * dx + c * dy);
+        (-SHAPE.rear_m - margin_m..=SHAPE.front_m + margin_m).contains(&x)
+            && y.abs() <= SHAPE.half_width_m + margin_m
+    })
+}
+
+/// A wall 0.5 m to the chair's right all along its way: no circle for a
+/// turn on the spot (0.68 m) is clear anywhere on its line, so turns and
+/// straight crawls cannot shift it 0.45 m to the left; bends can, and the
+/// footprint never touches the wall on them (driven by the follower).
+#[test]
+fn where_no_turn_fits_it_works_sideways_on_bends() {
+    let points = wall([-3.0, -0.5], [4.0, -0.5]);
+    let map = map_of(&points);
+    let start = Pose2::default();
+    let goal = [1.6, 0.45];
+    let plan_at = |bends: bool| {
+        let f = if bends { plan_with_bends } else { plan };
+        f(&map, &[], &[], start, goal, 0.0, 0.08, 0.2, &SHAPE)
+    };
+    assert_eq!(plan_at(false), None, "no turn fits beside the wall");
+    let moves = plan_at(true).expect("a way on bends");
+    assert!(
+        moves.iter().any(|m| matches!(m, Move::Arc { .. })),
+        "{moves:?}"
+    );
+    assert!(
+        !moves.iter().any(|m| matches!(m, Move::Turn { .. })),
+        "no turn on the spot fits: {moves:?}"
+    );
+    let poses = drive(moves.clone(), start);
+    assert!(
+        poses.iter().all(|p| !touches(p, &points)),
+        "touched the wall: {moves:?}"
+    );
+    let end = *poses.last().expect("poses");
+    assert!(
+        (end.x_m - goal[0]).hypot(end.y_m - goal[1]) <= 0.12 && end.theta_rad.abs() <= 0.25,
+        "ended at {end:?}: {moves:?}"
+    );
+}
+
+/// The search keeps a bend's footprint clear with the crawl's margin all
+/// round, as the supervisor's arc check does: every pose along each bend
+/// found, and on along it over the stop distance, is clear of the wall
+/// by the margin (2 mm of rounding spared).
+#[test]
+fn a_bend_keeps_the_margin_the_supervisor_keeps() {
+    let points = wall([-3.0, -0.5], [4.0, -0.5]);
+    let map = map_of(&points);
+    let start = Pose2::default();
+    let moves = plan_with_bends(&map, &[], &[], start, [1.6, 0.45], 0.0, 0.08, 0.2, &SHAPE)
+        .expect("a way on bends");
+    let mut from = start;
+    for m in &moves {
+        match *m {
+            Move::Arc {
+                to,
+                to_rad,
+                forward,
+                turn_rad_per_m,
+            } => {
+                let dir = if forward { 1.0 } else { -1.0 };
+                let turn = wrap_angle(to_rad - from.theta_rad);
+                let len_m = (turn / turn_rad_per_m).abs();
+                let n = ((len_m + SHAPE.ahead_m) / 0.01).ceil() as usize;
+                for i in 0..=n {
+                    let s_m = (len_m + SHAPE.ahead_m) * i as f64 / n as f64;
+                    let q = from.advanced(dir * s_m, turn_rad_per_m * s_m);
+                    assert!(
+                        !within(&q, &points, SHAPE.side_margin_m - 0.002),
+                        "{q:?} on {m:?}"
+                    );
+                }
+                from = Pose2 {
+                    x_m: to[0],
+                    y_m: to[1],
+                    theta_rad: to_rad,
+                };
+            }
+            Move::Straight {
+                to, heading_rad, ..
+            } => {
+                from = Pose2 {
+                    x_m: to[0],
+                    y_m: to[1],
+                    theta_rad: heading_rad,
+                }
+            }
+            Move::Turn { to_rad } => from.theta_rad = to_rad,
+        }
+    }
+}
+
+/// The follower keeps to a bend, forward and back: a quarter circle of
+/// 0.69 m driven from its start ends within 2 cm of its end, turned
+/// within a degree, and every pose on the way lies within 2 cm of the
+/// circle; backing up on a right bend turns the heading left.
+#[test]
+fn the_follower_keeps_to_a_bend_forward_and_back() {
+    let per_m = 1.0 / 0.69;
+    let quarter = std::f64::consts::FRAC_PI_2;
+    for (forward, turn_rad_per_m) in [(true, per_m), (true, -per_m), (false, -per_m)] {
+        let dir = if forward { 1.0 } else { -1.0 };
+        let start = Pose2::default();
+        let len_m = quarter / per_m;
+        let end = start.advanced(dir * len_m, turn_rad_per_m * dir * len_m);
+        let m = Move::Arc {
+            to: [end.x_m, end.y_m],
+            to_rad: end.theta_rad,
+            forward,
+            turn_rad_per_m,
+        };
+        let poses = drive(vec![m], start);
+        let last = *poses.last().expect("poses");
+        assert!(
+            (last.x_m - end.x_m).hypot(last.y_m - end.y_m) <= 0.02,
+            "{last:?} against {end:?}"
+        );
+        assert!(
+            wrap_angle(last.theta_rad - end.theta_rad).abs() <= 0.02,
+            "{last:?} against {end:?}"
+        );
+        let centre = [0.0, 1.0 / turn_rad_per_m];
+        for p in &poses {
+            let off = (p.x_m - centre[0]).hypot(p.y_m - centre[1]) - centre[1].abs();
+            assert!(off.abs() <= 0.02, "{p:?} off the circle by {off}");
+        }
+        if !forward {
+            assert!(last.theta_rad > 1.5, "{last:?}");
+        }
+    }
+}
+
+/// The bends the search finds are driven under the supervisor itself: the
+/// wall 0.5, 0.49 and 0.48 m to the right given to it as the lasers' points each 50 ms
+/// step, the follower's command through it (its outputs, ramped, drive
+/// the chair), the chair never held on the way and at the goal in the
+/// end — the search keeps a bend clear as the supervisor checks it.
+#[test]
+fn the_supervisor_lets_the_bends_found_be_driven() {
+    for wall_y in [-0.5, -0.49, -0.48] {
+        bends_driven_under_the_supervisor(wall_y);
+    }
+}
+
+fn bends_driven_under_the_supervisor(wall_y: f64) {
+    use crate::msg::{Obstacles, Odometry, Stamp, Stamped, SupervisorState};
+    use crate::safety::{rear::RearView, Supervisor, SupervisorInputs};
+    let mut supervisor = Supervisor::new(crate::config::Settings::defaults().safety_limits());
+    let shape = ManoeuvreShape::at_a_crawl(&supervisor);
+    let points = wall([-3.0, wall_y], [4.0, wall_y]);
+    let map = map_of(&points);
+    let start = Pose2::default();
+    let goal = [1.6, 0.45];
+    // the wall seen now as well, as the control step gives the search
+    // what the supervisor holds the chair for
+    let moves = plan_with_bends(&map, &points, &[], start, goal, 0.0, 0.08, 0.2, &shape)
+        .unwrap_or_else(|| panic!("a way on bends, the wall at {wall_y}"));
+    supervisor.goal_active();
+    let mut follower = Follower::new(moves.clone());
+    let mut pose = start;
+    let mut out = crate::msg::VelocityCmd::default();
+    let rear = RearView {
+        seen: true,
+        reverse_seen: true,
+        around_vouched: false,
+        points_base: Vec::new(),
+    };
+    let turn_radps = supervisor.crawl_turn_radps();
+    let mut done = false;
+    for k in 0..4000u64 {
+        let now = Stamp(std::time::Duration::from_millis(50 * k));
+        let Some(cmd) = follower.command(pose, 0.08, turn_radps) else {
+            done = true;
+            break;
+        };
+        let points_base: Vec<[f32; 2]> = points
+            .iter()
+            .map(|q| {
+                let b = pose.base_from_odom(*q);
+                [b[0] as f32, b[1] as f32]
+            })
+            .collect();
+        let lasers = Stamped::new(
+            now,
+            Obstacles {
+                points_base,
+                ..Default::default()
+            },
+        );
+        let camera = Stamped::new(now, Obstacles::default());
+        let odometry = Stamped::new(
+            now,
+            Odometry {
+                pose,
+                v_mps: out.v_mps,
+                omega_radps: out.omega_radps,
+                ..Default::default()
+            },
+        );
+        let command = Stamped::new(now, cmd);
+        let safe = supervisor.step(
+            now,
+            &SupervisorInputs {
+                obstacles: Some(&lasers),
+                odometry: Some(&odometry),
+                command: Some(&command),
+                camera: Some(&camera),
+                rear: Some(&rear),
+            },
+        );
+        assert_eq!(
+            safe.state,
+            SupervisorState::Navigating,
+            "the wall at {wall_y}: held at {pose:?} asked {cmd:?}: {moves:?}"
+        );
+        out = safe.cmd;
+        pose = pose.advanced(out.v_mps * 0.05, out.omega_radps * 0.05);
+        assert!(!touches(&pose, &points), "{pose:?}");
+    }
+    assert!(done, "the manoeuvre never ended: at {pose:?}");
+    assert!(
+        (pose.x_m - goal[0]).hypot(pose.y_m - goal[1]) <= 0.12,
+        "ended at {pose:?}: {moves:?}"
+    );
 }
