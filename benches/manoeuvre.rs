@@ -3,14 +3,13 @@
 //! doorway to a goal past it (found), and past a 0.72 m gap the guide's
 //! disc passes and the chair's footprint does not, to a goal 2.2 m and 4 m
 //! off (the whole window searched, or the search's bound on poses
-//! reached; none found), and the same with bends tried after (the
-//! longest a search takes).
+//! reached; none found: the longest a search takes).
 //! Run: `cargo bench --bench manoeuvre`.
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use opennav::config::Settings;
 use opennav::msg::Pose2;
-use opennav::navigation::manoeuvre::{plan, plan_with_bends, ManoeuvreShape};
+use opennav::navigation::manoeuvre::{plan, ManoeuvreShape};
 use opennav::navigation::map::{GridMap, MapSettings};
 use opennav::safety::Supervisor;
 
@@ -48,14 +47,6 @@ fn bench(c: &mut Criterion) {
         assert_eq!(search().is_some(), found, "{name}");
         c.bench_function(name, |b| b.iter(search));
     }
-    // none found by turns and straight crawls, so bends tried as well:
-    // the longest a search takes
-    let map = wall_with_gap(0.72);
-    let search = || plan_with_bends(&map, &[], &[], start, [2.2, 0.0], 0.0, 0.25, 0.6, &shape);
-    assert!(search().is_none());
-    c.bench_function("manoeuvre_none_on_bends_past_a_0_72_m_gap", |b| {
-        b.iter(search)
-    });
 }
 
 criterion_group!(benches, bench);

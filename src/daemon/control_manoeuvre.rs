@@ -1,8 +1,7 @@
 //! What the control step does when the way stays held with no detour: a
 //! manoeuvre on the chair's map (`navigation::manoeuvre`: turns on the
 //! spot where the corners' circle is clear, straight crawls forward or
-//! back, and where those find none, bends forward and back as well),
-//! followed move by move under the supervisor like any command. It
+//! back), followed move by move under the supervisor like any command. It
 //! goes to the place beside the object, or, where that is further and out
 //! of reach, to the map's way a little on (past a doorway, round the
 //! furniture). Held for a while on it, or out of time, it is over, said,
@@ -48,14 +47,6 @@ pub(super) const DOORWAY_MANOEUVRE_AT_MOST: std::time::Duration =
 const THROUGH_PAST_M: f64 = 0.8;
 const THROUGH_WITHIN_M: f64 = 0.15;
 const THROUGH_TURNED_WITHIN_RAD: f64 = 0.3;
-
-/// Whether a manoeuvre drives on bends (said so: not only turns on the
-/// spot and straight crawls).
-fn has_bends(moves: &[manoeuvre::Move]) -> bool {
-    moves
-        .iter()
-        .any(|m| matches!(m, manoeuvre::Move::Arc { .. }))
-}
 
 /// A manoeuvre under way.
 #[derive(Debug, Clone)]
@@ -131,7 +122,7 @@ impl Control {
             .into_iter()
             .flatten()
             .find_map(|(to, yaw, tol)| {
-                manoeuvre::plan_with_bends(
+                manoeuvre::plan(
                     map,
                     &seen_now,
                     &no_turns,
@@ -154,14 +145,13 @@ impl Control {
             return false;
         };
         tracing::info!(?pose, ?place, ?to, ?moves, "manoeuvre: begun");
-        let said = if has_bends(&moves) {
-            "Something is in my way. I will work my way round it, forward and back on bends; \
-             say stop to stay here."
-        } else {
+        self.start_manoeuvre(
+            now,
+            moves,
+            false,
             "Something is in my way. I will work my way round it, turning on the spot and \
-             driving straight; say stop to stay here."
-        };
-        self.start_manoeuvre(now, moves, false, said);
+             driving straight; say stop to stay here.",
+        );
         true
     }
 
@@ -225,7 +215,7 @@ impl Control {
             .map(|q| pose.odom_from_base([q[0] as f64, q[1] as f64]))
             .collect::<Vec<_>>();
         let to = door.on_axis(THROUGH_PAST_M);
-        let Some(moves) = manoeuvre::plan_with_bends(
+        let Some(moves) = manoeuvre::plan(
             map,
             &seen_now,
             &no_turns,
@@ -240,14 +230,13 @@ impl Control {
             return false;
         };
         tracing::info!(?pose, center = ?door.center, width_m = door.width_m, ?to, ?moves, "manoeuvre: through the doorway, begun");
-        let said = if has_bends(&moves) {
-            "The doorway is tight. I will work my way through it, forward and back on bends; \
-             say stop to stay here."
-        } else {
+        self.start_manoeuvre(
+            now,
+            moves,
+            true,
             "The doorway is tight. I will work my way through it, turning on the spot and \
-             driving straight; say stop to stay here."
-        };
-        self.start_manoeuvre(now, moves, true, said);
+             driving straight; say stop to stay here.",
+        );
         true
     }
 

@@ -182,8 +182,7 @@ fn a_doorway_given_up_is_worked_through_on_the_map() {
         crate::navigation::manoeuvre::Move::Straight {
             to, heading_rad, ..
         } => Some((to, heading_rad)),
-        crate::navigation::manoeuvre::Move::Turn { .. }
-        | crate::navigation::manoeuvre::Move::Arc { .. } => None,
+        crate::navigation::manoeuvre::Move::Turn { .. } => None,
     });
     let (to, heading_rad) = last.unwrap_or_else(|| panic!("no straight move: {moves:?}"));
     assert!(

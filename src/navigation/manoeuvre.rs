@@ -64,16 +64,6 @@ pub enum Move {
         heading_rad: f64,
         forward: bool,
     },
-    /// Drive on a bend (forward or back) to `to` (odom), turned there to
-    /// `to_rad`: `turn_rad_per_m` is the heading's change per metre
-    /// driven forward (its sign: to the left; backing up on it turns the
-    /// other way), at most a quarter turn in all.
-    Arc {
-        to: [f64; 2],
-        to_rad: f64,
-        forward: bool,
-        turn_rad_per_m: f64,
-    },
 }
 
 const CELL_M: f64 = 0.04;
@@ -100,28 +90,7 @@ enum Kind {
     Turn,
     Forward,
     Back,
-    /// On a bend, forward or back, its heading stepping left (+1) or
-    /// right (-1).
-    ArcForward(i8),
-    ArcBack(i8),
 }
-
-impl Kind {
-    /// The direction of travel: +1 forward, -1 back (None: not driving).
-    fn travel(self) -> Option<f64> {
-        match self {
-            Kind::Forward | Kind::ArcForward(_) => Some(1.0),
-            Kind::Back | Kind::ArcBack(_) => Some(-1.0),
-            Kind::Start | Kind::Turn => None,
-        }
-    }
-}
-
-/// A bend's poses are checked this far apart along it, m.
-const ARC_CHECK_M: f64 = 0.03;
-/// A bend's merged steps make at most this many lattice turns (a quarter
-/// turn: its end is told by the heading alone).
-const ARC_MOVE_STEPS: usize = HEADINGS / 4;
 
 #[derive(Clone, Copy)]
 struct Node {
@@ -244,70 +213,6 @@ pub fn plan(
     yaw_tol_rad: f64,
     shape: &ManoeuvreShape,
 ) -> Option<Vec<Move>> {
-    let to = Goal {
-        at: goal,
-        yaw_rad: goal_yaw_rad,
-        within_m,
-        yaw_tol_rad,
-    };
-    search(map, seen_now, no_turns, start, to, shape, false)
-}
-
-/// As [`plan`], and where it finds none, the same search with bends as
-/// well (forward and back, a lattice turn each [`STEP_M`]: a three-point
-/// turn where no circle for a turn on the spot is clear). A bend's poses
-/// keep clear as the supervisor keeps an arc's (the footprint with the
-/// crawl's margin all round, on along the bend over the stop distance,
-/// and the straight corridor before it); a bend over floor the camera
-/// never saw may still be held, and then the manoeuvre is over as any
-/// held one. Manoeuvres found without bends stay as they are.
-#[allow(clippy::too_many_arguments)]
-pub fn plan_with_bends(
-    map: &GridMap,
-    seen_now: &[[f64; 2]],
-    no_turns: &[([f64; 2], f64)],
-    start: Pose2,
-    goal: [f64; 2],
-    goal_yaw_rad: f64,
-    within_m: f64,
-    yaw_tol_rad: f64,
-    shape: &ManoeuvreShape,
-) -> Option<Vec<Move>> {
-    let to = Goal {
-        at: goal,
-        yaw_rad: goal_yaw_rad,
-        within_m,
-        yaw_tol_rad,
-    };
-    search(map, seen_now, no_turns, start, to, shape, false)
-        .or_else(|| search(map, seen_now, no_turns, start, to, shape, true))
-}
-
-/// Where a manoeuvre ends: base_link within `within_m` of `at`, heading
-/// within `yaw_tol_rad` of `yaw_rad` (odom).
-#[derive(Clone, Copy)]
-struct Goal {
-    at: [f64; 2],
-    yaw_rad: f64,
-    within_m: f64,
-    yaw_tol_rad: f64,
-}
-
-fn search(
-    map: &GridMap,
-    seen_now: &[[f64; 2]],
-    no_turns: &[([f64; 2], f64)],
-    start: Pose2,
-    to: Goal,
-    shape: &ManoeuvreShape,
-    bends: bool,
-) -> Option<Vec<Move>> {
-    let Goal {
-        at: goal,
-        yaw_rad: goal_yaw_rad,
-        within_m,
-        yaw_tol_rad,
-    } = to;
     let lo = [
         start.x_m.min(goal[0]) - WINDOW_M,
         start.y_m.min(goal[1]) - WINDOW_M,
@@ -375,12 +280,15 @@ fn search(
         let t = (theta - offset).rem_euclid(std::f64::consts::TAU);
         ((t / turn_step).round() as usize) % HEADINGS
     };
+    let reach_m = (shape.front_m.max(shape.rear_m) + shape.ahead_m)
+        .hypot(shape.half_width_m + shape.side_margin_m);
+    // the footprint at `p`, heading k, moving `dir` (+1 forward, -1 back)
     let seen_now = Buckets::new(seen_now, window);
-    // the box `x_lo`..`x_hi` along heading `theta`, `half` either side,
-    // about `p`: clear of the map's blocked cells and of the points seen
-    let box_clear = |p: [f64; 2], theta: f64, x_lo: f64, x_hi: f64, half: f64| -> bool {
+    let straight_clear = |p: [f64; 2], theta: f64, dir: f64| -> bool {
         let (s, c) = theta.sin_cos();
-        let reach_m = x_lo.abs().max(x_hi.abs()).hypot(half);
+        let x_lo = -shape.rear_m - if dir < 0.0 { shape.ahead_m } else { 0.0 };
+        let x_hi = shape.front_m + if dir > 0.0 { shape.ahead_m } else { 0.0 };
+        let half = shape.half_width_m + shape.side_margin_m;
         let box_lo = [p[0] - reach_m, p[1] - reach_m];
         let box_hi = [p[0] + reach_m, p[1] + reach_m];
         let inside = |q: [f64; 2]| {
@@ -391,37 +299,6 @@ fn search(
         let map_clear = map.clearance_at_m(p).is_some_and(|d| d - r >= reach_m)
             || !map.any_blocked_in(box_lo, box_hi, inside);
         map_clear && !seen_now.any_in(box_lo, box_hi, inside)
-    };
-    let straight_clear = |p: [f64; 2], theta: f64, dir: f64| -> bool {
-        let x_lo = -shape.rear_m - if dir < 0.0 { shape.ahead_m } else { 0.0 };
-        let x_hi = shape.front_m + if dir > 0.0 { shape.ahead_m } else { 0.0 };
-        box_clear(
-            p,
-            theta,
-            x_lo,
-            x_hi,
-            shape.half_width_m + shape.side_margin_m,
-        )
-    };
-    // a bend from `from` driven `dir` (+1 forward, -1 back), its heading
-    // changing by `dtheta` over the step: the footprint with the margin
-    // all round at poses along it and on over the stop distance (as the
-    // supervisor checks an arc), the straight corridor at its end
-    let bend_clear = |from: Pose2, dir: f64, dtheta: f64| -> bool {
-        let m = shape.side_margin_m;
-        let (x_lo, x_hi, half) = (-shape.rear_m - m, shape.front_m + m, shape.half_width_m + m);
-        let along_m = STEP_M + shape.ahead_m;
-        let n = (along_m / ARC_CHECK_M).ceil().max(1.0) as usize;
-        let per_m = dtheta / STEP_M;
-        let along_clear = (1..=n).all(|i| {
-            let s_m = along_m * i as f64 / n as f64;
-            let q = from.advanced(dir * s_m, per_m * s_m);
-            box_clear([q.x_m, q.y_m], q.theta_rad, x_lo, x_hi, half)
-        });
-        along_clear && {
-            let end = from.advanced(dir * STEP_M, dtheta);
-            straight_clear([end.x_m, end.y_m], end.theta_rad, dir)
-        }
     };
     let turn_clear = |p: [f64; 2]| -> bool {
         if no_turns
@@ -494,32 +371,6 @@ fn search(
             let k = (node.k + dk) % HEADINGS;
             next.push((Kind::Turn, node.p, k, heading(k), S_PER_TURN_STEP));
         }
-        // a bend's step: as long as the straight step and the turn's
-        if bends {
-            for (dir, factor) in [(1.0, 1.0), (-1.0, REVERSE_FACTOR)] {
-                for (side, dk) in [(1i8, 1), (-1i8, HEADINGS - 1)] {
-                    let kind = if dir > 0.0 {
-                        Kind::ArcForward(side)
-                    } else {
-                        Kind::ArcBack(side)
-                    };
-                    let dtheta = f64::from(side) * turn_step;
-                    let from = Pose2 {
-                        x_m: node.p[0],
-                        y_m: node.p[1],
-                        theta_rad: node.theta,
-                    };
-                    let end = from.advanced(dir * STEP_M, dtheta);
-                    next.push((
-                        kind,
-                        [end.x_m, end.y_m],
-                        (node.k + dk) % HEADINGS,
-                        node.theta + dtheta,
-                        STEP_M * S_PER_M * factor + S_PER_TURN_STEP,
-                    ));
-                }
-            }
-        }
         for (kind, p, k, theta, cost) in next {
             let Some(c2) = cell(p) else { continue };
             if !to_goal[c2].is_finite() {
@@ -539,18 +390,6 @@ fn search(
                 Kind::Turn => *turn_ok[c2].get_or_insert_with(|| turn_clear(p)),
                 Kind::Forward => straight_clear(p, theta, 1.0),
                 Kind::Back => straight_clear(p, theta, -1.0),
-                Kind::ArcForward(side) | Kind::ArcBack(side) => {
-                    let dir = kind.travel().unwrap_or(1.0);
-                    let from = Pose2 {
-                        x_m: node.p[0],
-                        y_m: node.p[1],
-                        theta_rad: node.theta,
-                    };
-                    // the corridor where it sets off, unless the move
-                    // before drove the same way (checked at its end)
-                    (node.kind.travel() == Some(dir) || straight_clear(node.p, node.theta, dir))
-                        && bend_clear(from, dir, f64::from(side) * turn_step)
-                }
                 Kind::Start => false,
             };
             if !clear {
@@ -593,9 +432,6 @@ fn moves(nodes: &[Node], end: usize) -> Vec<Move> {
     chain.reverse();
     let mut out: Vec<Move> = Vec::new();
     let mut last = Kind::Start;
-    // the steps merged into the last bend
-    let mut bend_steps = 0usize;
-    let turn_step = std::f64::consts::TAU / HEADINGS as f64;
     for &i in &chain[1..] {
         let n = nodes[i];
         let m = match n.kind {
@@ -607,39 +443,22 @@ fn moves(nodes: &[Node], end: usize) -> Vec<Move> {
                 heading_rad: wrap_angle(n.theta),
                 forward: n.kind == Kind::Forward,
             },
-            Kind::ArcForward(side) | Kind::ArcBack(side) => {
-                let forward = matches!(n.kind, Kind::ArcForward(_));
-                // the heading's change per metre forward (backing up on
-                // a left bend's step turns the heading left: a right one)
-                let per_m = f64::from(side) * turn_step / STEP_M;
-                Move::Arc {
-                    to: n.p,
-                    to_rad: wrap_angle(n.theta),
-                    forward,
-                    turn_rad_per_m: if forward { per_m } else { -per_m },
-                }
-            }
             Kind::Start => continue,
         };
-        let bend = matches!(n.kind, Kind::ArcForward(_) | Kind::ArcBack(_));
-        if n.kind == last && (!bend || bend_steps < ARC_MOVE_STEPS) {
+        if n.kind == last {
             if let Some(l) = out.last_mut() {
                 *l = m;
-                bend_steps += 1;
                 continue;
             }
         }
         out.push(m);
         last = n.kind;
-        bend_steps = 1;
     }
     out
 }
 
 /// Within this of a turn's heading, the turn is done, rad.
 const TURN_DONE_RAD: f64 = 0.03;
-/// Within this of a bend's end heading, it is done, rad.
-const ARC_DONE_RAD: f64 = 0.01;
 /// Within this of a straight move's end, it is done, m.
 const STRAIGHT_DONE_M: f64 = 0.015;
 /// Steering while driving straight: per metre off the line and per radian
@@ -710,41 +529,6 @@ impl Follower {
                     return Some(VelocityCmd {
                         v_mps: dir * v,
                         omega_radps: omega,
-                    });
-                }
-                Move::Arc {
-                    to,
-                    to_rad,
-                    forward,
-                    turn_rad_per_m,
-                } => {
-                    let dir = if forward { 1.0 } else { -1.0 };
-                    // the heading turns one way over the whole bend (a
-                    // quarter turn at most): done once it is there
-                    let turning = (dir * turn_rad_per_m).signum();
-                    if turn_rad_per_m.abs() < 1e-9
-                        || wrap_angle(to_rad - pose.theta_rad) * turning <= ARC_DONE_RAD
-                    {
-                        self.next += 1;
-                        continue;
-                    }
-                    // the bend's circle (its centre to the left of every
-                    // pose on it by 1/turn_rad_per_m): the chair's offset
-                    // to the left of it and its heading off its tangent,
-                    // steered back as on a straight move
-                    let radius_m = 1.0 / turn_rad_per_m;
-                    let (s, c) = to_rad.sin_cos();
-                    let centre = [to[0] - radius_m * s, to[1] + radius_m * c];
-                    let (dx, dy) = (pose.x_m - centre[0], pose.y_m - centre[1]);
-                    let off_m = -(dx.hypot(dy) - radius_m.abs()) * radius_m.signum();
-                    let tangent = dy.atan2(dx) + std::f64::consts::FRAC_PI_2 * radius_m.signum();
-                    let yaw_err = wrap_angle(pose.theta_rad - tangent);
-                    let steer = (-K_LATERAL * off_m * dir - K_HEADING * yaw_err)
-                        .clamp(-STEER_MAX_RADPS, STEER_MAX_RADPS);
-                    let v = dir * v_mps;
-                    return Some(VelocityCmd {
-                        v_mps: v,
-                        omega_radps: v * turn_rad_per_m + steer,
                     });
                 }
             }
