@@ -161,6 +161,20 @@ fn the_command_prints_a_line_per_scene_and_a_summary_whatever_the_job_count() {
     // a scene re-runs alone
     let alone = sim_lines(&["--scene", "2", "--seed", "5", "--json"]);
     assert_eq!(alone[0], one[2]);
+    // and is described without a trip: the same scene, seed and word
+    let described = sim_lines(&["--scenes", "3", "--seed", "5", "--describe"]);
+    assert_eq!(described.len(), 3, "{described:?}");
+    for (d, trip) in described.iter().zip(&one) {
+        for key in ["scene", "seed", "prompt"] {
+            assert_eq!(d[key], trip[key], "{key}: {d} against {trip}");
+        }
+        assert!(
+            d["objects"]
+                .as_array()
+                .is_some_and(|o| o.iter().any(|o| o["label"] == trip["prompt"])),
+            "{d}"
+        );
+    }
     // no scene count: a clear error
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_opennav"))
         .arg("sim")

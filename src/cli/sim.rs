@@ -49,6 +49,11 @@ pub struct SimArgs {
     /// the failed ones'.
     #[arg(long, requires = "record")]
     pub record_all: bool,
+    /// Drive nothing: print each scene as generated (its word, the
+    /// chair's start, every box, doorway, step down and walking person,
+    /// in the scene's frame), one JSON line a scene.
+    #[arg(long, conflicts_with_all = ["record", "jobs"])]
+    pub describe: bool,
 }
 
 #[derive(Subcommand, Debug)]
@@ -116,6 +121,16 @@ fn trips(config: Option<&std::path::Path>, args: &SimArgs) -> Result<(), Failure
             )))
         }
     };
+    if args.describe {
+        for &k in &indices {
+            let scene = generate(scene_seed(args.seed, k));
+            println!(
+                "{}",
+                serde_json::to_string(&scene.describe(k)).map_err(failed)?
+            );
+        }
+        return Ok(());
+    }
     let jobs = args
         .jobs
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))

@@ -182,6 +182,69 @@ pub struct Scene {
     pub sunken_room: bool,
 }
 
+impl Scene {
+    /// What the scene is, for an engineer reading a failed trip against
+    /// its picture and log (`opennav sim --describe`): scene `index`'s
+    /// seed and word, the chair's start and every box, step down,
+    /// doorway and walking person in the scene's frame (the apartment's
+    /// corner at the origin, x along its rooms; metres, radians). The
+    /// trip's odom frame is the start pose: a pose `p` logged in odom
+    /// lies at `start_world ∘ p` here.
+    pub fn describe(&self, index: u64) -> serde_json::Value {
+        let boxes = |objects: &mut dyn Iterator<Item = &SimObject>| -> Vec<serde_json::Value> {
+            objects
+                .map(|o| {
+                    serde_json::json!({
+                        "label": o.label,
+                        "min_m": o.min_m,
+                        "max_m": o.max_m,
+                    })
+                })
+                .collect()
+        };
+        let walking: Vec<usize> = self.walkers.iter().map(|w| w.object).collect();
+        let objects = boxes(
+            &mut self
+                .room
+                .objects
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| !walking.contains(i))
+                .map(|(_, o)| o),
+        );
+        serde_json::json!({
+            "scene": index,
+            "seed": self.seed,
+            "prompt": self.prompt,
+            "size_m": self.room.size_m,
+            "start_world": {
+                "x_m": self.start.x_m,
+                "y_m": self.start.y_m,
+                "theta_rad": self.start.theta_rad,
+            },
+            "rooms_x_m": self.rooms_x_m,
+            "doorways": self
+                .doorways
+                .iter()
+                .map(|(x, y0, y1)| serde_json::json!({"x_m": x, "y_from_m": y0, "y_to_m": y1}))
+                .collect::<Vec<_>>(),
+            "objects": objects,
+            "steps_down": self
+                .room
+                .pits
+                .iter()
+                .map(|p| serde_json::json!({"min_m": p.min_m, "max_m": p.max_m, "depth_m": p.depth_m}))
+                .collect::<Vec<_>>(),
+            "people_walking": self
+                .walkers
+                .iter()
+                .map(|w| serde_json::json!({"from_m": w.from_m, "to_m": w.to_m, "speed_mps": w.speed_mps, "size_m": w.size_m}))
+                .collect::<Vec<_>>(),
+            "sunken_room": self.sunken_room,
+        })
+    }
+}
+
 fn overlaps(a: &SimObject, b: &SimObject, gap: f64) -> bool {
     a.min_m[0] < b.max_m[0] + gap
         && b.min_m[0] < a.max_m[0] + gap

@@ -139,3 +139,49 @@ fn scenes_are_plausible_apartments() {
     assert!((40..=110).contains(&walkers), "{walkers} people");
     assert!((5..=30).contains(&sunken), "{sunken} sunken rooms");
 }
+
+/// A scene's description holds what the trip is driven in: its word, the
+/// start, every standing box (walls and furniture; the walking people
+/// apart, with their way), the doorways and steps down, the numbers as
+/// generated; the same scene describes the same way.
+#[test]
+fn a_scene_describes_itself_as_generated() {
+    let mut with_walker = false;
+    for k in 0..60 {
+        let s = generate(scene_seed(1, k));
+        let d = s.describe(k);
+        assert_eq!(d, generate(scene_seed(1, k)).describe(k));
+        assert_eq!(d["scene"], k);
+        assert_eq!(d["seed"], s.seed);
+        assert_eq!(d["prompt"], s.prompt.as_str());
+        assert_eq!(d["start_world"]["x_m"], s.start.x_m);
+        assert_eq!(d["start_world"]["theta_rad"], s.start.theta_rad);
+        assert_eq!(d["sunken_room"], s.sunken_room);
+        let objects = d["objects"].as_array().expect("objects");
+        let walking = d["people_walking"].as_array().expect("people");
+        assert_eq!(walking.len(), s.walkers.len());
+        with_walker |= !walking.is_empty();
+        assert_eq!(objects.len() + s.walkers.len(), s.room.objects.len());
+        assert!(
+            objects.iter().all(|o| o["label"] != WALKER_LABEL),
+            "scene {k}: a walking person among the standing boxes"
+        );
+        assert!(
+            objects.iter().any(|o| o["label"] == s.prompt.as_str()),
+            "scene {k}: no {} described",
+            s.prompt
+        );
+        let first = &s.room.objects[0];
+        assert_eq!(objects[0]["min_m"], serde_json::json!(first.min_m));
+        assert_eq!(objects[0]["max_m"], serde_json::json!(first.max_m));
+        assert_eq!(
+            d["doorways"].as_array().map(Vec::len),
+            Some(s.doorways.len())
+        );
+        assert_eq!(
+            d["steps_down"].as_array().map(Vec::len),
+            Some(s.room.pits.len())
+        );
+    }
+    assert!(with_walker, "no scene of 60 had a person walking");
+}
