@@ -191,27 +191,16 @@ impl Scene {
     /// trip's odom frame is the start pose: a pose `p` logged in odom
     /// lies at `start_world ∘ p` here.
     pub fn describe(&self, index: u64) -> serde_json::Value {
-        let boxes = |objects: &mut dyn Iterator<Item = &SimObject>| -> Vec<serde_json::Value> {
-            objects
-                .map(|o| {
-                    serde_json::json!({
-                        "label": o.label,
-                        "min_m": o.min_m,
-                        "max_m": o.max_m,
-                    })
-                })
-                .collect()
-        };
-        let walking: Vec<usize> = self.walkers.iter().map(|w| w.object).collect();
-        let objects = boxes(
-            &mut self
-                .room
-                .objects
-                .iter()
-                .enumerate()
-                .filter(|(i, _)| !walking.contains(i))
-                .map(|(_, o)| o),
-        );
+        // the standing boxes: a walking person's box moves (their way
+        // is given apart)
+        let objects: Vec<serde_json::Value> = self
+            .room
+            .objects
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| !self.walkers.iter().any(|w| w.object == *i))
+            .map(|(_, o)| serde_json::json!({"label": o.label, "min_m": o.min_m, "max_m": o.max_m}))
+            .collect();
         serde_json::json!({
             "scene": index,
             "seed": self.seed,
